@@ -1,0 +1,67 @@
+"""The anafi_ros (olympe_bridge) piloting-command mapping, as the bridge does it.
+
+Stage: piloting command -> drone. A ROS ``PilotingCommand`` (roll, pitch in
+degrees, yaw *rate* in deg/s, gaz = vertical speed in m/s) becomes one Olympe
+PCMD of whole percents of the firmware maxima; the firmware then tracks the
+angle / rate / speed the percents stand for. See ``shared/interfaces/anafi_ros.md``.
+
+Signs: PCMD roll +100 = tilt right (the drone flies right, -y in FLU/ENU),
+pitch +100 = nose down (flies forward), yaw + = clockwise from above (the
+bridge negates the ROS yaw rate, so a positive ROS yaw rate turns
+counter-clockwise), gaz + = climb.
+"""
+import math
+
+# Firmware settings used by the paper (Table 1).
+MAX_TILT_DEG = math.degrees(math.asin(5.0 / 9.81))   # 30.64 deg
+MAX_VERTICAL_SPEED = 2.0                              # m/s
+MAX_YAW_RATE_DEG = 180.0                              # deg/s
+
+
+def _percent(value, maximum):
+    """int(clamp(value / maximum * 100, -100, 100)) as the bridge computes it (truncation toward 0)."""
+    if not math.isfinite(value):
+        return 0
+    return int(max(-100.0, min(100.0, value / maximum * 100.0)))
+
+
+class PilotingMapping(object):
+    """PilotingCommand (ROS units) <-> PCMD percents <-> firmware setpoints (SI, FLU).
+
+    ``max_tilt_deg``, ``max_vertical_speed`` [m/s] and ``max_yaw_rate_deg``
+    [deg/s] are the firmware settings the bridge scales with.
+    """
+
+    def __init__(self, max_tilt_deg=MAX_TILT_DEG, max_vertical_speed=MAX_VERTICAL_SPEED,
+                 max_yaw_rate_deg=MAX_YAW_RATE_DEG):
+        for name, value in (('max_tilt_deg', max_tilt_deg),
+                            ('max_vertical_speed', max_vertical_speed),
+                            ('max_yaw_rate_deg', max_yaw_rate_deg)):
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError('%s must be a positive finite number, got %r' % (name, value))
+        self.max_tilt_deg = float(max_tilt_deg)
+        self.max_vertical_speed = float(max_vertical_speed)
+        self.max_yaw_rate_deg = float(max_yaw_rate_deg)
+
+    def to_pcmd(self, roll_deg, pitch_deg, yaw_rate_deg, gaz):
+        """ROS command -> PCMD (roll, pitch, yaw, gaz) integer percents, exactly as the bridge."""
+        return (_percent(roll_deg, self.max_tilt_deg),
+                _percent(pitch_deg, self.max_tilt_deg),
+                _percent(-yaw_rate_deg, self.max_yaw_rate_deg),
+                _percent(gaz, self.max_vertical_speed))
+
+    def pcmd_to_setpoints(self, roll_pct, pitch_pct, yaw_pct, gaz_pct):
+        """PCMD percents -> firmware setpoints in SI units, FLU/ENU signs.
+
+        Returns (roll [rad, + = right wing down], pitch [rad, + = nose down],
+        yaw_rate [rad/s, + = counter-clockwise], vertical_speed [m/s, + = up]).
+        """
+        tilt = math.radians(self.max_tilt_deg)
+        return (roll_pct / 100.0 * tilt,
+                pitch_pct / 100.0 * tilt,
+                -yaw_pct / 100.0 * math.radians(self.max_yaw_rate_deg),
+                gaz_pct / 100.0 * self.max_vertical_speed)
+
+    def command_to_setpoints(self, roll_deg, pitch_deg, yaw_rate_deg, gaz):
+        """ROS command -> quantised firmware setpoints (the composition of the two steps)."""
+        return self.pcmd_to_setpoints(*self.to_pcmd(roll_deg, pitch_deg, yaw_rate_deg, gaz))

@@ -1,0 +1,48 @@
+"""Message types that stand in for packages we must not ship (no rospy import).
+
+``olympe_bridge`` (anafi_ros) is not installable here, and a workspace
+package of that name would shadow the real one on a machine that has it.
+So the real type is imported when it exists, and otherwise built at run time
+from its definition with ``genpy.dynamic``: same type name, same fields,
+same md5sum, hence wire-identical (``rostopic info`` on a real bridge matches).
+"""
+import importlib
+
+import genpy.dynamic
+
+_HEADER = """================================================================================
+MSG: std_msgs/Header
+uint32 seq
+time stamp
+string frame_id
+"""
+
+PILOTING_COMMAND_TYPE = 'olympe_bridge/PilotingCommand'
+PILOTING_COMMAND_MD5 = '38956f4c725541081234f467b900164a'
+PILOTING_COMMAND_DEFINITION = """std_msgs/Header header
+float32 roll
+float32 pitch
+float32 yaw
+float32 gaz
+""" + _HEADER
+
+_cache = {}
+
+
+def load_message_class(type_name, definition):
+    """The class of ``type_name`` ('pkg/Name'): the installed one if its package exists, else a dynamic one."""
+    if type_name in _cache:
+        return _cache[type_name]
+    package, name = type_name.split('/')
+    cls = None
+    try:
+        cls = getattr(importlib.import_module(package + '.msg'), name)
+    except (ImportError, AttributeError):
+        cls = genpy.dynamic.generate_dynamic(type_name, definition)[type_name]
+    _cache[type_name] = cls
+    return cls
+
+
+def piloting_command_class():
+    """``olympe_bridge/PilotingCommand`` (md5 38956f4c725541081234f467b900164a)."""
+    return load_message_class(PILOTING_COMMAND_TYPE, PILOTING_COMMAND_DEFINITION)

@@ -50,12 +50,24 @@ else
 fi
 
 # ---- 3. catkin workspace with this repo as its package -----------------------
-mkdir -p "$WS/src"
-[ -L "$WS/src/anafi_sim" ] || ln -sfn "$ROOT" "$WS/src/anafi_sim"
+# The package directory is a folder of links to the repository's top-level
+# entries (not a link to the repository itself: that would contain .ws and
+# make rosrun's `find -L` loop).
+link_package() {  # link_package DIR
+  local dir="$1" entry name
+  [ -L "$dir" ] && rm -f "$dir"
+  mkdir -p "$dir"
+  for entry in "$ROOT"/*; do
+    name=$(basename "$entry")
+    [ -e "$dir/$name" ] || ln -sfn "$entry" "$dir/$name"
+  done
+  for entry in "$dir"/*; do [ -e "$entry" ] || rm -f "$entry"; done   # dangling links
+}
+link_package "$WS/src/anafi_sim"
 # Re-run cmake when the set of files CMake globs changes, and always once more
 # after the very first configure: Debian's catkin caches PYTHONPATH at configure
 # time and the first configure of a fresh workspace misses devel/lib/python3.
-sig=$(cd "$ROOT" && { cat CMakeLists.txt package.xml setup.py; ls msg cfg anafi_sim/scripts test/ros 2>/dev/null; } | md5sum | cut -d' ' -f1)
+sig=$(cd "$ROOT" && { cat CMakeLists.txt package.xml setup.py; ls msg cfg anafi_sim/scripts test/ros 2>/dev/null; ls "$WS/src/anafi_sim"; } | md5sum | cut -d' ' -f1)
 old_sig=$(cat "$WS/.configure_signature" 2>/dev/null || true)
 cm_args=(-C "$WS" -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON)
 if [ "$sig" != "$old_sig" ] || [ ! -f "$WS/devel/setup.bash" ]; then

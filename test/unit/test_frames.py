@@ -1,0 +1,72 @@
+"""anafi_control.frames: rotations, quaternions, stability axes (hand-checked values)."""
+import math
+
+import numpy as np
+import pytest
+
+from anafi_control import frames
+
+
+@pytest.mark.parametrize('angle,expected', [(0.0, 0.0), (math.pi + 0.1, -math.pi + 0.1),
+                                            (-math.pi - 0.1, math.pi - 0.1), (3 * math.pi, -math.pi),
+                                            (2 * math.pi - 0.2, -0.2)])
+def test_wrap_angle(angle, expected):
+    assert frames.wrap_angle(angle) == pytest.approx(expected)
+
+
+def test_wrap_angle_degrees():
+    assert frames.wrap_angle(190.0, 360.0) == pytest.approx(-170.0)
+    assert frames.wrap_angle(-358.0, 360.0) == pytest.approx(2.0)
+
+
+def test_quaternion_of_pure_yaw_90():
+    q = frames.euler_to_quaternion(0.0, 0.0, math.pi / 2)
+    assert q == pytest.approx((0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)))
+
+
+@pytest.mark.parametrize('rpy', [(0.1, -0.2, 0.3), (-0.5, 0.4, 3.0), (0.0, 0.0, -2.5), (0.3, 1.2, -1.0)])
+def test_euler_quaternion_round_trip_and_matrix(rpy):
+    q = frames.euler_to_quaternion(*rpy)
+    assert frames.quaternion_to_euler(*q) == pytest.approx(rpy)
+    assert frames.yaw_from_quaternion(*q) == pytest.approx(rpy[2])
+    # The quaternion and the matrix describe the same rotation.
+    x, y, z, w = q
+    m = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    assert frames.rotation_matrix(*rpy) == pytest.approx(m)
+
+
+def test_flu_sign_conventions_of_thrust_axis():
+    # Positive pitch = nose down: body z tilts towards +x (forward acceleration).
+    zb = frames.rotation_matrix(0.0, 0.2, 0.0)[:, 2]
+    assert zb[0] > 0 and abs(zb[1]) < 1e-12
+    # Positive roll = right wing down: body z tilts towards -y (to the right).
+    zb = frames.rotation_matrix(0.2, 0.0, 0.0)[:, 2]
+    assert zb[1] < 0 and abs(zb[0]) < 1e-12
+
+
+def test_quaternion_multiply_composes_yaws():
+    a = frames.euler_to_quaternion(0, 0, 0.4)
+    b = frames.euler_to_quaternion(0, 0, 0.5)
+    assert frames.yaw_from_quaternion(*frames.quaternion_multiply(a, b)) == pytest.approx(0.9)
+
+
+@pytest.mark.parametrize('yaw_deg,world,stab', [
+    (0.0, (1.0, 0.0), (1.0, 0.0)),
+    (90.0, (0.0, 1.0), (1.0, 0.0)),      # heading north: north is ahead
+    (90.0, (1.0, 0.0), (0.0, -1.0)),     # heading north: east is to the right
+    (180.0, (1.0, 0.0), (-1.0, 0.0)),    # heading west: east is behind
+    (-135.0, (-1.0, -1.0), (math.sqrt(2), 0.0)),
+])
+def test_world_to_stability_and_back(yaw_deg, world, stab):
+    yaw = math.radians(yaw_deg)
+    assert frames.world_to_stability(world[0], world[1], yaw) == pytest.approx(stab, abs=1e-12)
+    assert frames.stability_to_world(stab[0], stab[1], yaw) == pytest.approx(world, abs=1e-12)
+
+
+def test_is_finite():
+    assert frames.is_finite(1.0, -2, 0.0)
+    assert not frames.is_finite(1.0, float('nan'))
+    assert not frames.is_finite(float('inf'))
+    assert not frames.is_finite(None)

@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# The main job (run inside env.bash by `make demo`): a private ROS master on a free port, then the demo launch.
+set -euo pipefail
+port=$(python - <<'PY'
+import socket
+s = socket.socket(); s.bind(('127.0.0.1', 0)); print(s.getsockname()[1]); s.close()
+PY
+)
+export ROS_MASTER_URI="http://127.0.0.1:$port"
+export ROS_HOSTNAME=127.0.0.1
+echo "[demo] ROS master at $ROS_MASTER_URI"
+exec roslaunch anafi_sim ${DEMO_LAUNCH:-step_demo.launch} ${DEMO_ARGS:-}

@@ -1,0 +1,488 @@
+"""Dynamics of the simulated Anafi (stand-in for Sphinx + firmware), pure Python.
+
+Stage: piloting command -> simulated drone. ``AnafiModel`` takes the PCMD
+percents the anafi_ros bridge would send (``anafi_sim.bridge.PilotingMapping``
+turns them into firmware setpoints) and integrates:
+
+- roll/pitch: first-order tracking (``attitude_time_constant``) of the
+  setpoint after a pure delay (``attitude_delay``, applied to the whole PCMD),
+  clamped to the max tilt; yaw rate: first order (``yaw_rate_time_constant``);
+- vertical speed: first order (``vertical_speed_time_constant``), realised by
+  choosing the specific thrust T along body z;
+- translation: a = T z_body - g e_z - drag; horizontal drag on the airspeed
+  v_air = v - wind: (drag_linear + drag_quadratic |v_air_h|) v_air_h; vertical
+  drag ``drag_vertical`` v_air_z; wind = constant + Ornstein-Uhlenbeck gusts
+  (seeded numpy Generator: deterministic for a seed and a step sequence);
+- a flight state machine ``landed | taking_off | flying | landing`` and the
+  firmware's hover brake when no command came for ``command_timeout`` s.
+
+Frames and units (REP-103): world ENU [m, m/s]; Euler roll/pitch/yaw of the
+FLU body [rad] (R = Rz(yaw) Ry(pitch) Rx(roll), positive pitch = nose down);
+body quantities in FLU. The body linear acceleration is the *kinematic*
+acceleration dv/dt rotated into the body frame (no gravity), as Sphinx
+reports it. Integration: semi-implicit Euler at the caller's dt with exact
+first-order discretisation of the loops.
+"""
+import collections
+import math
+import os
+
+import numpy as np
+
+from anafi_sim.bridge import PilotingMapping
+from anafi_sim.telemetry import TelemetrySample
+
+LANDED = 'landed'
+TAKING_OFF = 'taking_off'
+FLYING = 'flying'
+LANDING = 'landing'
+FLIGHT_STATES = (LANDED, TAKING_OFF, FLYING, LANDING)
+
+# Keys of anafi_sim/config/anafi_model.yaml (fitted by scripts/calibrate_model.py).
+MODEL_KEYS = (
+    'gravity',                       # m/s^2
+    'attitude_time_constant',        # s
+    'attitude_delay',                # s
+    'yaw_rate_time_constant',        # s
+    'vertical_speed_time_constant',  # s
+    'drag_linear',                   # 1/s
+    'drag_quadratic',                # 1/m
+    'drag_vertical',                 # 1/s
+    'estimate_delay',                # s
+    'estimate_time_constant',        # s
+    'estimate_rate',                 # Hz
+    'estimate_float16',              # bool
+)
+_POSITIVE = ('gravity', 'estimate_rate')
+_BOOLEAN = ('estimate_float16',)
+
+# Simulator / firmware settings that are not fitted (anafi_sim/config/sim.yaml holds the same values).
+DEFAULT_SETTINGS = {
+    'command_timeout': 0.5,          # s without PCMD -> hover brake
+    'takeoff_altitude': 1.0,         # m
+    'takeoff_speed': 0.8,            # m/s climb during take-off
+    'landing_speed': 0.6,            # m/s descent during landing
+    'initial_x': 0.0,                # m, world ENU
+    'initial_y': 0.0,                # m
+    'initial_yaw': 0.0,              # rad
+    'wind_x': 0.0,                   # m/s, constant wind, world ENU
+    'wind_y': 0.0,
+    'wind_z': 0.0,
+    'gust_std_horizontal': 0.0,      # m/s, stationary std of the gusts (x and y)
+    'gust_std_vertical': 0.0,        # m/s
+    'gust_time_constant': 2.0,       # s, correlation time of the gusts
+    'brake_velocity_gain': 2.0,      # 1/s, hover brake: a = -k_v v, then hold: + k_p e + k_i int(e)
+    'brake_position_gain': 2.0,      # 1/s^2, e = p_hold - p (horizontal)
+    'brake_integral_gain': 0.8,      # 1/s^3 (holds position against wind)
+    'brake_altitude_gain': 1.0,      # 1/s, vz = k_z (z_hold - z)
+    'brake_capture_speed': 0.1,      # m/s, below this the brake captures the hold point ...
+    'brake_capture_time': 3.0,       # s, ... or after braking this long (e.g. drifting in wind)
+    'max_specific_thrust': 25.0,     # m/s^2, thrust clamp
+}
+_SETTINGS_POSITIVE = ('takeoff_altitude', 'takeoff_speed', 'landing_speed', 'gust_time_constant',
+                      'brake_velocity_gain', 'brake_capture_speed', 'brake_capture_time',
+                      'max_specific_thrust')
+_SETTINGS_NONNEGATIVE = ('command_timeout', 'gust_std_horizontal', 'gust_std_vertical',
+                         'brake_position_gain', 'brake_integral_gain', 'brake_altitude_gain')
+
+_CONFIG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'config')
+DEFAULT_MODEL_FILE = os.path.join(_CONFIG_DIR, 'anafi_model.yaml')
+
+
+def _is_number(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def validate_model_params(params):
+    """Check the model dict (exactly ``MODEL_KEYS``) and return a clean copy; ValueError otherwise."""
+    if not isinstance(params, dict):
+        raise ValueError('model parameters must be a dict, got %r' % (type(params).__name__,))
+    missing = [k for k in MODEL_KEYS if k not in params]
+    unknown = sorted(str(k) for k in params if k not in MODEL_KEYS)
+    if missing or unknown:
+        raise ValueError('bad Anafi model parameters: missing %s, unknown %s (expected exactly %s)'
+                         % (missing, unknown, list(MODEL_KEYS)))
+    clean = {}
+    for key in MODEL_KEYS:
+        value = params[key]
+        if key in _BOOLEAN:
+            if not isinstance(value, bool):
+                raise ValueError('model parameter %s must be true or false, got %r' % (key, value))
+            clean[key] = value
+            continue
+        if not _is_number(value):
+            raise ValueError('model parameter %s must be a finite number, got %r' % (key, value))
+        if key in _POSITIVE and value <= 0.0:
+            raise ValueError('model parameter %s must be > 0, got %r' % (key, value))
+        if value < 0.0:
+            raise ValueError('model parameter %s must be >= 0, got %r' % (key, value))
+        clean[key] = float(value)
+    return clean
+
+
+def validate_settings(settings=None):
+    """Defaults overridden by ``settings`` (only keys of ``DEFAULT_SETTINGS``); ValueError otherwise."""
+    clean = dict(DEFAULT_SETTINGS)
+    if settings is None:
+        return clean
+    unknown = sorted(str(k) for k in settings if k not in DEFAULT_SETTINGS)
+    if unknown:
+        raise ValueError('unknown simulator settings %s (known: %s)' % (unknown, sorted(DEFAULT_SETTINGS)))
+    for key, value in settings.items():
+        if not _is_number(value):
+            raise ValueError('simulator setting %s must be a finite number, got %r' % (key, value))
+        if key in _SETTINGS_POSITIVE and value <= 0.0:
+            raise ValueError('simulator setting %s must be > 0, got %r' % (key, value))
+        if key in _SETTINGS_NONNEGATIVE and value < 0.0:
+            raise ValueError('simulator setting %s must be >= 0, got %r' % (key, value))
+        clean[key] = float(value)
+    return clean
+
+
+def load_model_params(path=DEFAULT_MODEL_FILE):
+    """Read and validate a model YAML file (default: anafi_sim/config/anafi_model.yaml)."""
+    import yaml
+    with open(path) as stream:
+        params = yaml.safe_load(stream)
+    try:
+        return validate_model_params(params)
+    except ValueError as error:
+        raise ValueError('%s: %s' % (path, error))
+
+
+def _lag_coefficient(dt, tau):
+    """Exact discrete first-order step: x += c (target - x) with c = 1 - exp(-dt/tau)."""
+    return 1.0 if tau <= 0.0 else 1.0 - math.exp(-dt / tau)
+
+
+class AnafiModel(object):
+    """The simulated Anafi: PCMD percents in, ground-truth state out (see module doc)."""
+
+    def __init__(self, params, mapping=None, seed=0, settings=None):
+        self.params = validate_model_params(params)
+        self.settings = validate_settings(settings)
+        self.mapping = mapping if mapping is not None else PilotingMapping()
+        self.seed = seed
+        p = self.params
+        s = self.settings
+        self._g = p['gravity']
+        self._tau_att = p['attitude_time_constant']
+        self._delay = p['attitude_delay']
+        self._tau_yaw = p['yaw_rate_time_constant']
+        self._tau_vz = p['vertical_speed_time_constant']
+        self._drag_lin = p['drag_linear']
+        self._drag_quad = p['drag_quadratic']
+        self._drag_vert = p['drag_vertical']
+        self._max_tilt = math.radians(self.mapping.max_tilt_deg)
+        self._max_vs = self.mapping.max_vertical_speed
+        self._max_yaw_rate = math.radians(self.mapping.max_yaw_rate_deg)
+        self._timeout = s['command_timeout']
+        self._wind_mean = (s['wind_x'], s['wind_y'], s['wind_z'])
+        self._gust_std = (s['gust_std_horizontal'], s['gust_std_horizontal'], s['gust_std_vertical'])
+        self._gusty = any(v > 0.0 for v in self._gust_std)
+        self._dt = None
+        self.reset(s['initial_x'], s['initial_y'], 0.0, s['initial_yaw'], flying=False)
+
+    # ------------------------------------------------------------------ state
+    def reset(self, x=0.0, y=0.0, z=0.0, yaw=0.0, flying=False, t=0.0):
+        """Put the drone at rest at (x, y, z) [m] with heading ``yaw`` [rad]; landed or already flying (hovering)."""
+        self._rng = np.random.default_rng(self.seed)
+        self.time = float(t)
+        self.x, self.y, self.z = float(x), float(y), max(0.0, float(z))
+        self.vx = self.vy = self.vz = 0.0
+        self.roll = self.pitch = 0.0
+        self.yaw = float(yaw)
+        self.yaw_rate = 0.0                     # Euler yaw rate [rad/s] (+ = counter-clockwise)
+        self.wx = self.wy = self.wz = 0.0       # body angular velocity (FLU) [rad/s]
+        self.alpha = (0.0, 0.0, 0.0)            # body angular acceleration [rad/s^2]
+        self.accel = (0.0, 0.0, 0.0)            # world kinematic acceleration [m/s^2]
+        self.thrust = 0.0                       # specific thrust along body z [m/s^2]
+        self.gust = [0.0, 0.0, 0.0]
+        self.gimbal_pitch_command = 0.0         # rad, camera pitch in the world (+ = down in FLU)
+        self._queue = collections.deque()       # (t_command, roll_sp, pitch_sp, yaw_rate_sp, vz_sp)
+        self._active = None                     # delayed setpoints now applied
+        self._last_command_time = None
+        self.last_pcmd = (0, 0, 0, 0)
+        self.commanding = False                 # True while PCMD setpoints drive the drone
+        self._hold = None                       # hover-brake hold point (x, y, z) or None while braking
+        self._brake_time = 0.0                  # s spent braking (before the hold point is captured)
+        self._hold_integral = [0.0, 0.0]        # integral of the horizontal hold error [m s]
+        if flying:
+            self.state = FLYING
+            self._set_hold((self.x, self.y, self.z))
+        else:
+            self.state = LANDED
+            self.z = 0.0
+
+    def set_command(self, roll_pct, pitch_pct, yaw_pct, gaz_pct, t):
+        """One PCMD (integer percents, bridge signs) received at sim time ``t`` [s]."""
+        pcmd = (int(roll_pct), int(pitch_pct), int(yaw_pct), int(gaz_pct))
+        for value in pcmd:
+            if value < -100 or value > 100:
+                raise ValueError('PCMD percents must be in [-100, 100], got %r' % (pcmd,))
+        self.last_pcmd = pcmd
+        self._last_command_time = t
+        if self.state == FLYING:
+            self._queue.append((t,) + self.mapping.pcmd_to_setpoints(*pcmd))
+
+    def command_age(self, t):
+        """Seconds since the last PCMD (inf if none)."""
+        return math.inf if self._last_command_time is None else t - self._last_command_time
+
+    def takeoff(self, t):
+        """Start a take-off (only from ``landed``); True if accepted."""
+        if self.state != LANDED:
+            return False
+        self.state = TAKING_OFF
+        self._set_hold((self.x, self.y, self.settings['takeoff_altitude']))
+        self._queue.clear()
+        self._active = None
+        self.commanding = False
+        return True
+
+    def land(self, t):
+        """Start landing (from ``taking_off`` or ``flying``); True if accepted."""
+        if self.state not in (TAKING_OFF, FLYING):
+            return False
+        self.state = LANDING
+        self._set_hold(None)
+        self._queue.clear()
+        self._active = None
+        self.commanding = False
+        return True
+
+    def set_gimbal_pitch(self, pitch):
+        """Commanded camera pitch in the world [rad, FLU sign: + = looking down]."""
+        self.gimbal_pitch_command = float(pitch)
+
+    # --------------------------------------------------------------- dynamics
+    def _set_dt(self, dt):
+        self._dt = dt
+        self._c_att = _lag_coefficient(dt, self._tau_att)
+        self._c_yaw = _lag_coefficient(dt, self._tau_yaw)
+        self._c_vz = _lag_coefficient(dt, self._tau_vz) / dt
+        tau_g = self.settings['gust_time_constant']
+        self._gust_decay = math.exp(-dt / tau_g)
+        scale = math.sqrt(1.0 - self._gust_decay * self._gust_decay)
+        self._gust_scale = tuple(scale * s for s in self._gust_std)
+
+    def _set_hold(self, hold):
+        self._hold = hold
+        self._brake_time = 0.0
+        self._hold_integral = [0.0, 0.0]
+
+    def _brake(self, dt):
+        """Firmware hover brake: (roll_sp, pitch_sp, vz_sp) that stop the drone, then hold the captured point."""
+        s = self.settings
+        kv = s['brake_velocity_gain']
+        hold = self._hold
+        if hold is None:
+            cap = s['brake_capture_speed']
+            self._brake_time += dt
+            if ((self.vx * self.vx + self.vy * self.vy < cap * cap
+                 and (abs(self.vz) < cap or self.state == LANDING))
+                    or self._brake_time >= s['brake_capture_time']):
+                self._set_hold((self.x, self.y, self.z))
+                hold = self._hold
+                ki = s['brake_integral_gain']
+                if ki > 0.0:      # bumpless: the integral takes over what the brake was pushing against
+                    self._hold_integral = [-kv * self.vx / ki, -kv * self.vy / ki]
+        if hold is None:
+            ax = -kv * self.vx
+            ay = -kv * self.vy
+            vz_sp = 0.0
+        else:
+            ex = hold[0] - self.x
+            ey = hold[1] - self.y
+            ki = s['brake_integral_gain']
+            integral = self._hold_integral
+            if ki > 0.0:
+                limit = self._g * math.tan(self._max_tilt) / ki
+                integral[0] = max(-limit, min(limit, integral[0] + ex * dt))
+                integral[1] = max(-limit, min(limit, integral[1] + ey * dt))
+            kp = s['brake_position_gain']
+            ax = kp * ex + ki * integral[0] - kv * self.vx
+            ay = kp * ey + ki * integral[1] - kv * self.vy
+            vz_sp = s['brake_altitude_gain'] * (hold[2] - self.z)
+        c, sn = math.cos(self.yaw), math.sin(self.yaw)
+        forward = c * ax + sn * ay
+        left = -sn * ax + c * ay
+        g = self._g
+        return -math.atan(left / g), math.atan(forward / g), vz_sp
+
+    def step(self, dt, t):
+        """Advance the state from sim time ``t`` to ``t + dt`` [s]."""
+        if not dt > 0.0:
+            raise ValueError('step dt must be > 0, got %r' % (dt,))
+        if dt != self._dt:
+            self._set_dt(dt)
+        self.time = t + dt
+        state = self.state
+        if state == LANDED:
+            self.vx = self.vy = self.vz = 0.0
+            self.roll = self.pitch = self.yaw_rate = 0.0
+            self.wx = self.wy = self.wz = 0.0
+            self.alpha = self.accel = (0.0, 0.0, 0.0)
+            self.thrust = 0.0
+            self._queue.clear()
+            return
+
+        # Wind gusts (Ornstein-Uhlenbeck, exact discretisation).
+        gust = self.gust
+        if self._gusty:
+            noise = self._rng.standard_normal(3)
+            d = self._gust_decay
+            sc = self._gust_scale
+            gust[0] = d * gust[0] + sc[0] * noise[0]
+            gust[1] = d * gust[1] + sc[1] * noise[1]
+            gust[2] = d * gust[2] + sc[2] * noise[2]
+
+        # Setpoints: delayed PCMD while flying and commanded, else the firmware's own loops.
+        yaw_rate_sp = 0.0
+        if state == FLYING:
+            queue = self._queue
+            horizon = t - self._delay + 1e-9
+            while queue and queue[0][0] <= horizon:
+                self._active = queue.popleft()
+            if self._active is not None and t - self._last_command_time <= self._timeout:
+                self.commanding = True
+                _, roll_sp, pitch_sp, yaw_rate_sp, vz_sp = self._active
+            else:
+                if self.commanding:          # command stream lost: brake, then hold
+                    self.commanding = False
+                    self._set_hold(None)
+                    self._active = None
+                roll_sp, pitch_sp, vz_sp = self._brake(dt)
+        else:
+            roll_sp, pitch_sp, vz_sp = self._brake(dt)
+            if state == TAKING_OFF:
+                vz_sp = self.settings['takeoff_speed']
+            else:
+                vz_sp = -self.settings['landing_speed']
+        tilt = self._max_tilt
+        roll_sp = -tilt if roll_sp < -tilt else (tilt if roll_sp > tilt else roll_sp)
+        pitch_sp = -tilt if pitch_sp < -tilt else (tilt if pitch_sp > tilt else pitch_sp)
+        vmax = self._max_vs
+        vz_sp = -vmax if vz_sp < -vmax else (vmax if vz_sp > vmax else vz_sp)
+
+        # Attitude: first order towards the setpoints; Euler rates -> body rates.
+        roll0, pitch0, yaw0 = self.roll, self.pitch, self.yaw
+        c_att = self._c_att
+        roll = roll0 + c_att * (roll_sp - roll0)
+        pitch = pitch0 + c_att * (pitch_sp - pitch0)
+        self.yaw_rate += self._c_yaw * (yaw_rate_sp - self.yaw_rate)
+        yaw = yaw0 + self.yaw_rate * dt
+        if yaw >= math.pi or yaw < -math.pi:
+            yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
+        roll_dot = (roll - roll0) / dt
+        pitch_dot = (pitch - pitch0) / dt
+        yaw_dot = self.yaw_rate
+        cr, sr = math.cos(roll), math.sin(roll)
+        cp, sp = math.cos(pitch), math.sin(pitch)
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        wx = roll_dot - sp * yaw_dot
+        wy = cr * pitch_dot + sr * cp * yaw_dot
+        wz = -sr * pitch_dot + cr * cp * yaw_dot
+        self.alpha = ((wx - self.wx) / dt, (wy - self.wy) / dt, (wz - self.wz) / dt)
+        self.wx, self.wy, self.wz = wx, wy, wz
+        self.roll, self.pitch, self.yaw = roll, pitch, yaw
+
+        # Translation: thrust along body z chosen so that vz follows its first-order loop.
+        vx0, vy0, vz0 = self.vx, self.vy, self.vz
+        wind = self._wind_mean
+        avx = vx0 - wind[0] - gust[0]
+        avy = vy0 - wind[1] - gust[1]
+        avz = vz0 - wind[2] - gust[2]
+        g = self._g
+        zbx = cy * sp * cr + sy * sr
+        zby = sy * sp * cr - cy * sr
+        zbz = cp * cr
+        vert_drag = self._drag_vert * avz
+        az_des = (vz_sp - vz0) * self._c_vz
+        thrust = (az_des + g + vert_drag) / zbz
+        tmax = self.settings['max_specific_thrust']
+        thrust = 0.0 if thrust < 0.0 else (tmax if thrust > tmax else thrust)
+        self.thrust = thrust
+        k = self._drag_lin + self._drag_quad * math.sqrt(avx * avx + avy * avy)
+        vx = vx0 + (thrust * zbx - k * avx) * dt
+        vy = vy0 + (thrust * zby - k * avy) * dt
+        vz = vz0 + (thrust * zbz - g - vert_drag) * dt
+        x = self.x + vx * dt
+        y = self.y + vy * dt
+        z = self.z + vz * dt
+
+        # Ground contact and the flight state machine.
+        if z <= 0.0:
+            z = 0.0
+            if vz < 0.0:
+                vz = 0.0
+            if state == LANDING:
+                vx = vy = vz = 0.0
+                self.state = LANDED
+        if state == TAKING_OFF and z >= self._hold[2] - self.settings['takeoff_speed'] * self._tau_vz:
+            self.state = FLYING              # the vertical lag carries it to takeoff_altitude
+        self.accel = ((vx - vx0) / dt, (vy - vy0) / dt, (vz - vz0) / dt)
+        self.vx, self.vy, self.vz = vx, vy, vz
+        self.x, self.y, self.z = x, y, z
+        if self.state == LANDED:
+            self.roll = self.pitch = self.yaw_rate = 0.0
+            self.wx = self.wy = self.wz = 0.0
+            self._set_hold(None)
+
+    # -------------------------------------------------------------- accessors
+    def position(self):
+        """(x, y, z) [m], world ENU."""
+        return (self.x, self.y, self.z)
+
+    def velocity(self):
+        """(vx, vy, vz) [m/s], world ENU."""
+        return (self.vx, self.vy, self.vz)
+
+    def attitude(self):
+        """(roll, pitch, yaw) [rad], FLU Euler."""
+        return (self.roll, self.pitch, self.yaw)
+
+    def wind(self):
+        """Current wind (constant + gust) [m/s], world ENU."""
+        return tuple(m + g for m, g in zip(self._wind_mean, self.gust))
+
+    def _to_body(self, v):
+        """World vector -> body (FLU) vector: R^T v."""
+        cr, sr = math.cos(self.roll), math.sin(self.roll)
+        cp, sp = math.cos(self.pitch), math.sin(self.pitch)
+        cy, sy = math.cos(self.yaw), math.sin(self.yaw)
+        x, y, z = v
+        return (cy * cp * x + sy * cp * y - sp * z,
+                (cy * sp * sr - sy * cr) * x + (sy * sp * sr + cy * cr) * y + cp * sr * z,
+                (cy * sp * cr + sy * sr) * x + (sy * sp * cr - cy * sr) * y + cp * cr * z)
+
+    def body_velocity(self):
+        """Velocity in the body frame (FLU) [m/s]."""
+        return self._to_body((self.vx, self.vy, self.vz))
+
+    def body_angular_velocity(self):
+        """Angular velocity in the body frame (FLU) [rad/s]."""
+        return (self.wx, self.wy, self.wz)
+
+    def body_linear_acceleration(self):
+        """Kinematic acceleration dv/dt (gravity not included) in the body frame (FLU) [m/s^2]."""
+        return self._to_body(self.accel)
+
+    def body_angular_acceleration(self):
+        """Angular acceleration in the body frame (FLU) [rad/s^2]."""
+        return self.alpha
+
+    def gimbal_angles(self):
+        """Stabilised gimbal motor angles relative to the body (roll, pitch) [rad]."""
+        return (0.0 - self.roll, self.gimbal_pitch_command - self.pitch)   # 0.0 - x: no -0.0 printed
+
+    def truth_sample(self, t=None):
+        """The ground truth as a ``TelemetrySample`` stamped with sim time ``t`` (default: model time)."""
+        bv = self.body_velocity()
+        ba = self.body_linear_acceleration()
+        al = self.alpha
+        g_roll, g_pitch = self.gimbal_angles()
+        return TelemetrySample(
+            self.x, self.y, self.z, self.vx, self.vy, self.vz, self.roll, self.pitch, self.yaw,
+            bv[0], bv[1], bv[2], self.wx, self.wy, self.wz, ba[0], ba[1], ba[2],
+            al[0], al[1], al[2], self.time if t is None else t, g_roll, g_pitch)

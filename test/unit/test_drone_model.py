@@ -1,0 +1,347 @@
+"""anafi_sim.drone_model: the simulated Anafi's dynamics, command mapping, hover brake and flight states."""
+import math
+import os
+
+import pytest
+import yaml
+
+from anafi_sim.bridge import MAX_TILT_DEG, PilotingMapping
+from anafi_sim.drone_model import (DEFAULT_MODEL_FILE, DEFAULT_SETTINGS, FLYING, LANDED, LANDING,
+                                   MODEL_KEYS, TAKING_OFF, AnafiModel, load_model_params,
+                                   validate_model_params)
+from anafi_sim.telemetry import FIELDS, TelemetrySample
+
+DT = 0.005
+PARAMS = {
+    'gravity': 9.81,
+    'attitude_time_constant': 0.2,
+    'attitude_delay': 0.0,
+    'yaw_rate_time_constant': 0.1,
+    'vertical_speed_time_constant': 0.3,
+    'drag_linear': 0.14,
+    'drag_quadratic': 0.035,
+    'drag_vertical': 0.3,
+    'estimate_delay': 0.2,
+    'estimate_time_constant': 0.05,
+    'estimate_rate': 20.0,
+    'estimate_float16': True,
+}
+
+
+def params(**overrides):
+    p = dict(PARAMS)
+    p.update(overrides)
+    return p
+
+
+def flying_model(z=5.0, yaw=0.0, settings=None, seed=0, **overrides):
+    model = AnafiModel(params(**overrides), settings=settings, seed=seed)
+    model.reset(0.0, 0.0, z, yaw, flying=True)
+    return model
+
+
+def run(model, duration, pcmd=None, t0=None, command_period=0.1):
+    """Step for ``duration`` s, streaming ``pcmd`` every ``command_period`` s if given; returns the end time."""
+    t = model.time if t0 is None else t0
+    n = int(round(duration / DT))
+    every = max(1, int(round(command_period / DT)))
+    for k in range(n):
+        if pcmd is not None and k % every == 0:
+            model.set_command(pcmd[0], pcmd[1], pcmd[2], pcmd[3], t)
+        model.step(DT, t)
+        t += DT
+    return t
+
+
+# ---------------------------------------------------------------- parameters
+def test_parameter_validation():
+    assert validate_model_params(PARAMS) == PARAMS
+    missing = dict(PARAMS)
+    del missing['drag_linear']
+    with pytest.raises(ValueError, match='drag_linear'):
+        AnafiModel(missing)
+    with pytest.raises(ValueError, match='bogus'):
+        AnafiModel(params(bogus=1.0))
+    with pytest.raises(ValueError, match='attitude_time_constant'):
+        AnafiModel(params(attitude_time_constant=float('nan')))
+    with pytest.raises(ValueError, match='gravity'):
+        AnafiModel(params(gravity=float('inf')))
+    with pytest.raises(ValueError, match='drag_vertical'):
+        AnafiModel(params(drag_vertical=-0.1))
+    with pytest.raises(ValueError, match='estimate_float16'):
+        AnafiModel(params(estimate_float16=1))
+    with pytest.raises(ValueError, match='wind_q'):
+        AnafiModel(PARAMS, settings={'wind_q': 1.0})
+    with pytest.raises(ValueError, match='command_timeout'):
+        AnafiModel(PARAMS, settings={'command_timeout': float('nan')})
+
+
+def test_packaged_config_files_are_valid():
+    loaded = load_model_params(DEFAULT_MODEL_FILE)
+    assert sorted(loaded) == sorted(MODEL_KEYS)
+    sim_file = os.path.join(os.path.dirname(DEFAULT_MODEL_FILE), 'sim.yaml')
+    with open(sim_file) as stream:
+        sim = yaml.safe_load(stream)
+    settings = dict((k, sim[k]) for k in DEFAULT_SETTINGS)   # every model setting is in sim.yaml
+    AnafiModel(loaded, settings=settings)
+    assert sim['max_tilt_deg'] == pytest.approx(MAX_TILT_DEG, abs=0.005)
+    assert sim['rate'] >= 200
+
+
+# ------------------------------------------------------------------- hover
+def test_hover_equilibrium_holds_with_zero_command():
+    model = flying_model(z=5.0)
+    run(model, 10.0, pcmd=(0, 0, 0, 0))
+    assert model.position() == pytest.approx((0.0, 0.0, 5.0), abs=1e-9)
+    assert model.velocity() == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
+    assert model.thrust == pytest.approx(9.81)
+    assert model.commanding
+
+
+def test_one_percent_quantisation_keeps_the_drone_level():
+    mapping = PilotingMapping()
+    pcmd = mapping.to_pcmd(0.3, 0.3, 0.0, 0.0)          # 0.3 deg of 30.64 deg -> 0 %
+    assert pcmd == (0, 0, 0, 0)
+    model = flying_model()
+    run(model, 2.0, pcmd=pcmd)
+    assert model.attitude()[:2] == (0.0, 0.0)
+    pcmd = mapping.to_pcmd(0.4, 0.0, 0.0, 0.0)          # 1.3 % -> 1 % = 0.3064 deg
+    model.set_command(*(pcmd + (model.time,)))
+    run(model, 3.0, pcmd=pcmd)
+    assert math.degrees(model.roll) == pytest.approx(0.3064, rel=1e-3)
+
+
+# -------------------------------------------------------------- step responses
+def _fraction_at(model, getter, pcmd, setpoint, tau):
+    start = getter(model)
+    run(model, tau, pcmd=pcmd)
+    return (getter(model) - start) / (setpoint - start)
+
+
+def test_pitch_step_reaches_63_percent_at_tau():
+    tau = PARAMS['attitude_time_constant']
+    model = flying_model()
+    setpoint = 0.5 * math.radians(MAX_TILT_DEG)
+    frac = _fraction_at(model, lambda m: m.pitch, (0, 50, 0, 0), setpoint, tau)
+    assert frac == pytest.approx(1.0 - math.exp(-1.0), abs=0.02)
+    run(model, 5 * tau, pcmd=(0, 50, 0, 0))
+    assert model.pitch == pytest.approx(setpoint, rel=0.01)
+
+
+def test_roll_step_with_delay_starts_late_then_tracks():
+    model = flying_model(attitude_delay=0.1, attitude_time_constant=0.25)
+    run(model, 0.095, pcmd=(-40, 0, 0, 0))
+    assert model.roll == 0.0                                # nothing before the delay
+    setpoint = -0.4 * math.radians(MAX_TILT_DEG)
+    run(model, 0.25, pcmd=(-40, 0, 0, 0))
+    # 0.25 s after the delay has elapsed (+ up to one step of rounding)
+    assert model.roll / setpoint == pytest.approx(1.0 - math.exp(-1.0), abs=0.03)
+
+
+def test_yaw_rate_step_reaches_63_percent_at_tau():
+    tau = PARAMS['yaw_rate_time_constant']
+    model = flying_model()
+    setpoint = math.radians(90.0)                   # PCMD yaw -50 = counter-clockwise 90 deg/s
+    frac = _fraction_at(model, lambda m: m.yaw_rate, (0, 0, -50, 0), setpoint, tau)
+    assert frac == pytest.approx(1.0 - math.exp(-1.0), abs=0.02)
+    run(model, 1.0, pcmd=(0, 0, -50, 0))
+    assert model.body_angular_velocity()[2] == pytest.approx(setpoint, rel=1e-3)
+
+
+def test_vertical_speed_step_reaches_63_percent_at_tau():
+    tau = PARAMS['vertical_speed_time_constant']
+    model = flying_model()
+    frac = _fraction_at(model, lambda m: m.vz, (0, 0, 0, 50), 1.0, tau)
+    assert frac == pytest.approx(1.0 - math.exp(-1.0), abs=0.02)
+    run(model, 3.0, pcmd=(0, 0, 0, 50))
+    assert model.vz == pytest.approx(1.0, rel=1e-3)
+    # physically realised: the thrust exceeds gravity while climbing faster
+    model2 = flying_model()
+    run(model2, 0.05, pcmd=(0, 0, 0, 100))
+    assert model2.thrust > 9.81
+
+
+def test_attitude_is_clamped_to_max_tilt():
+    model = flying_model()
+    run(model, 3.0, pcmd=(100, -100, 0, 0))
+    tilt = math.radians(MAX_TILT_DEG)
+    assert abs(model.roll) <= tilt + 1e-12 and abs(model.pitch) <= tilt + 1e-12
+    assert model.roll == pytest.approx(tilt, rel=1e-3)
+
+
+# ------------------------------------------------------------------- signs
+def test_positive_pitch_accelerates_forward_along_x_at_yaw_0():
+    model = flying_model()
+    run(model, 1.0, pcmd=(0, 30, 0, 0))
+    assert model.vx > 0.5 and abs(model.vy) < 1e-9
+    ax, ay, az = model.body_linear_acceleration()
+    assert ax > 0.5
+
+
+def test_positive_roll_accelerates_towards_minus_y():
+    model = flying_model()
+    run(model, 1.0, pcmd=(30, 0, 0, 0))
+    assert model.vy < -0.5 and abs(model.vx) < 1e-9
+
+
+def test_positive_pitch_at_yaw_90_moves_along_plus_y():
+    model = flying_model(yaw=math.pi / 2)
+    run(model, 1.0, pcmd=(0, 30, 0, 0))
+    assert model.vy > 0.5 and abs(model.vx) < 1e-6
+
+
+def test_positive_ros_yaw_rate_increases_yaw():
+    mapping = PilotingMapping()
+    pcmd = mapping.to_pcmd(0.0, 0.0, 45.0, 0.0)
+    model = flying_model()
+    run(model, 1.0, pcmd=pcmd)
+    assert model.yaw > math.radians(30.0)
+
+
+def test_body_frame_outputs_and_gimbal():
+    model = flying_model(yaw=math.pi / 2)
+    run(model, 2.0, pcmd=(0, 30, 0, 0))
+    bvx, bvy, bvz = model.body_velocity()
+    speed = math.sqrt(model.vx ** 2 + model.vy ** 2 + model.vz ** 2)
+    assert math.sqrt(bvx ** 2 + bvy ** 2 + bvz ** 2) == pytest.approx(speed)
+    assert bvx > 0.9 * speed                          # flying forward
+    g_roll, g_pitch = model.gimbal_angles()
+    assert g_pitch == pytest.approx(-model.pitch) and g_roll == pytest.approx(-model.roll)
+    model.set_gimbal_pitch(0.3)
+    assert model.gimbal_angles()[1] == pytest.approx(-model.pitch + 0.3)
+    sample = model.truth_sample(12.5)
+    assert isinstance(sample, TelemetrySample) and sample.timestamp == 12.5
+    assert all(math.isfinite(getattr(sample, f)) for f in FIELDS)
+    assert (sample.x, sample.y, sample.z) == model.position()
+    assert sample.body_vx == pytest.approx(bvx)
+
+
+def test_angular_velocity_and_acceleration_during_pitch_step():
+    model = flying_model()
+    run(model, 0.1, pcmd=(0, 50, 0, 0))
+    wx, wy, wz = model.body_angular_velocity()
+    assert wy > 0.1 and abs(wx) < 1e-9                # nose going down = +pitch rate about +y
+    alpha_y = model.body_angular_acceleration()[1]
+    assert alpha_y < 0.0                              # the first-order response is slowing down
+
+
+# -------------------------------------------------------------- drag steady state
+def test_steady_state_speed_matches_tilt_and_drag():
+    model = flying_model()
+    run(model, 40.0, pcmd=(0, 20, 0, 0))
+    theta = 0.2 * math.radians(MAX_TILT_DEG)
+    # g tan(theta) = (c1 + c2 v) v
+    c1, c2, g = PARAMS['drag_linear'], PARAMS['drag_quadratic'], PARAMS['gravity']
+    a = g * math.tan(theta)
+    v = (-c1 + math.sqrt(c1 * c1 + 4 * c2 * a)) / (2 * c2)
+    assert model.vx == pytest.approx(v, rel=1e-3)
+    assert model.body_linear_acceleration()[0] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_wind_changes_airspeed_drag():
+    calm = flying_model()
+    windy = flying_model(settings={'wind_x': 3.0})
+    run(calm, 60.0, pcmd=(0, 0, 0, 0))
+    run(windy, 60.0, pcmd=(0, 0, 0, 0))
+    assert calm.vx == pytest.approx(0.0, abs=1e-9)
+    assert windy.vx == pytest.approx(3.0, rel=1e-3)   # level attitude: drifts with the air
+
+
+# ------------------------------------------------------------------- wind gusts
+def test_gusts_are_deterministic_for_a_seed():
+    settings = {'gust_std_horizontal': 1.0, 'gust_std_vertical': 0.3, 'gust_time_constant': 1.0}
+    a = flying_model(settings=settings, seed=7)
+    b = flying_model(settings=settings, seed=7)
+    c = flying_model(settings=settings, seed=8)
+    for m in (a, b, c):
+        run(m, 5.0, pcmd=(0, 0, 0, 0))
+    assert a.position() == b.position() and a.wind() == b.wind()
+    assert a.position() != c.position()
+    assert a.wind() != (0.0, 0.0, 0.0)
+    a.reset(0, 0, 5, 0, flying=True)                  # reset replays the same gusts
+    run(a, 5.0, pcmd=(0, 0, 0, 0), t0=0.0)
+    assert a.position() == b.position()
+
+
+def test_gust_statistics_match_the_intensity():
+    settings = {'gust_std_horizontal': 0.8, 'gust_time_constant': 0.5}
+    model = flying_model(settings=settings, seed=3)
+    values = []
+    t = 0.0
+    for k in range(60000):                            # 300 s = 600 correlation times
+        model.step(DT, t)
+        t += DT
+        if k % 20 == 0:
+            values.append(model.gust[0])
+    mean = sum(values) / len(values)
+    std = math.sqrt(sum((v - mean) ** 2 for v in values) / len(values))
+    assert std == pytest.approx(0.8, rel=0.15)
+    assert model.gust[2] == 0.0
+
+
+# -------------------------------------------------------------- command timeout
+def test_hover_in_place_on_command_timeout():
+    model = flying_model()
+    t = run(model, 3.0, pcmd=(0, 40, 0, 20))
+    assert model.vx > 2.0 and model.commanding
+    t = run(model, 0.4)                                # shorter than the 0.5 s timeout: still commanded
+    assert model.commanding and model.pitch > 0.1
+    run(model, 8.0)
+    assert not model.commanding
+    stopped = model.position()
+    run(model, 3.0)
+    assert math.sqrt(model.vx ** 2 + model.vy ** 2 + model.vz ** 2) < 0.01
+    moved = math.sqrt(sum((a - b) ** 2 for a, b in zip(model.position(), stopped)))
+    assert moved < 0.01
+    assert model.state == FLYING
+    # a new command stream takes over again
+    run(model, 1.0, pcmd=(0, -40, 0, 0))
+    assert model.commanding and model.vx < -0.5
+
+
+def test_hover_holds_against_wind():
+    model = flying_model(settings={'wind_y': 4.0})
+    run(model, 1.0, pcmd=(0, 0, 0, 0))
+    run(model, 20.0)
+    assert not model.commanding
+    held = model.position()
+    run(model, 5.0)
+    drift = math.sqrt(sum((a - b) ** 2 for a, b in zip(model.position(), held)))
+    assert drift < 0.02 and model.roll > 0.05         # leaning into the wind (+roll = towards -y)
+
+
+# -------------------------------------------------------------- take-off / landing
+def test_takeoff_and_landing():
+    model = AnafiModel(PARAMS, settings={'takeoff_altitude': 2.0, 'initial_x': 1.0, 'initial_y': -2.0})
+    assert model.state == LANDED and model.position() == (1.0, -2.0, 0.0)
+    t = run(model, 1.0, pcmd=(0, 50, 0, 50))          # commands while landed do nothing
+    assert model.position() == (1.0, -2.0, 0.0)
+    assert not model.land(t)
+    assert model.takeoff(t) and model.state == TAKING_OFF
+    assert not model.takeoff(t)
+    t = run(model, 1.0)
+    assert model.state == TAKING_OFF and model.vz > 0.5
+    t = run(model, 9.0)
+    assert model.state == FLYING
+    assert model.position() == pytest.approx((1.0, -2.0, 2.0), abs=0.02)
+    assert model.land(t) and model.state == LANDING
+    t = run(model, 10.0)
+    assert model.state == LANDED
+    assert model.position() == pytest.approx((1.0, -2.0, 0.0), abs=0.02)
+    assert model.velocity() == (0.0, 0.0, 0.0)
+    assert model.takeoff(t)
+
+
+def test_ground_clamp_while_flying():
+    model = flying_model(z=0.5)
+    run(model, 3.0, pcmd=(0, 0, 0, -100))
+    assert model.z == 0.0 and model.vz == 0.0
+
+
+def test_bad_pcmd_and_dt_raise():
+    model = flying_model()
+    with pytest.raises(ValueError):
+        model.set_command(0, 101, 0, 0, 0.0)
+    with pytest.raises(ValueError):
+        model.step(0.0, 0.0)
+    assert math.isinf(model.command_age(1.0))           # the rejected PCMD was not recorded

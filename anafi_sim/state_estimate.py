@@ -1,8 +1,10 @@
 """The Anafi's own state estimate, as the anafi_ros bridge publishes it (pure Python).
 
 Stage: simulated drone -> bridge output. The firmware's estimate lags the
-ground truth; the reference logs show a delay, some smoothing, values that
-change only at about 20 Hz and IEEE half-float quantisation. ``StateEstimate``
+ground truth; the reference logs show a delay, some smoothing and values that
+change only at about 20 Hz (the logs store every column, ground truth too, as
+half floats, so half-float quantisation is a property of the logging, not of
+the estimate: ``estimate_float16`` is false in the fitted model). ``StateEstimate``
 reproduces that from the truth history, in this order:
 
 1. pure delay ``estimate_delay`` [s] (the newest truth sample not younger

@@ -1,0 +1,335 @@
+"""anafi_sim.calibration: each fit recovers known parameters from synthetic data; real-log fit is sane.
+
+Synthetic data are produced by small independent simulators written here (explicit Euler at a fine step),
+not by the module's own response functions, so a wrong fit or a wrong response function fails.
+"""
+import math
+import os
+import re
+
+import numpy as np
+import pytest
+import yaml
+from scipy.signal import lfilter
+
+from anafi_control import frames
+from anafi_sim import calibration as cal
+from anafi_sim.reference_log import COLUMNS, STATE_NAMES, ReferenceLog, read_log
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+LOG_DIR = os.path.join(os.path.dirname(REPO), 'shared', 'reference_logs')
+G = 9.81
+
+
+# ----------------------------------------------------------------------------------------- helpers
+def euler_first_order(t_cmd, u_cmd, tau, delay, t_out, h=2e-4):
+    """tau y' = u(t - delay) - y by explicit Euler; u held between command instants; y starts at u[0]."""
+    t0 = min(t_out[0], t_cmd[0])
+    grid = t0 + h * np.arange(int((t_out[-1] - t0) / h) + 2)
+    index = np.clip(np.searchsorted(t_cmd, grid - delay, side='right') - 1, 0, len(u_cmd) - 1)
+    u = u_cmd[index].tolist()
+    y = np.empty(len(grid))
+    value = float(u_cmd[0])
+    c = h / tau
+    for i in range(len(grid)):
+        y[i] = value
+        value += c * (u[i] - value)
+    return np.interp(t_out, grid, y)
+
+
+def make_log(t_abs, truth, estimate=None, name='synthetic', waypoint=None):
+    """ReferenceLog from absolute times [s] and {state name: array} of truth (and estimate, default truth)."""
+    estimate = truth if estimate is None else estimate
+    n = len(t_abs)
+    columns = {}
+    for s in STATE_NAMES:
+        columns[s + '_sphinx'] = np.asarray(truth[s], dtype=np.float64)
+        columns[s + '_anafi'] = np.asarray(estimate[s], dtype=np.float64)
+    for c in COLUMNS:
+        if c.startswith('wp_'):
+            columns[c] = np.zeros(n) if waypoint is None else np.asarray(waypoint[c], dtype=np.float64)
+    time_ns = np.round(np.asarray(t_abs) * 1e9).astype(np.int64) + 1700000000 * 10 ** 9
+    return ReferenceLog(columns, time_ns, path='/synthetic/%s.csv' % name)
+
+
+def smooth_signal(rng, t, amplitude, n=4):
+    out = np.zeros_like(t)
+    for _ in range(n):
+        f = rng.uniform(0.1, 2.5)
+        out += amplitude / n * np.sin(2 * math.pi * f * t + rng.uniform(0, 2 * math.pi))
+    return out
+
+
+# ----------------------------------------------------------------------------------------- first order
+def test_first_order_delay_fit_recovers_time_constant_delay_and_offset():
+    rng = np.random.default_rng(3)
+    t_cmd = np.arange(0.0, 20.0, 0.1)                          # a 10 Hz command stream
+    u = np.repeat(rng.uniform(-0.4, 0.4, len(t_cmd) // 10), 10)  # steps held for 1 s
+    t_y = np.arange(0.0, 20.0, 0.05) + 0.013                   # 20 Hz measurements, other phase
+    y = euler_first_order(t_cmd, u, 0.18, 0.12, t_y) + 0.004 + rng.normal(0, 0.002, len(t_y))
+    fit = cal.fit_attitude_response(t_cmd, u, y, t_measured=t_y)
+    assert fit.time_constant == pytest.approx(0.18, abs=0.01)
+    assert fit.delay == pytest.approx(0.12, abs=0.01)
+    assert fit.offsets[0] == pytest.approx(0.004, abs=0.001)
+    assert fit.rms < 0.004 and fit.r2 > 0.99
+    # A wrong fixed delay leaves a clearly larger residual (the fit is sensitive to what it claims).
+    worse = cal.evaluate_first_order_delay([(t_cmd, u, t_y, y)], 0.18, 0.0)
+    assert worse.rms > 5 * fit.rms
+
+
+def test_first_order_fit_with_gain_and_shared_parameters():
+    rng = np.random.default_rng(4)
+    t_cmd = np.arange(0.0, 15.0, 0.1)
+    series = []
+    for gain in (0.8, 1.3):
+        u = np.repeat(rng.uniform(-2, 2, len(t_cmd) // 5), 5)
+        t_y = np.arange(0.0, 15.0, 0.05)
+        y = gain * euler_first_order(t_cmd, u, 0.3, 0.2, t_y)
+        series.append((t_cmd, u, t_y, y))
+    fit = cal.fit_first_order_delay(series, fit_gain=True, fit_offset=False)
+    assert fit.time_constant == pytest.approx(0.3, abs=0.01)
+    assert fit.delay == pytest.approx(0.2, abs=0.01)
+    assert fit.gains == pytest.approx((0.8, 1.3), abs=0.01)
+    fixed = cal.fit_first_order_delay(series, fit_gain=True, fit_offset=False, delay=0.2)
+    assert fixed.delay == 0.2 and fixed.time_constant == pytest.approx(0.3, abs=0.01)
+
+
+def test_first_order_response_matches_independent_integration():
+    t_cmd = np.array([0.0, 1.0, 2.5])
+    u = np.array([0.0, 1.0, -0.5])
+    t_out = np.linspace(0.0, 4.0, 81)
+    ours = cal.first_order_response(t_cmd, u, 0.25, 0.1, t_out, hold=True, step=0.001)
+    ref = euler_first_order(t_cmd, u, 0.25, 0.1, t_out, h=1e-4)
+    assert np.max(np.abs(ours - ref)) < 0.01
+    assert ours[-1] == pytest.approx(-0.5, abs=0.01)
+
+
+# ----------------------------------------------------------------------------------------- drag
+def simulate_drag_log(dl, dq, dv, trim_pitch, duration=80.0, h=1e-3, rate=20.0):
+    """Model translation (a = T z - g e_z - drag, T from the vertical profile) driven by set attitudes."""
+    n = int(duration / h)
+    vx = vy = 0.0
+    x = y = 0.0
+    every = int(round(1.0 / (rate * h)))
+    rows = []
+    for k in range(n):
+        t = k * h
+        roll = 0.06 * math.sin(0.31 * t + 1.0) + 0.03 * math.sin(1.1 * t)
+        pitch = 0.12 * math.sin(0.23 * t) + 0.04 * math.sin(0.9 * t + 0.5)
+        yaw = 0.8 * math.sin(0.05 * t)
+        vz = 0.6 * math.sin(0.4 * t)
+        az = 0.24 * math.cos(0.4 * t)
+        if k % every == 0:
+            rows.append((t, x, y, 5.0 + 1.5 * (1 - math.cos(0.4 * t)), vx, vy, vz, roll, pitch, yaw))
+        p = pitch + trim_pitch                      # body z axis of Rz(yaw) Ry(p) Rx(roll)
+        zb = (math.cos(yaw) * math.sin(p) * math.cos(roll) + math.sin(yaw) * math.sin(roll),
+              math.sin(yaw) * math.sin(p) * math.cos(roll) - math.cos(yaw) * math.sin(roll),
+              math.cos(p) * math.cos(roll))
+        thrust = (az + G + dv * vz) / zb[2]
+        k_drag = dl + dq * math.hypot(vx, vy)
+        ax = thrust * zb[0] - k_drag * vx
+        ay = thrust * zb[1] - k_drag * vy
+        x += vx * h
+        y += vy * h
+        vx += ax * h
+        vy += ay * h
+    data = np.array(rows)
+    truth = dict((s, data[:, i + 1]) for i, s in enumerate(STATE_NAMES))
+    return make_log(data[:, 0], truth, name='x_straight_synthetic')
+
+
+@pytest.fixture(scope='module')
+def drag_log():
+    return simulate_drag_log(0.2, 0.025, 0.3, 0.005)
+
+
+def test_drag_fit_recovers_drag_and_trim(drag_log):
+    speed = np.hypot(drag_log.vx_sphinx, drag_log.vy_sphinx)
+    assert speed.max() > 3.0                                # the data span a useful speed range
+    fit = cal.fit_drag([drag_log])
+    assert fit.drag_linear == pytest.approx(0.2, rel=0.03)
+    assert fit.drag_quadratic == pytest.approx(0.025, rel=0.05)
+    assert fit.trim_pitch == pytest.approx(0.005, abs=0.0005)
+    assert fit.trim_roll == pytest.approx(0.0, abs=0.0005)
+    assert fit.r2 > 0.99 and fit.rms < 0.02
+    assert fit.files == ('x_straight_synthetic',)
+
+
+def test_replay_of_synthetic_log_follows_truth(drag_log):
+    params = {'gravity': G, 'drag_linear': 0.2, 'drag_quadratic': 0.025, 'drag_vertical': 0.3,
+              'vertical_speed_time_constant': 0.1, 'attitude_delay': 0.0}
+    replay = cal.replay_translation(drag_log, params, trim=(0.005, 0.0))
+    assert np.sqrt(np.mean((replay['vx'] - drag_log.vx_sphinx) ** 2)) < 0.03
+    assert np.sqrt(np.mean((replay['vy'] - drag_log.vy_sphinx) ** 2)) < 0.03
+    wrong = cal.replay_translation(drag_log, dict(params, drag_linear=0.4))
+    assert np.sqrt(np.mean((wrong['vx'] - drag_log.vx_sphinx) ** 2)) > 0.1
+
+
+def test_thrust_axis_is_third_column_of_shared_rotation():
+    for rpy in ((0.1, -0.2, 0.3), (-0.4, 0.3, 2.5)):
+        assert np.array(cal.thrust_axis(*rpy)) == pytest.approx(frames.rotation_matrix(*rpy)[:, 2])
+    assert cal.steady_state_pitch(0.0, 0.2, 0.02) == 0.0
+    assert cal.steady_state_pitch(3.0, 0.2, 0.02) == pytest.approx(math.atan((0.2 + 0.06) * 3.0 / G))
+
+
+# ----------------------------------------------------------------------------------------- estimate
+def synthetic_estimate_log(delay, tau, rate, log_phase, half_float_estimate=True, seed=5, duration=60.0):
+    """Truth at 20 Hz (+ log_phase) and its estimate: delay, first order, hold at multiples of 1/rate."""
+    rng = np.random.default_rng(seed)
+    h = 1e-3
+    tf = np.arange(0.0, duration, h)
+    t_log = np.arange(1.0, duration - 1.0, 0.05) + log_phase
+    truth, est = {}, {}
+    scale = {'x': 3.0, 'y': 3.0, 'z': 2.0, 'vx': 2.0, 'vy': 2.0, 'vz': 1.0, 'roll': 0.2, 'pitch': 0.2, 'yaw': 1.0}
+    for s in STATE_NAMES:
+        fine = smooth_signal(rng, tf, scale[s]) + (5.0 if s == 'z' else 0.0)
+        shift = int(round(delay / h))
+        delayed = np.concatenate((np.full(shift, fine[0]), fine[:len(fine) - shift]))
+        c = h / tau                              # explicit Euler of tau y' = u - y: y += c (u - y)
+        smooth = lfilter([c], [1.0, -(1.0 - c)], delayed, zi=[(1.0 - c) * delayed[0]])[0]
+        held_at = np.floor(t_log * rate + 1e-9) / rate
+        truth[s] = np.interp(t_log, tf, fine)
+        e = np.interp(held_at, tf, smooth)
+        est[s] = np.float16(e).astype(np.float64) if half_float_estimate else e
+    return make_log(t_log, truth, est, name='static_synthetic')
+
+
+def test_estimate_fit_recovers_delay_smoothing_rate_and_float16():
+    log = synthetic_estimate_log(delay=0.06, tau=0.03, rate=20.0, log_phase=0.025)
+    fit = cal.fit_estimate([log])
+    # The logger sees the held value 0.025 s after it was taken: effective lag = delay + 0.025.
+    assert fit.effective_delay == pytest.approx(0.085, abs=0.01)
+    assert fit.delay == pytest.approx(0.06, abs=0.01)
+    assert fit.time_constant == pytest.approx(0.03, abs=0.01)
+    assert fit.rate == pytest.approx(20.0)
+    assert fit.change_rate == pytest.approx(20.0, abs=0.5)
+    assert fit.float16 is True                   # estimate half floats, truth not
+    assert fit.fit.r2 > 0.99
+    for group in ('position', 'velocity', 'attitude'):
+        assert fit.groups[group].delay == pytest.approx(0.085, abs=0.015)
+
+
+def test_estimate_change_rate_sees_slower_updates():
+    log = synthetic_estimate_log(delay=0.0, tau=0.01, rate=10.0, log_phase=0.025, duration=30.0)
+    rate, fraction, samples = cal.estimate_change_rate([log])
+    assert samples > 100
+    assert rate == pytest.approx(10.0, abs=1.0) and fraction == pytest.approx(0.5, abs=0.05)
+
+
+def test_float16_detection():
+    values = np.array([0.123456, 1.0 / 3.0, 48.81, -2.7182818, 65280.0])
+    assert cal.float16_fraction(values) == pytest.approx(0.2)     # only 65280 is a half float as written
+    halves = np.array([float(str(np.float16(v))) for v in values])
+    assert cal.float16_fraction(halves) == 1.0
+    assert cal.quantum_fraction(np.array([1 / 256.0, 3 / 256.0, 0.1]), 1 / 256.0) == pytest.approx(2 / 3.0)
+
+
+def test_estimate_model_response_holds_and_delays():
+    t = np.arange(0.0, 2.0, 0.001)
+    truth = t.copy()                                            # a ramp
+    out = cal.estimate_model_response(t, truth, 0.1, 0.0, 10.0, t_out=np.array([0.55, 0.65, 0.99]))
+    # Held at 0.5 / 0.6 / 0.9 s, delayed by 0.1 s.
+    assert out == pytest.approx([0.4, 0.5, 0.8], abs=1e-3)
+
+
+# ----------------------------------------------------------------------------------------- PID replay
+def test_reconstructed_pid_commands_have_the_bridge_signs():
+    t = np.arange(0.0, 6.0, 0.05)
+    n = len(t)
+    truth = dict((s, np.zeros(n)) for s in STATE_NAMES)
+    truth['z'] = np.ones(n)
+    wp = dict((c, np.zeros(n)) for c in COLUMNS if c.startswith('wp_'))
+    step = t >= 1.0
+    wp['wp_x'][step], wp['wp_y'][step], wp['wp_z'][step] = 3.0, 2.0, 5.0
+    log = make_log(t, truth, waypoint=wp, name='static_waypoint_synthetic_pid')
+    trace = cal.reconstruct_pid_commands(log)
+    assert trace.start_index == int(np.argmax(step))
+    before = trace.t < 1.0
+    assert np.all(trace.pitch[before] == 0.0) and np.all(trace.vertical_speed[before] == 0.0)
+    late = trace.t > 1.5
+    assert np.all(trace.pitch[late] > 0.0)                     # waypoint ahead: nose down
+    assert np.all(trace.roll[late] < 0.0)                      # waypoint to the left (+y): roll left
+    assert np.all(trace.vertical_speed[late] == pytest.approx(2.0))   # saturated climb (100 %)
+    assert np.all(np.abs(trace.pitch) <= math.radians(30.64) + 1e-9)
+    assert np.all(np.diff(trace.t[1:]) == pytest.approx(0.1))  # 10 Hz output
+
+
+# ----------------------------------------------------------------------------------------- real logs
+@pytest.fixture(scope='module')
+def real():
+    if not os.path.isdir(LOG_DIR):
+        pytest.skip('reference logs not found at %s (shared/ is beside the repo in CI)' % LOG_DIR)
+    logs = [read_log(os.path.join(LOG_DIR, name)) for name in sorted(os.listdir(LOG_DIR)) if name.endswith('.csv')]
+    return logs, cal.calibrate(logs)
+
+
+def test_real_logs_give_plausible_parameters(real):
+    _, result = real
+    p = result.params
+    assert list(p) == list(cal.MODEL_KEYS)
+    for key, value in p.items():
+        assert isinstance(value, bool) if key == 'estimate_float16' else math.isfinite(value), key
+    assert p['gravity'] == 9.81
+    assert 0.05 < p['attitude_time_constant'] < 0.5 and 0.0 <= p['attitude_delay'] < 0.3
+    assert 0.05 < p['yaw_rate_time_constant'] < 1.0
+    assert 0.05 < p['vertical_speed_time_constant'] < 0.5
+    assert 0.05 < p['drag_linear'] < 0.5 and 0.0 < p['drag_quadratic'] < 0.1 and p['drag_vertical'] >= 0.0
+    assert 0.0 <= p['estimate_delay'] < 0.15 and 0.0 <= p['estimate_time_constant'] < 0.1
+    assert p['estimate_rate'] == pytest.approx(20.0, abs=0.5)
+    assert p['estimate_float16'] is False        # every column of the logs (truth too) is float16: storage
+    # The two garbage files never enter a fit.
+    assert 'x_straight_2_pid' not in result.drag.files and 'x_straight_3_pid' not in result.drag.files
+
+
+def test_real_log_residuals_within_bounds(real):
+    _, result = real
+    d, e, c = result.drag, result.estimate, result.commands
+    # Drag: 0.05 m/s^2 is 0.005 rad of tilt, about one PCMD percent (0.0053 rad) - the command resolution.
+    assert d.rms < 0.05 and d.r2 > 0.98
+    assert max(d.per_file_rms.values()) < 0.1
+    # Steady straight flight: the fitted drag predicts the logged mean tilt (+ trim) to 0.003 rad.
+    logs, _ = real
+    for log in logs:
+        if log.name.startswith('x_straight') and cal.is_clean(log):
+            speed = float(np.mean(np.hypot(log.vx_sphinx, log.vy_sphinx)))
+            tilt = float(np.mean(log.pitch_sphinx)) + d.trim_pitch
+            assert cal.steady_state_pitch(speed, d.drag_linear, d.drag_quadratic) == pytest.approx(tilt, abs=0.003)
+    # Estimate: the delay/smoothing model explains > 99 % of the variance; attitude to 0.005 rad.
+    assert e.fit.r2 > 0.99 and e.groups['attitude'].rms < 0.005 and e.groups['velocity'].rms < 0.05
+    # Firmware loops: attitude within 0.02 rad (~4 PCMD percents), vertical speed within 4 % of the 2 m/s
+    # command, yaw rate within 4.5 % of the 1.9 rad/s peak command.
+    assert c.attitude.rms < 0.02 and c.attitude.r2 > 0.9
+    assert c.vertical.rms < 0.08 and c.vertical.r2 > 0.98
+    assert c.yaw.rms < 0.085 and c.yaw.r2 > 0.97
+
+
+def test_yaml_text_has_exactly_the_model_keys_and_validates(real):
+    logs, result = real
+    from anafi_sim.drone_model import MODEL_KEYS, validate_model_params
+    text = cal.format_model_yaml(result, [log.name + '.csv' for log in logs])
+    data = yaml.safe_load(text)
+    assert set(data) == set(MODEL_KEYS) and list(data) == list(cal.MODEL_KEYS)
+    assert validate_model_params(data)['drag_linear'] == pytest.approx(result.params['drag_linear'], rel=1e-5)
+    assert 'Generated by anafi_sim/scripts/calibrate_model.py' in text
+    assert not re.search(r'\d{4}-\d{2}-\d{2}', text)          # date-free: reruns are reproducible
+
+
+def test_committed_config_is_this_fit(real):
+    """The committed anafi_model.yaml must be regenerated when the fit changes (rerun the script)."""
+    _, result = real
+    with open(os.path.join(REPO, 'anafi_sim', 'config', 'anafi_model.yaml')) as stream:
+        committed = yaml.safe_load(stream)
+    for key in cal.MODEL_KEYS:
+        if key == 'estimate_float16':
+            assert committed[key] is result.params[key]
+        else:
+            assert committed[key] == pytest.approx(result.params[key], rel=1e-3, abs=1e-4), key
+
+
+def test_report_contains_table3_and_flags(real):
+    logs, result = real
+    text = cal.format_report(result, logs, plot_name='calibration_replay.png')
+    assert 'x_straight_2_pid z_anafi: 270 of 270 samples (16-bit wrap: 270)' in text
+    assert '| PID | 2 | 2.67 | n/a (all 270 samples excluded) | 2.573 |' in text
+    assert '| MPC | 5 | 1.41 | 1.420 | 1.420 | - |' in text
+    assert '![model replaying a reference log](calibration_replay.png)' in text

@@ -1,0 +1,259 @@
+#!/usr/bin/env python3
+"""Live tracking-error evaluator node: e = |waypoint - drone position| over the measured segment.
+
+Stage: (waypoint, estimate, ground truth) -> tracking-error summary. Thin
+node over anafi_sim.evaluation.LiveEvaluator (same code as evaluate_log.py
+for bags and CSV). Topics relative to the node's namespace (/<drone>/):
+
+- in ~waypoint_topic (position_control/waypoint, anafi_sim/Waypoint),
+  ~estimate_topic (drone/odom, nav_msgs/Odometry: the paper's metric),
+  ~truth_topic (ground_truth/odom; '' = none), ~begin_topic / ~end_topic
+  (trajectory/begin, trajectory/end: std_msgs/Header from the generator);
+- out evaluation/summary (std_msgs/String, latched: YAML of the summary with
+  'state': waiting | measuring | final | incomplete) every ~publish_period s
+  of ROS time (1.0) and at the end; /diagnostics (DiagnosticStatus with
+  e_max, e_mu, e_sigma [m] vs estimate and ground truth; WARN on garbage).
+
+At the end of the measured segment (once an estimate sample at or after
+the end stamp arrived, or ~finalize_timeout s (2.0) after the end signal)
+the final summary is printed, published, written to ~summary_file ('' =
+none; *.md = Markdown, else YAML) and the rows of ~csv_window ('measured'
+or 'all') to ~csv_file in the reference-log format ('' = none); with
+~exit_when_done the node then shuts down. On shutdown before that, an
+'incomplete' summary is written. Sample times are the header stamps
+(~use_header_stamp, true; else the receive time). ~min_altitude [m] (-1):
+positions below are excluded as not flying. ~name: label (default: the
+scenario name from the begin signal).
+"""
+import math
+import os
+import threading
+
+import rospy
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from std_msgs.msg import Header, String
+
+from anafi_sim.evaluation import LiveEvaluator, stamp_ns
+from anafi_sim.msg import Waypoint
+from anafi_sim.reference_log import write_log
+
+
+def _number(name, default, minimum=None):
+    value = rospy.get_param('~' + name, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or (minimum is not None and value <= minimum):
+        raise ValueError('~%s must be a finite number%s, got %r' % (
+            name, '' if minimum is None else ' > %g' % minimum, value))
+    return float(value)
+
+
+def _flag(name, default):
+    value = rospy.get_param('~' + name, default)
+    if not isinstance(value, bool):
+        raise ValueError('~%s must be true or false, got %r' % (name, value))
+    return value
+
+
+def markdown(summary):
+    """Markdown text of a summary dict (Evaluation.as_dict() plus 'state')."""
+    lines = ['# Tracking error: %s' % (summary.get('name') or '(unnamed)'), '',
+             '%s samples, window %s s, state %s.' % (summary.get('samples'), summary.get('window'),
+                                                      summary.get('state', '')), '',
+             '| against | e_max [m] | e_mu [m] | e_sigma [m] | valid | excluded | e_mu horizontal [m] |',
+             '|---|---|---|---|---|---|---|']
+    for key, label in (('estimate', 'drone estimate'), ('truth', 'ground truth')):
+        r = summary.get(key)
+        if r is None:
+            lines.append('| %s | absent | | | | | |' % label)
+            continue
+        lines.append('| %s | %s | %s | %s | %s | %s | %s |' % (
+            label, r['e_max'], r['e_mu'], r['e_sigma'], r['n_valid'], r['n_excluded'], r['e_mu_horizontal']))
+    for g in summary.get('garbage') or []:
+        lines.append('- GARBAGE (excluded): %s' % g)
+    for w in summary.get('warnings') or []:
+        lines.append('- WARNING: %s' % w)
+    return '\n'.join(lines) + '\n'
+
+
+class EvaluatorNode(object):
+    def __init__(self):
+        self.publish_period = _number('publish_period', 1.0, minimum=0.0)
+        self.finalize_timeout = _number('finalize_timeout', 2.0, minimum=0.0)
+        self.min_altitude = _number('min_altitude', -1.0)
+        self.use_header_stamp = _flag('use_header_stamp', True)
+        self.exit_when_done = _flag('exit_when_done', False)
+        self.summary_file = str(rospy.get_param('~summary_file', '') or '')
+        self.csv_file = str(rospy.get_param('~csv_file', '') or '')
+        self.csv_window = str(rospy.get_param('~csv_window', 'measured'))
+        if self.csv_window not in ('measured', 'all'):
+            raise ValueError("~csv_window must be 'measured' or 'all', got %r" % self.csv_window)
+        self.name = str(rospy.get_param('~name', '') or '')
+        self.core = LiveEvaluator(name=self.name, min_altitude=self.min_altitude,
+                                  max_samples=int(_number('max_samples', 500000, minimum=0.0)))
+        self.lock = threading.Lock()
+        self.end_seen_at = None
+        self.finished = False
+        self.errors = 0
+        self.pub = rospy.Publisher('evaluation/summary', String, queue_size=2, latch=True)
+        self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
+        topics = dict((k, str(rospy.get_param('~%s_topic' % k, d) or '')) for k, d in (
+            ('waypoint', 'position_control/waypoint'), ('estimate', 'drone/odom'),
+            ('truth', 'ground_truth/odom'), ('begin', 'trajectory/begin'), ('end', 'trajectory/end')))
+        for k in ('waypoint', 'estimate', 'begin', 'end'):
+            if not topics[k]:
+                raise ValueError('~%s_topic must not be empty' % k)
+        rospy.Subscriber(topics['waypoint'], Waypoint, self._on_waypoint, queue_size=50)
+        rospy.Subscriber(topics['estimate'], Odometry, self._on_estimate, queue_size=100)
+        if topics['truth']:
+            rospy.Subscriber(topics['truth'], Odometry, self._on_truth, queue_size=100)
+        rospy.Subscriber(topics['begin'], Header, self._on_begin, queue_size=5)
+        rospy.Subscriber(topics['end'], Header, self._on_end, queue_size=5)
+        rospy.loginfo('%s: waypoint %s, estimate %s, truth %s, window %s .. %s', rospy.get_name(),
+                      *[rospy.resolve_name(topics[k]) if topics[k] else '(none)'
+                        for k in ('waypoint', 'estimate', 'truth', 'begin', 'end')])
+
+    def _t(self, msg):
+        return stamp_ns(msg, rospy.get_rostime(), self.use_header_stamp) * 1e-9
+
+    def _on_waypoint(self, msg):
+        with self.lock:
+            self.core.add_waypoint(self._t(msg), msg)
+
+    def _on_estimate(self, msg):
+        with self.lock:
+            self.core.add_estimate(self._t(msg), msg)
+
+    def _on_truth(self, msg):
+        with self.lock:
+            self.core.add_truth(self._t(msg), msg)
+
+    def _on_begin(self, msg):
+        with self.lock:
+            if not self.name and msg.frame_id:
+                self.core.name = msg.frame_id
+            self.core.begin(self._t(msg))
+            self.end_seen_at = None
+            self.finished = False
+        rospy.loginfo('measured segment begins at %.3f s', self._t(msg))
+
+    def _on_end(self, msg):
+        with self.lock:
+            self.core.end(self._t(msg))
+            self.end_seen_at = rospy.get_time()
+        rospy.loginfo('measured segment ends at %.3f s', self._t(msg))
+
+    def summary(self, state):
+        with self.lock:
+            try:
+                result = self.core.evaluate(rospy.get_time())
+            except Exception as e:    # never let one bad evaluation kill the node: report it
+                self.errors += 1
+                rospy.logerr_throttle(10.0, 'evaluation failed (%d times): %s' % (self.errors, e))
+                return None, {'name': self.core.name, 'state': 'error', 'error': str(e), 'samples': 0}
+        if result is None:
+            return None, {'name': self.core.name, 'state': 'waiting', 'samples': 0, 'counts': self.core.counts()}
+        d = result.as_dict()
+        d['state'] = state
+        return result, d
+
+    def publish(self, result, d):
+        try:
+            self._publish(result, d)
+        except rospy.ROSException as e:     # after shutdown: the files and the log still get the summary
+            rospy.logdebug('summary not published: %s', e)
+
+    def _publish(self, result, d):
+        self.pub.publish(String(data=yaml.safe_dump(dict(d), default_flow_style=False, sort_keys=False)))
+        status = DiagnosticStatus(name='%s: tracking error' % rospy.get_name(), hardware_id=d.get('name') or '')
+        status.level = DiagnosticStatus.OK
+        status.message = d.get('state', '')
+        if result is not None:
+            if result.garbage or result.warnings:
+                status.level = DiagnosticStatus.WARN
+                status.message += ': ' + '; '.join(result.garbage.summary() + result.warnings)
+            for key in ('estimate', 'truth'):
+                r = d.get(key)
+                if r:
+                    status.values += [KeyValue('%s_%s' % (key, k), str(r[k])) for k in ('e_max', 'e_mu', 'e_sigma')]
+            status.values.append(KeyValue('samples', str(d.get('samples'))))
+        arr = DiagnosticArray()
+        arr.header.stamp = rospy.Time.now()
+        arr.status = [status]
+        self.pub_diag.publish(arr)
+
+    def finalize(self, state):
+        result, d = self.summary(state)
+        self.finished = True
+        self.publish(result, d)
+        if result is None:
+            rospy.logwarn('no waypoint / estimate received: nothing to evaluate')
+        else:
+            for line in result.lines():
+                rospy.loginfo('%s', line)
+        try:
+            self.write(result, d)
+        except (IOError, OSError, ValueError) as e:
+            rospy.logerr('cannot write the evaluation files: %s', e)
+        return result
+
+    def write(self, result, d):
+        if self.summary_file:
+            _makedirs(self.summary_file)
+            with open(self.summary_file, 'w') as f:
+                if self.summary_file.endswith('.md'):
+                    f.write(markdown(d))
+                else:
+                    yaml.safe_dump(dict(d), f, default_flow_style=False, sort_keys=False)
+            rospy.loginfo('summary written to %s', self.summary_file)
+        if self.csv_file and result is not None:
+            _makedirs(self.csv_file)
+            write_log(self.csv_file, result.log if self.csv_window == 'measured' else result.full_log)
+            rospy.loginfo('reference-log CSV written to %s', self.csv_file)
+
+    def run(self):
+        rate_period = self.publish_period
+        last = -1e18
+        while not rospy.is_shutdown():
+            now = rospy.get_time()
+            with self.lock:
+                ended = self.core.state == 'ended'
+                complete = self.core.complete()
+                timed_out = self.end_seen_at is not None and now - self.end_seen_at >= self.finalize_timeout
+            if ended and not self.finished and (complete or timed_out):
+                self.finalize('final')
+                if self.exit_when_done:
+                    rospy.signal_shutdown('evaluation done')
+                    break
+            elif now - last >= rate_period or now < last:
+                last = now
+                if not self.finished:
+                    result, d = self.summary(self.core.state)
+                    self.publish(result, d)
+            try:
+                rospy.sleep(min(0.1, rate_period))
+            except rospy.ROSInterruptException:
+                break
+        if not self.finished:
+            self.finalize('incomplete')
+
+
+def _makedirs(path):
+    directory = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(directory):
+        os.makedirs(directory)
+
+
+def main():
+    rospy.init_node('evaluator')
+    try:
+        node = EvaluatorNode()
+    except ValueError as e:
+        rospy.logfatal(str(e))
+        raise SystemExit(1)
+    node.run()
+
+
+if __name__ == '__main__':
+    main()

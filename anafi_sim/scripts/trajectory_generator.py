@@ -1,0 +1,240 @@
+#!/usr/bin/env python3
+"""Trajectory generator node: a scenario (anafi_sim/config/scenarios/*.yaml) -> the paper's waypoint.
+
+Stage: trajectory -> waypoint (-> PID / MPC). Thin node over
+anafi_sim.trajectory (Scenario, TrajectoryGenerator). Topics relative to the
+node's namespace (/<drone>/):
+
+- out ~waypoint_topic (default position_control/waypoint, anafi_sim/Waypoint:
+  ENU position [m], velocity [m/s], yaw [deg]; header.frame_id ~frame_id) at
+  ~rate Hz (10) of ROS time (simulation time under /use_sim_time);
+- out trajectory/begin, trajectory/end (std_msgs/Header, latched): stamp =
+  the exact start / end of the measured phase, frame_id = scenario name;
+  trajectory/status (std_msgs/String, latched YAML: scenario, state, phase);
+- in drone/state (std_msgs/String; ~wait_for_flying: start only once 'flying');
+- in ~command (std_msgs/String): 'start', 'stop', 'restart', 'switch NAME'
+  (NAME = scenario name or YAML path); services ~start, ~stop
+  (std_srvs/Trigger) when std_srvs is installed.
+
+Parameters: ~scenario (name, default circle_r2_v1) or ~scenario_file
+(path, wins), ~scenario_dir (default: the package's config/scenarios),
+~rate (10 Hz), ~autostart (true), ~wait_for_flying (true), ~start_timeout
+(s of ROS time, 0 = wait forever), ~hold_when_idle (true: after the end or a
+stop keep publishing the last position with zero velocity), ~exit_when_done
+(false: true shuts the node down ~exit_delay s (1.0) after the scenario ends,
+exit code 0; 1 when the drone never flew within ~start_timeout), ~frame_id
+(world). A bad scenario or parameter: logfatal and exit 1.
+"""
+import math
+import threading
+import time
+
+import rospy
+import yaml
+from std_msgs.msg import Header, String
+
+from anafi_sim.msg import Waypoint
+from anafi_sim.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
+                                  load_scenario)
+
+try:
+    from std_srvs.srv import Trigger, TriggerResponse
+except ImportError:   # std_srvs missing: the ~command topic still works
+    Trigger = TriggerResponse = None
+
+
+def _positive(name, default):
+    value = rospy.get_param('~' + name, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise ValueError('~%s must be a finite number > 0, got %r' % (name, value))
+    return float(value)
+
+
+def _non_negative(name, default):
+    value = rospy.get_param('~' + name, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+        raise ValueError('~%s must be a finite number >= 0, got %r' % (name, value))
+    return float(value)
+
+
+def _flag(name, default):
+    value = rospy.get_param('~' + name, default)
+    if not isinstance(value, bool):
+        raise ValueError('~%s must be true or false, got %r' % (name, value))
+    return value
+
+
+class TrajectoryGeneratorNode(object):
+    def __init__(self):
+        self.rate = _positive('rate', 10.0)
+        self.autostart = _flag('autostart', True)
+        self.wait_for_flying = _flag('wait_for_flying', True)
+        self.hold_when_idle = _flag('hold_when_idle', True)
+        self.exit_when_done = _flag('exit_when_done', False)
+        self.start_timeout = _non_negative('start_timeout', 0.0)
+        self.exit_delay = _non_negative('exit_delay', 1.0)
+        self.frame_id = str(rospy.get_param('~frame_id', 'world'))
+        self.scenario_dir = str(rospy.get_param('~scenario_dir', '') or SCENARIO_DIR)
+        scenario_file = str(rospy.get_param('~scenario_file', '') or '')
+        scenario = load_scenario(scenario_file or str(rospy.get_param('~scenario', 'circle_r2_v1')),
+                                 self.scenario_dir)           # ValueError with the file and field
+        self.gen = TrajectoryGenerator(scenario, hold_when_idle=self.hold_when_idle)
+        self.lock = threading.Lock()
+        self.drone_state = ''
+        self.pending_start = self.autostart
+        self.done_time = None
+        self.failed = False
+        self.published = 0
+        self.pub = rospy.Publisher(str(rospy.get_param('~waypoint_topic', 'position_control/waypoint')),
+                                   Waypoint, queue_size=10)
+        self.pub_begin = rospy.Publisher('trajectory/begin', Header, queue_size=2, latch=True)
+        self.pub_end = rospy.Publisher('trajectory/end', Header, queue_size=2, latch=True)
+        self.pub_status = rospy.Publisher('trajectory/status', String, queue_size=5, latch=True)
+        rospy.Subscriber('drone/state', String, self._on_state, queue_size=5)
+        rospy.Subscriber('~command', String, self._on_command, queue_size=10)
+        if Trigger is not None:
+            rospy.Service('~start', Trigger, lambda _: self._service('start'))
+            rospy.Service('~stop', Trigger, lambda _: self._service('stop'))
+        for line in scenario.describe():
+            rospy.loginfo('%s', line)
+        self._status('')
+
+    # ------------------------------------------------------------ inputs
+    def _on_state(self, msg):
+        self.drone_state = msg.data
+
+    def _service(self, command):
+        ok, text = self.command(command)
+        rospy.loginfo('service %s: %s', command, text)
+        return TriggerResponse(success=ok, message=text)
+
+    def _on_command(self, msg):
+        ok, text = self.command(msg.data)
+        (rospy.loginfo if ok else rospy.logwarn)('command %r: %s', msg.data, text)
+
+    def command(self, text):
+        """Apply 'start' | 'stop' | 'restart' | 'switch NAME'; returns (ok, message)."""
+        words = str(text).strip().split(None, 1)
+        if not words:
+            return False, 'empty command'
+        verb = words[0].lower()
+        with self.lock:
+            now = rospy.get_time()
+            if verb in ('start', 'restart'):
+                if verb == 'start' and self.gen.state == RUNNING:
+                    return True, 'already running %s' % self.gen.scenario.name
+                self.pending_start = True
+                self.done_time = None
+                return True, 'starting %s' % self.gen.scenario.name
+            if verb == 'stop':
+                self.pending_start = False
+                self.gen.stop(now)
+                return True, 'stopped'
+            if verb == 'switch' and len(words) == 2:
+                try:
+                    scenario = load_scenario(words[1].strip(), self.scenario_dir)
+                except ValueError as e:
+                    return False, str(e)
+                running = self.gen.state == RUNNING
+                self.gen.switch(scenario, now, start=running)
+                self.pending_start = not running
+                self.done_time = None
+                return True, 'switched to %s' % scenario.name
+        return False, "unknown command (use 'start', 'stop', 'restart' or 'switch NAME')"
+
+    # ------------------------------------------------------------ outputs
+    def _status(self, phase):
+        self.pub_status.publish(String(data=yaml.safe_dump(
+            {'scenario': self.gen.scenario.name, 'state': self.gen.state, 'phase': phase},
+            default_flow_style=True).strip()))
+
+    def _header(self, t, name):
+        h = Header()
+        h.stamp = rospy.Time.from_sec(t)
+        h.frame_id = name
+        return h
+
+    def _publish_events(self, events):
+        for ev in events:
+            if ev.kind == 'begin':
+                self.pub_begin.publish(self._header(ev.time, ev.scenario))
+                rospy.loginfo('%s: measured segment begins (t = %.3f s)', ev.scenario, ev.time)
+            elif ev.kind == 'end':
+                self.pub_end.publish(self._header(ev.time, ev.scenario))
+                rospy.loginfo('%s: measured segment ends (t = %.3f s)', ev.scenario, ev.time)
+            elif ev.kind == 'abort':
+                rospy.logwarn('%s: measured segment aborted (t = %.3f s)', ev.scenario, ev.time)
+            elif ev.kind == 'phase':
+                rospy.loginfo('%s: phase %s', ev.scenario, ev.phase)
+            elif ev.kind == 'done':
+                rospy.loginfo('%s: scenario done', ev.scenario)
+            if ev.kind in ('phase', 'done', 'stop', 'start'):
+                self._status(ev.phase)
+
+    def tick(self):
+        now = rospy.get_time()
+        with self.lock:
+            if self.pending_start and (not self.wait_for_flying or self.drone_state == 'flying'):
+                self.pending_start = False
+                self.gen.start(now)
+            wp, events = self.gen.update(now)
+            if self.gen.state == DONE and self.done_time is None:
+                self.done_time = now
+        self._publish_events(events)
+        if wp is not None:
+            msg = Waypoint()
+            msg.header.stamp = rospy.Time.from_sec(now)
+            msg.header.frame_id = self.frame_id
+            msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz, msg.yaw = wp
+            self.pub.publish(msg)
+            self.published += 1
+
+    def run(self):
+        use_sim_time = rospy.get_param('/use_sim_time', False)
+        while use_sim_time and not rospy.is_shutdown() and rospy.get_time() == 0.0:
+            time.sleep(0.05)                  # wall time: the simulation clock has not started yet
+        t_start = rospy.get_time()
+        warned = False
+        rate = rospy.Rate(self.rate)
+        while not rospy.is_shutdown():
+            self.tick()
+            now = rospy.get_time()
+            if self.gen.state == IDLE and self.pending_start and self.start_timeout > 0 \
+                    and now - t_start > self.start_timeout and not warned:
+                warned = True
+                rospy.logerr('drone not flying after %.1f s (drone/state %r)', self.start_timeout,
+                             self.drone_state)
+                if self.exit_when_done:
+                    self.failed = True
+                    rospy.signal_shutdown('drone never flying')
+                    break
+            if self.exit_when_done and self.done_time is not None and now - self.done_time >= self.exit_delay:
+                rospy.loginfo('%s done, %d waypoints published: exiting', self.gen.scenario.name, self.published)
+                rospy.signal_shutdown('scenario done')
+                break
+            try:
+                rate.sleep()
+            except rospy.ROSTimeMovedBackwardsException:
+                rospy.logwarn('ROS time moved backwards: restarting %s', self.gen.scenario.name)
+                with self.lock:
+                    self.gen.reset()
+                    self.pending_start = True
+                    self.done_time = None
+            except rospy.ROSInterruptException:
+                break
+        return not self.failed
+
+
+def main():
+    rospy.init_node('trajectory_generator')
+    try:
+        node = TrajectoryGeneratorNode()
+    except ValueError as e:
+        rospy.logfatal('%s (scenarios in %s: %s)', e, SCENARIO_DIR, ', '.join(list_scenarios()))
+        raise SystemExit(1)
+    ok = node.run()
+    raise SystemExit(0 if ok else 1)
+
+
+if __name__ == '__main__':
+    main()

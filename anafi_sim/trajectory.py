@@ -1,0 +1,688 @@
+"""Trajectory generator core: scenario time -> the paper's waypoint (pure Python, no ROS).
+
+Stage: trajectory -> waypoint (-> PID / MPC controller). Units and frames:
+positions [m] and velocities [m/s] in the ENU world frame, yaw [deg] (world,
+counter-clockwise positive), time [s]. Every trajectory returns a
+``WaypointSample`` (x, y, z, vx, vy, vz, yaw) at time t, and its velocity is
+always the exact time derivative of its position (closed form, not a finite
+difference).
+
+Building blocks are 1-D *axis components* (``Constant``, ``Ramp``, ``Sine``),
+each giving (position, velocity) at t; ``PerAxis`` combines one component per
+axis (x, y, z, and yaw in degrees). The paper's shapes are ``PerAxis``
+subclasses:
+
+- ``StaticWaypoint(x, y, z, yaw)``;
+- ``StraightLine(start, direction, speed, yaw)``: p = start + speed * d * t
+  (d = direction normalised);
+- ``Circle(centre, radius, speed, yaw)`` in the xy-plane at the centre's
+  altitude: angular rate w = speed / radius, x = cx + r cos(w t + phase),
+  y = cy + r sin(w t + phase) (counter-clockwise; ``clockwise=True`` flips);
+- ``VerticalPeriodic(centre, radius, speed, yaw)``: z = z0 + r sin(v t / r),
+  vz = v cos(v t / r) (the paper's rectilinear periodic trajectory).
+
+``period()`` is the smallest common period of the axes (None when the
+trajectory is static or not periodic).
+
+Scenarios (``Scenario``, loaded from YAML by ``load_scenario``) put a
+trajectory into phases. Schema (see anafi_sim/config/scenarios/README.md)::
+
+    name: circle_r2_v1                  # optional, default: file name
+    description: text                   # optional
+    start: {x: 2, y: 0, z: 5, yaw: 0}   # hover point first [m, deg]; 'trajectory' (default):
+                                        #   the trajectory's position and yaw at t = 0
+    trajectory: {type: circle, centre: [0, 0, 5], radius: 2, speed: 1, yaw: 0}
+    phases:                             # run in order
+      - {name: approach, duration: 8, hold: start}  # waypoint = start, velocity 0
+      - {name: settle, periods: 1}                  # follow the trajectory
+      - {name: measure, periods: 1, measure: true}  # the measured window (exactly one)
+
+Trajectory types: ``static`` (position [x, y, z], yaw), ``line`` (start,
+direction, speed, yaw), ``circle`` (centre, radius, speed, yaw, phase [rad],
+clockwise), ``vertical`` (centre [x, y, z0], radius, speed, yaw), ``per_axis``
+(x, y, z, yaw: each {type: constant, value} | {type: ramp, start, speed} |
+{type: sine, offset, amplitude, omega [rad/s], phase [rad]}; missing axes are
+constant 0). A phase has ``duration`` [s] or ``periods`` (whole trajectory
+periods, needs a periodic trajectory), optional ``hold: start`` and
+``measure: true``. Trajectory time starts at 0 with the first following phase
+and runs on across following phases (hold phases pause it). After the last
+phase the waypoint holds the final position with zero velocity.
+Invalid input raises ValueError naming the file and the field.
+"""
+import collections
+import math
+import os
+
+import yaml
+
+WaypointSample = collections.namedtuple('WaypointSample', 'x y z vx vy vz yaw')
+WaypointSample.__doc__ = ('The paper\'s waypoint: position [m], velocity [m/s] (ENU world frame), '
+                          'yaw [deg].')
+
+SCENARIO_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'config', 'scenarios')
+"""Directory of the shipped scenario files (anafi_sim/config/scenarios)."""
+
+
+def _number(value, what, positive=False, non_negative=False):
+    """``value`` as a finite float, else ValueError mentioning ``what``."""
+    if isinstance(value, bool):
+        raise ValueError('%s must be a number, got %r' % (what, value))
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise ValueError('%s must be a number, got %r' % (what, value))
+    if not math.isfinite(out):
+        raise ValueError('%s must be finite, got %r' % (what, value))
+    if positive and out <= 0.0:
+        raise ValueError('%s must be > 0, got %r' % (what, value))
+    if non_negative and out < 0.0:
+        raise ValueError('%s must be >= 0, got %r' % (what, value))
+    return out
+
+
+def _vector3(value, what):
+    if isinstance(value, dict):
+        missing = [k for k in ('x', 'y', 'z') if k not in value]
+        if missing:
+            raise ValueError('%s lacks %s' % (what, ', '.join(missing)))
+        value = [value['x'], value['y'], value['z']]
+    if not isinstance(value, (list, tuple)) or len(value) != 3:
+        raise ValueError('%s must be [x, y, z], got %r' % (what, value))
+    return tuple(_number(v, '%s[%d]' % (what, i)) for i, v in enumerate(value))
+
+
+# ---------------------------------------------------------------- axis components
+
+class Constant(object):
+    """p(t) = value, v = 0."""
+
+    def __init__(self, value=0.0):
+        self.value = _number(value, 'constant value')
+
+    def __call__(self, t):
+        return self.value, 0.0
+
+    def period(self):
+        """None: constant (compatible with any period)."""
+        return None
+
+    def __repr__(self):
+        return 'Constant(%r)' % self.value
+
+
+class Ramp(object):
+    """p(t) = start + speed * t, v = speed."""
+
+    def __init__(self, start=0.0, speed=0.0):
+        self.start = _number(start, 'ramp start')
+        self.speed = _number(speed, 'ramp speed')
+
+    def __call__(self, t):
+        return self.start + self.speed * t, self.speed
+
+    def period(self):
+        """None when the speed is 0 (constant), else inf (never repeats)."""
+        return None if self.speed == 0.0 else math.inf
+
+    def __repr__(self):
+        return 'Ramp(start=%r, speed=%r)' % (self.start, self.speed)
+
+
+class Sine(object):
+    """p(t) = offset + amplitude sin(omega t + phase), v = amplitude omega cos(omega t + phase)."""
+
+    def __init__(self, offset=0.0, amplitude=0.0, omega=0.0, phase=0.0):
+        self.offset = _number(offset, 'sine offset')
+        self.amplitude = _number(amplitude, 'sine amplitude')
+        self.omega = _number(omega, 'sine omega')
+        self.phase = _number(phase, 'sine phase')
+
+    def __call__(self, t):
+        a = self.omega * t + self.phase
+        return (self.offset + self.amplitude * math.sin(a),
+                self.amplitude * self.omega * math.cos(a))
+
+    def period(self):
+        """2 pi / |omega| [s]; None when constant (omega or amplitude 0)."""
+        if self.omega == 0.0 or self.amplitude == 0.0:
+            return None
+        return 2.0 * math.pi / abs(self.omega)
+
+    def __repr__(self):
+        return 'Sine(offset=%r, amplitude=%r, omega=%r, phase=%r)' % (
+            self.offset, self.amplitude, self.omega, self.phase)
+
+
+COMPONENT_TYPES = {'constant': Constant, 'ramp': Ramp, 'sine': Sine}
+
+
+def common_period(periods, max_multiple=64, rel_tol=1e-9):
+    """Smallest common period of ``periods`` (None entries = constant, ignored).
+
+    Returns None when every entry is None, or when some entry is inf or the
+    periods are not commensurate (no common multiple within ``max_multiple``
+    times the longest one).
+    """
+    finite = [p for p in periods if p is not None]
+    if not finite:
+        return None
+    if any(math.isinf(p) for p in finite):
+        return None
+    longest = max(finite)
+    for k in range(1, max_multiple + 1):
+        candidate = k * longest
+        if all(abs(candidate / p - round(candidate / p)) <= rel_tol * max(1.0, candidate / p) for p in finite):
+            return candidate
+    return None
+
+
+# ---------------------------------------------------------------- trajectories
+
+class PerAxis(object):
+    """A trajectory built from one axis component per axis; yaw component in degrees.
+
+    ``sample(t)`` -> ``WaypointSample``: positions and velocities from the x,
+    y, z components (ENU), yaw [deg] from the yaw component's position.
+    """
+
+    kind = 'per_axis'
+
+    def __init__(self, x=None, y=None, z=None, yaw=None):
+        self.axes = collections.OrderedDict()
+        for name, comp in (('x', x), ('y', y), ('z', z), ('yaw', yaw)):
+            comp = Constant(0.0) if comp is None else comp
+            if not callable(comp) or not hasattr(comp, 'period'):
+                raise ValueError('axis %s must be an axis component (Constant, Ramp, Sine), got %r'
+                                 % (name, comp))
+            self.axes[name] = comp
+
+    def sample(self, t):
+        """Waypoint at trajectory time ``t`` [s]."""
+        t = float(t)
+        x, vx = self.axes['x'](t)
+        y, vy = self.axes['y'](t)
+        z, vz = self.axes['z'](t)
+        yaw, _ = self.axes['yaw'](t)
+        return WaypointSample(x, y, z, vx, vy, vz, yaw)
+
+    __call__ = sample
+
+    def position(self, t):
+        """(x, y, z) [m] at ``t``."""
+        s = self.sample(t)
+        return s.x, s.y, s.z
+
+    def velocity(self, t):
+        """(vx, vy, vz) [m/s] at ``t``."""
+        s = self.sample(t)
+        return s.vx, s.vy, s.vz
+
+    def period(self):
+        """Smallest common period [s] of all axes, None when static or not periodic."""
+        return common_period([c.period() for c in self.axes.values()])
+
+    def __repr__(self):
+        return '%s(%s)' % (type(self).__name__, ', '.join('%s=%r' % kv for kv in self.axes.items()))
+
+
+class StaticWaypoint(PerAxis):
+    """A fixed waypoint (x, y, z [m], yaw [deg]) with zero velocity."""
+
+    kind = 'static'
+
+    def __init__(self, x, y, z, yaw=0.0):
+        PerAxis.__init__(self, Constant(x), Constant(y), Constant(z), Constant(yaw))
+
+
+class StraightLine(PerAxis):
+    """p(t) = start + speed * d * t with d = direction / |direction| (ENU), constant yaw [deg]."""
+
+    kind = 'line'
+
+    def __init__(self, start, direction, speed, yaw=0.0):
+        start = _vector3(start, 'line start')
+        direction = _vector3(direction, 'line direction')
+        speed = _number(speed, 'line speed', non_negative=True)
+        norm = math.sqrt(sum(d * d for d in direction))
+        if norm < 1e-9:
+            raise ValueError('line direction must be a non-zero vector, got %r' % (direction,))
+        self.start = start
+        self.direction = tuple(d / norm for d in direction)
+        self.speed = speed
+        PerAxis.__init__(self, *[Ramp(s, speed * d) for s, d in zip(start, self.direction)],
+                         yaw=Constant(yaw))
+
+
+class Circle(PerAxis):
+    """Circle in the xy-plane at the centre's altitude, constant yaw [deg].
+
+    Angular rate w = speed / radius [rad/s] (counter-clockwise seen from
+    above, or clockwise); starts at angle ``phase`` [rad] (0: at centre + (r, 0)).
+    Period 2 pi r / v.
+    """
+
+    kind = 'circle'
+
+    def __init__(self, centre, radius, speed, yaw=0.0, phase=0.0, clockwise=False):
+        centre = _vector3(centre, 'circle centre')
+        radius = _number(radius, 'circle radius', positive=True)
+        speed = _number(speed, 'circle speed', positive=True)
+        phase = _number(phase, 'circle phase')
+        self.centre, self.radius, self.speed = centre, radius, speed
+        self.clockwise = bool(clockwise)
+        w = (-1.0 if self.clockwise else 1.0) * speed / radius
+        self.omega = w
+        # x = cx + r cos(w t + phase) = cx + r sin(w t + phase + pi/2)
+        PerAxis.__init__(self,
+                         Sine(centre[0], radius, w, phase + 0.5 * math.pi),
+                         Sine(centre[1], radius, w, phase),
+                         Constant(centre[2]),
+                         Constant(yaw))
+
+
+class VerticalPeriodic(PerAxis):
+    """The paper's vertical rectilinear periodic motion: z = z0 + r sin(v t / r), vz = v cos(v t / r).
+
+    ``centre`` = (x, y, z0) [m]; period 2 pi r / v; constant yaw [deg].
+    """
+
+    kind = 'vertical'
+
+    def __init__(self, centre, radius, speed, yaw=0.0):
+        centre = _vector3(centre, 'vertical centre')
+        radius = _number(radius, 'vertical radius', positive=True)
+        speed = _number(speed, 'vertical speed', positive=True)
+        self.centre, self.radius, self.speed = centre, radius, speed
+        PerAxis.__init__(self, Constant(centre[0]), Constant(centre[1]),
+                         Sine(centre[2], radius, speed / radius, 0.0), Constant(yaw))
+
+
+# ---------------------------------------------------------------- construction from dicts
+
+def _check_keys(d, allowed, what):
+    if not isinstance(d, dict):
+        raise ValueError('%s must be a mapping, got %r' % (what, d))
+    unknown = sorted(set(d) - set(allowed))
+    if unknown:
+        raise ValueError('%s: unknown field(s) %s (allowed: %s)' % (what, ', '.join(map(str, unknown)),
+                                                                    ', '.join(sorted(allowed))))
+
+
+def _require(d, key, what):
+    if key not in d:
+        raise ValueError('%s: missing field %r' % (what, key))
+    return d[key]
+
+
+def component_from_dict(d, what='axis'):
+    """An axis component from {type: constant|ramp|sine, ...} (a bare number = constant)."""
+    if isinstance(d, (int, float)) and not isinstance(d, bool):
+        return Constant(d)
+    if not isinstance(d, dict):
+        raise ValueError('%s must be a number or a mapping with a type, got %r' % (what, d))
+    kind = d.get('type')
+    if kind not in COMPONENT_TYPES:
+        raise ValueError('%s: type must be one of %s, got %r' % (what, ', '.join(sorted(COMPONENT_TYPES)), kind))
+    fields = {'constant': ('value',), 'ramp': ('start', 'speed'),
+              'sine': ('offset', 'amplitude', 'omega', 'phase')}[kind]
+    _check_keys(d, ('type',) + fields, what)
+    kwargs = dict((k, d[k]) for k in fields if k in d)
+    try:
+        return COMPONENT_TYPES[kind](**kwargs)
+    except ValueError as e:
+        raise ValueError('%s: %s' % (what, e))
+
+
+def trajectory_from_dict(d, what='trajectory'):
+    """A trajectory from its YAML mapping (see the module doc for the types and fields)."""
+    if not isinstance(d, dict):
+        raise ValueError('%s must be a mapping with a type, got %r' % (what, d))
+    kind = d.get('type')
+    try:
+        if kind == 'static':
+            _check_keys(d, ('type', 'position', 'yaw'), what)
+            p = _vector3(_require(d, 'position', what), 'position')
+            return StaticWaypoint(p[0], p[1], p[2], _number(d.get('yaw', 0.0), 'yaw'))
+        if kind == 'line':
+            _check_keys(d, ('type', 'start', 'direction', 'speed', 'yaw'), what)
+            return StraightLine(_require(d, 'start', what), _require(d, 'direction', what),
+                                _require(d, 'speed', what), _number(d.get('yaw', 0.0), 'yaw'))
+        if kind == 'circle':
+            _check_keys(d, ('type', 'centre', 'radius', 'speed', 'yaw', 'phase', 'clockwise'), what)
+            clockwise = d.get('clockwise', False)
+            if not isinstance(clockwise, bool):
+                raise ValueError('clockwise must be true or false, got %r' % (clockwise,))
+            return Circle(_require(d, 'centre', what), _require(d, 'radius', what), _require(d, 'speed', what),
+                          _number(d.get('yaw', 0.0), 'yaw'), d.get('phase', 0.0), clockwise)
+        if kind == 'vertical':
+            _check_keys(d, ('type', 'centre', 'radius', 'speed', 'yaw'), what)
+            return VerticalPeriodic(_require(d, 'centre', what), _require(d, 'radius', what),
+                                    _require(d, 'speed', what), _number(d.get('yaw', 0.0), 'yaw'))
+        if kind == 'per_axis':
+            _check_keys(d, ('type', 'x', 'y', 'z', 'yaw'), what)
+            return PerAxis(*[component_from_dict(d[a], '%s.%s' % (what, a)) if a in d else None
+                             for a in ('x', 'y', 'z', 'yaw')])
+    except ValueError as e:
+        msg = str(e)
+        raise ValueError(msg if msg.startswith(what) else '%s (%s): %s' % (what, kind, msg))
+    raise ValueError('%s: type must be one of static, line, circle, vertical, per_axis, got %r' % (what, kind))
+
+
+# ---------------------------------------------------------------- scenarios
+
+Phase = collections.namedtuple('Phase', 'name duration hold measure')
+Phase.__doc__ = ('One scenario phase: name, duration [s], hold (True: waypoint = start, trajectory '
+                 'time paused), measure (True: the measured window).')
+
+PhaseState = collections.namedtuple('PhaseState', 'index phase start end trajectory_time')
+PhaseState.__doc__ = ('Where scenario time t falls: phase index (None after the end), Phase, phase '
+                      'start/end [s scenario time], trajectory time [s] (None while holding).')
+
+
+class Scenario(object):
+    """A trajectory in phases: hover at ``start``, then follow the trajectory, one measured phase.
+
+    Scenario time t [s] starts at 0 when the generator starts. ``waypoint(t)``
+    is the waypoint to publish; ``measure_window`` is (t_begin, t_end).
+    """
+
+    def __init__(self, name, trajectory, phases, start=None, description=''):
+        if not name or not isinstance(name, str):
+            raise ValueError('scenario name must be a non-empty string, got %r' % (name,))
+        self.name = name
+        self.description = description or ''
+        self.trajectory = trajectory
+        if start is None:
+            s = trajectory.sample(0.0)
+            start = WaypointSample(s.x, s.y, s.z, 0.0, 0.0, 0.0, s.yaw)
+        self.start = WaypointSample(float(start[0]), float(start[1]), float(start[2]), 0.0, 0.0, 0.0,
+                                    float(start[6] if len(start) > 6 else start[3]))
+        self.phases = tuple(phases)
+        if not self.phases:
+            raise ValueError('scenario %s: at least one phase needed' % name)
+        names = [p.name for p in self.phases]
+        if len(set(names)) != len(names):
+            raise ValueError('scenario %s: phase names must be unique, got %s' % (name, names))
+        for p in self.phases:
+            if not (p.duration > 0.0 and math.isfinite(p.duration)):
+                raise ValueError('scenario %s: phase %s needs a finite duration > 0, got %r'
+                                 % (name, p.name, p.duration))
+        measured = [i for i, p in enumerate(self.phases) if p.measure]
+        if len(measured) != 1:
+            raise ValueError('scenario %s: exactly one phase must have measure: true, found %d'
+                             % (name, len(measured)))
+        self.measure_index = measured[0]
+        self._bounds = []
+        t = 0.0
+        traj_t = 0.0
+        for p in self.phases:
+            self._bounds.append((t, t + p.duration, None if p.hold else traj_t))
+            t += p.duration
+            if not p.hold:
+                traj_t += p.duration
+        self.duration = t
+        self.trajectory_duration = traj_t
+        b = self._bounds[self.measure_index]
+        self.measure_window = (b[0], b[1])
+        self.final = self._final_waypoint()
+
+    @property
+    def measured_phase(self):
+        return self.phases[self.measure_index]
+
+    def period(self):
+        """The trajectory's period [s] (None when static or not periodic)."""
+        return self.trajectory.period()
+
+    def phase_at(self, t):
+        """``PhaseState`` of scenario time ``t`` [s] (t < 0 counts as 0; index None after the end)."""
+        t = max(0.0, float(t))
+        for i, (p, (t0, t1, traj0)) in enumerate(zip(self.phases, self._bounds)):
+            if t < t1:
+                return PhaseState(i, p, t0, t1, None if traj0 is None else traj0 + (t - t0))
+        return PhaseState(None, None, self.duration, self.duration, None)
+
+    def trajectory_time(self, t):
+        """Trajectory time [s] at scenario time ``t``, None while holding the start or after the end."""
+        return self.phase_at(t).trajectory_time
+
+    def waypoint(self, t):
+        """``WaypointSample`` to publish at scenario time ``t`` [s]."""
+        state = self.phase_at(t)
+        if state.index is None:
+            return self.final
+        if state.phase.hold:
+            return self.start
+        return self.trajectory.sample(state.trajectory_time)
+
+    def _final_waypoint(self):
+        last = self.phases[-1]
+        if last.hold:
+            return self.start
+        s = self.trajectory.sample(self.trajectory_duration)
+        return WaypointSample(s.x, s.y, s.z, 0.0, 0.0, 0.0, s.yaw)
+
+    def describe(self):
+        """One line per phase: name, scenario-time span, hold/measure flags."""
+        lines = ['%s: %s' % (self.name, self.description) if self.description else self.name]
+        for p, (t0, t1, _) in zip(self.phases, self._bounds):
+            lines.append('  %-10s %7.2f .. %7.2f s%s%s' % (p.name, t0, t1, '  hold start' if p.hold else '',
+                                                          '  MEASURED' if p.measure else ''))
+        return lines
+
+
+SCENARIO_KEYS = ('name', 'description', 'start', 'trajectory', 'phases')
+PHASE_KEYS = ('name', 'duration', 'periods', 'hold', 'measure')
+
+
+def _start_from(value, trajectory, what):
+    if value is None or value == 'trajectory':
+        return None
+    if isinstance(value, dict):
+        _check_keys(value, ('x', 'y', 'z', 'yaw'), what)
+        p = _vector3(value, what)
+        yaw = _number(value.get('yaw', 0.0), what + '.yaw')
+    elif isinstance(value, (list, tuple)) and len(value) in (3, 4):
+        p = _vector3(list(value[:3]), what)
+        yaw = _number(value[3], what + '[3] (yaw)') if len(value) == 4 else 0.0
+    else:
+        raise ValueError("%s must be {x, y, z, yaw}, [x, y, z(, yaw)] or 'trajectory', got %r" % (what, value))
+    return WaypointSample(p[0], p[1], p[2], 0.0, 0.0, 0.0, yaw)
+
+
+def phase_from_dict(d, period, what='phase'):
+    """A ``Phase`` from {name, duration | periods, hold, measure}; ``period`` of the trajectory or None."""
+    _check_keys(d, PHASE_KEYS, what)
+    name = _require(d, 'name', what)
+    if not isinstance(name, str) or not name:
+        raise ValueError('%s: name must be a non-empty string, got %r' % (what, name))
+    what = '%s %s' % (what, name)
+    if ('duration' in d) == ('periods' in d):
+        raise ValueError('%s: give exactly one of duration [s] or periods' % what)
+    hold = d.get('hold', None)
+    if hold not in (None, 'start'):
+        raise ValueError("%s: hold must be 'start' (or absent), got %r" % (what, hold))
+    measure = d.get('measure', False)
+    if not isinstance(measure, bool):
+        raise ValueError('%s: measure must be true or false, got %r' % (what, measure))
+    if 'duration' in d:
+        duration = _number(d['duration'], what + ': duration', positive=True)
+    else:
+        if hold:
+            raise ValueError('%s: a hold phase needs a duration, not periods' % what)
+        periods = _number(d['periods'], what + ': periods', positive=True)
+        if period is None:
+            raise ValueError('%s: periods given but the trajectory is not periodic' % what)
+        duration = periods * period
+    return Phase(name, duration, hold == 'start', measure)
+
+
+def scenario_from_dict(d, name=None, what=None):
+    """A ``Scenario`` from its YAML mapping (``name`` is used when the mapping has none)."""
+    what = what or 'scenario %s' % (d.get('name', name) if isinstance(d, dict) else name)
+    if not isinstance(d, dict):
+        raise ValueError('%s: must be a mapping, got %r' % (what, type(d).__name__))
+    try:
+        _check_keys(d, SCENARIO_KEYS, 'scenario')
+        trajectory = trajectory_from_dict(_require(d, 'trajectory', 'scenario'))
+        start = _start_from(d.get('start'), trajectory, 'start')
+        phases = _require(d, 'phases', 'scenario')
+        if not isinstance(phases, list) or not phases:
+            raise ValueError('phases must be a non-empty list')
+        period = trajectory.period()
+        phases = [phase_from_dict(p, period, 'phase %d' % (i + 1)) for i, p in enumerate(phases)]
+        scenario_name = d.get('name', name)
+        description = d.get('description', '')
+        if not isinstance(description, str):
+            raise ValueError('description must be a string')
+        return Scenario(scenario_name, trajectory, phases, start=start, description=description)
+    except ValueError as e:
+        raise ValueError('%s: %s' % (what, e))
+
+
+def scenario_path(name_or_path, directory=None):
+    """Path of a scenario given a file path or a name in ``directory`` (default ``SCENARIO_DIR``)."""
+    if os.sep in name_or_path or name_or_path.endswith(('.yaml', '.yml')):
+        return name_or_path
+    return os.path.join(directory or SCENARIO_DIR, name_or_path + '.yaml')
+
+
+def load_scenario(name_or_path, directory=None):
+    """Load a ``Scenario`` from a YAML file path or a scenario name (see ``scenario_path``)."""
+    path = scenario_path(name_or_path, directory)
+    if not os.path.isfile(path):
+        known = list_scenarios(directory) if os.sep not in name_or_path else []
+        raise ValueError('no scenario file %s%s' % (path, (' (known: %s)' % ', '.join(known)) if known else ''))
+    with open(path) as stream:
+        try:
+            data = yaml.safe_load(stream)
+        except yaml.YAMLError as e:
+            raise ValueError('%s: not valid YAML: %s' % (path, e))
+    base = os.path.splitext(os.path.basename(path))[0]
+    return scenario_from_dict(data, name=base, what=path)
+
+
+def list_scenarios(directory=None):
+    """Sorted names of the scenario files (*.yaml) in ``directory`` (default ``SCENARIO_DIR``)."""
+    directory = directory or SCENARIO_DIR
+    if not os.path.isdir(directory):
+        return []
+    return sorted(os.path.splitext(f)[0] for f in os.listdir(directory) if f.endswith('.yaml'))
+
+
+# ---------------------------------------------------------------- generator state machine
+
+Event = collections.namedtuple('Event', 'kind time scenario phase')
+Event.__doc__ = ("A generator event: kind 'start' | 'phase' | 'begin' | 'end' | 'abort' | 'done' | 'stop', "
+                 "time [s, the clock of update()] at which it happened exactly (a phase boundary, not the "
+                 "tick that noticed it), scenario name, phase name ('' when none).")
+
+IDLE, RUNNING, DONE, STOPPED = 'idle', 'running', 'done', 'stopped'
+
+
+class TrajectoryGenerator(object):
+    """Runs a ``Scenario`` against a clock: start / stop / switch, and ``update(now)`` per tick.
+
+    ``update(now)`` returns (waypoint or None, [Event]): the waypoint to
+    publish at ``now`` [s] and the events since the last update in time order
+    ('begin' / 'end' carry the exact boundary time of the measured phase, so
+    an evaluator can cut its window precisely). Before start nothing is
+    published (None); after the scenario ends (state 'done') or after
+    ``stop`` (state 'stopped') the last position is held with zero velocity
+    when ``hold_when_idle`` (else None). ``switch`` aborts a running
+    measurement ('abort' event) and starts the new scenario at once.
+    """
+
+    def __init__(self, scenario, hold_when_idle=True):
+        self.scenario = scenario
+        self.hold_when_idle = bool(hold_when_idle)
+        self.state = IDLE
+        self.t0 = None
+        self._last_phase = None
+        self._hold = None
+        self._pending = []
+
+    def _event(self, kind, time, phase=''):
+        self._pending.append(Event(kind, float(time), self.scenario.name, phase))
+
+    def start(self, now):
+        """Start (or restart) the scenario at clock time ``now`` [s]."""
+        if self.state == RUNNING:
+            self._abort(now)
+        self.state = RUNNING
+        self.t0 = float(now)
+        self._last_phase = None
+        self._event('start', now)
+
+    def stop(self, now):
+        """Stop: hold the current position (zero velocity); a running measurement is aborted."""
+        if self.state == RUNNING:
+            self._advance(now)
+            wp = self.scenario.waypoint(float(now) - self.t0)
+            self._hold = WaypointSample(wp.x, wp.y, wp.z, 0.0, 0.0, 0.0, wp.yaw)
+            self._abort(now)
+            self.state = STOPPED
+            self._event('stop', now)
+
+    def switch(self, scenario, now, start=True):
+        """Replace the scenario (aborting a running one) and start it at ``now`` (or go idle)."""
+        if self.state == RUNNING:
+            self._advance(now)
+            self._abort(now)
+        self.scenario = scenario
+        self.reset()
+        if start:
+            self.start(now)
+
+    def reset(self):
+        """Back to 'idle' (nothing published until the next start), e.g. after the clock jumped back."""
+        self.state = IDLE
+        self.t0 = None
+        self._last_phase = None
+        self._hold = None
+
+    def _abort(self, now):
+        if self._last_phase is not None and self._last_phase == self.scenario.measure_index:
+            self._event('abort', now, self.scenario.measured_phase.name)
+
+    def _advance(self, now):
+        """Emit the phase / begin / end / done events between the last update and ``now``."""
+        t = float(now) - self.t0
+        sc = self.scenario
+        current = sc.phase_at(t).index
+        first = 0 if self._last_phase is None else self._last_phase + 1
+        last = len(sc.phases) - 1 if current is None else current
+        if self._last_phase is not None and current == self._last_phase:
+            return
+        for i in range(first, last + 1):
+            start = self.t0 + sc._bounds[i][0]
+            if i - 1 == sc.measure_index and i >= 1:
+                self._event('end', self.t0 + sc._bounds[i - 1][1], sc.phases[i - 1].name)
+            self._event('phase', start, sc.phases[i].name)
+            if i == sc.measure_index:
+                self._event('begin', start, sc.phases[i].name)
+        if current is None:
+            if sc.measure_index == len(sc.phases) - 1:
+                self._event('end', self.t0 + sc.duration, sc.phases[-1].name)
+            self._event('done', self.t0 + sc.duration)
+            self.state = DONE
+            self._hold = sc.final
+        self._last_phase = current if current is not None else len(sc.phases)
+
+    def update(self, now):
+        """(waypoint or None, [Event]) at clock time ``now`` [s]."""
+        if self.state == RUNNING:
+            self._advance(now)
+        events, self._pending = self._pending, []
+        if self.state == RUNNING:
+            return self.scenario.waypoint(float(now) - self.t0), events
+        if self.state in (DONE, STOPPED) and self.hold_when_idle:
+            return self._hold, events
+        return None, events
+
+    def phase_name(self, now):
+        """Name of the phase at ``now`` ('' when not running)."""
+        if self.state != RUNNING:
+            return ''
+        state = self.scenario.phase_at(float(now) - self.t0)
+        return state.phase.name if state.phase else ''

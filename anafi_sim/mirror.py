@@ -1,0 +1,472 @@
+"""Gazebo mirror core: ground truth -> the model states sent to Gazebo (pure, no ROS).
+
+Stage: telemetry -> interface -> **mirror** -> Gazebo (or the kinematic stand-in world).
+
+Inputs are the interface's numbers: drone position [m] and orientation
+quaternion (x, y, z, w) in the world ENU frame, body-frame (FLU) linear [m/s]
+and angular [rad/s] velocity (nav_msgs/Odometry carries the twist in the
+child frame), the gimbal roll/pitch motor angles [rad, relative to the body]
+and the sample's stamp [s, ROS clock]. Outputs are ``ModelStateSpec`` s for
+two models, the drone body and its camera, with the twist rotated into the
+world frame (gazebo_msgs/ModelState's twist is in ``reference_frame``).
+The camera pose is ``anafi_sim.ground_truth.camera_pose``.
+
+``Mirror`` rejects non-finite, stale (older than ``stale_timeout``),
+future-stamped and duplicate samples with counters, limits the output to
+``rate``, keeps lag statistics (ground-truth stamp -> sent), and, once the
+input goes stale, emits one "hold" state (zero twist) so that a world that
+integrates the twist does not drift away. ``SpawnTracker`` does the spawn
+bookkeeping: which models are in the world, when to (re)spawn, world
+restarts (service endpoint changed, models missing from /gazebo/model_states).
+"""
+import collections
+import math
+
+import numpy as np
+
+from anafi_control import frames
+from anafi_sim.ground_truth import DEFAULT_CAMERA_OFFSET, ERROR, OK, WARN, Health, camera_pose
+
+ModelStateSpec = collections.namedtuple('ModelStateSpec',
+                                        'model_name position orientation linear angular reference_frame')
+"""One gazebo_msgs/ModelState: position (x, y, z) [m] and orientation (x, y, z, w) in ``reference_frame``
+('world'); linear [m/s] and angular [rad/s] velocity in the same frame."""
+
+LagStats = collections.namedtuple('LagStats', 'count mean p50 p99 max')
+"""Lag [s] statistics over the window (None values when empty)."""
+
+
+def model_names(drone_name, drone_model_name='', camera_model_name=''):
+    """Gazebo model names of a drone: ('<drone>', '<drone>_camera') unless given explicitly."""
+    base = str(drone_name).strip('/').replace('/', '_') or 'anafi'
+    return (drone_model_name or base), (camera_model_name or base + '_camera')
+
+
+def quaternion_matrix(q):
+    """3x3 rotation matrix of a unit quaternion (x, y, z, w) (body vector -> world vector)."""
+    x, y, z, w = q
+    n = x * x + y * y + z * z + w * w
+    if not n > 0.0:
+        raise ValueError('zero quaternion')
+    s = 2.0 / n
+    return np.array([
+        [1.0 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)],
+        [s * (x * y + z * w), 1.0 - s * (x * x + z * z), s * (y * z - x * w)],
+        [s * (x * z - y * w), s * (y * z + x * w), 1.0 - s * (x * x + y * y)],
+    ])
+
+
+def normalized_quaternion(q):
+    """``q`` scaled to unit length (ValueError when it is (near) zero)."""
+    n = math.sqrt(sum(v * v for v in q))
+    if not n > 1e-9:
+        raise ValueError('quaternion of norm %r' % n)
+    return tuple(float(v) / n for v in q)
+
+
+def body_twist_to_world(orientation, linear_body, angular_body):
+    """Rotate a body-frame twist into the world frame: (linear [m/s], angular [rad/s]) tuples."""
+    rot = quaternion_matrix(orientation)
+    lin = rot.dot(np.asarray(linear_body, dtype=float))
+    ang = rot.dot(np.asarray(angular_body, dtype=float))
+    return tuple(float(v) for v in lin), tuple(float(v) for v in ang)
+
+
+def drone_model_state(name, position, orientation, linear_body, angular_body, reference_frame='world'):
+    """ModelStateSpec of the drone body from its world pose and body-frame twist."""
+    q = normalized_quaternion(orientation)
+    lin, ang = body_twist_to_world(q, linear_body, angular_body)
+    return ModelStateSpec(name, tuple(float(v) for v in position), q, lin, ang, reference_frame)
+
+
+def camera_model_state(name, position, orientation, linear_body, angular_body, gimbal_roll, gimbal_pitch,
+                       offset=DEFAULT_CAMERA_OFFSET, reference_frame='world'):
+    """ModelStateSpec of the camera: pose from ``camera_pose`` (drone pose + gimbal angles [rad] + body-frame
+    ``offset`` [m]); twist of the rigidly attached point: v + w x (R offset), angular w (world frame;
+    gimbal motor rates are not in the telemetry and are ignored)."""
+    q = normalized_quaternion(orientation)
+    roll, pitch, yaw = frames.quaternion_to_euler(*q)
+    cam_position, cam_q = camera_pose(position, roll, pitch, yaw, gimbal_roll, gimbal_pitch, offset)
+    lin, ang = body_twist_to_world(q, linear_body, angular_body)
+    lever = quaternion_matrix(q).dot(np.asarray(offset, dtype=float))
+    lin = np.asarray(lin) + np.cross(np.asarray(ang), lever)
+    return ModelStateSpec(name, cam_position, tuple(float(v) for v in cam_q),
+                          tuple(float(v) for v in lin), ang, reference_frame)
+
+
+def hold_state(state):
+    """The same pose with zero twist (sent when the input goes stale)."""
+    return state._replace(linear=(0.0, 0.0, 0.0), angular=(0.0, 0.0, 0.0))
+
+
+def _finite(values):
+    for v in values:
+        if not isinstance(v, (int, float)) or v - v != 0.0:
+            return False
+    return True
+
+
+class SpawnTracker(object):
+    """Spawn bookkeeping of the mirrored models against one world (Gazebo or the stand-in).
+
+    States per model: 'absent' (to spawn), 'delete' (exists from an earlier run: delete, then spawn),
+    'spawned'. ``retry_period`` [s] between attempts per model; ``missing_grace`` [s] after a spawn before
+    a model missing from /gazebo/model_states counts as gone. Times in seconds on any monotonic clock.
+    """
+
+    def __init__(self, names, retry_period=1.0, missing_grace=1.0):
+        if not retry_period > 0 or not missing_grace >= 0:
+            raise ValueError('retry_period must be > 0 and missing_grace >= 0')
+        self.names = tuple(names)
+        self.retry_period = float(retry_period)
+        self.missing_grace = float(missing_grace)
+        self.state = dict((n, 'absent') for n in self.names)
+        self._next_attempt = dict((n, None) for n in self.names)
+        self._spawned_at = dict((n, None) for n in self.names)
+        self.world_available = False
+        self.world_id = None
+        self.world_seen = False      # a world was available at least once
+        self.spawns = 0              # successful spawns (first ones and respawns)
+        self.respawns = 0            # successful spawns after the first one of a model
+        self.spawn_failures = 0
+        self.world_losses = 0        # world went away while models were spawned
+        self.world_restarts = 0      # world endpoint changed
+        self.models_missing = 0      # spawned models found missing in model_states
+        self.last_error = ''
+        self._ever_spawned = set()
+
+    def _forget(self, now):
+        for n in self.names:
+            if self.state[n] == 'spawned':
+                self.state[n] = 'absent'
+            self._next_attempt[n] = now
+
+    def on_world(self, available, world_id, now):
+        """Report the world's spawn service: ``available`` bool, ``world_id`` (e.g. the service URI)."""
+        if not available:
+            if self.world_available and any(s == 'spawned' for s in self.state.values()):
+                self.world_losses += 1
+            if self.world_available:
+                self._forget(now)
+            self.world_available = False
+            return
+        if self.world_id is not None and world_id != self.world_id:
+            self.world_restarts += 1
+            self._forget(now)
+        self.world_id = world_id
+        self.world_available = True
+        self.world_seen = True
+
+    def on_model_states(self, names, now):
+        """Names listed by /gazebo/model_states; spawned models missing past the grace period -> respawn."""
+        present = set(names)
+        for n in self.names:
+            if self.state[n] != 'spawned':
+                continue
+            if n not in present and now - self._spawned_at[n] >= self.missing_grace:
+                self.state[n] = 'absent'
+                self._next_attempt[n] = now
+                self.models_missing += 1
+
+    def due_actions(self, now):
+        """[(action, name)] to do now: action 'spawn' or 'delete' (only while the world is available)."""
+        if not self.world_available:
+            return []
+        actions = []
+        for n in self.names:
+            due = self._next_attempt[n]
+            if due is not None and now < due:
+                continue
+            if self.state[n] == 'absent':
+                actions.append(('spawn', n))
+            elif self.state[n] == 'delete':
+                actions.append(('delete', n))
+        return actions
+
+    def on_spawn_result(self, name, success, message, now):
+        """Result of a spawn call (``message``: the world's status message or the exception text)."""
+        if success:
+            self.state[name] = 'spawned'
+            self._spawned_at[name] = now
+            self.spawns += 1
+            if name in self._ever_spawned:
+                self.respawns += 1
+            self._ever_spawned.add(name)
+            return
+        self.spawn_failures += 1
+        self.last_error = '%s: %s' % (name, message)
+        if 'exist' in str(message).lower():  # left over from an earlier run: replace it with ours
+            self.state[name] = 'delete'
+            self._next_attempt[name] = now
+        else:
+            self._next_attempt[name] = now + self.retry_period
+
+    def on_delete_result(self, name, success, message, now):
+        """Result of a delete call made for a 'delete' model (absent afterwards either way; spawn next)."""
+        if not success:
+            self.last_error = '%s: delete failed: %s' % (name, message)
+        self.state[name] = 'absent'
+        self._next_attempt[name] = now if success else now + self.retry_period
+
+    def is_spawned(self, name):
+        return self.state.get(name) == 'spawned'
+
+    @property
+    def all_spawned(self):
+        return all(s == 'spawned' for s in self.state.values())
+
+    def spawned_names(self):
+        return [n for n in self.names if self.state[n] == 'spawned']
+
+
+class Mirror(object):
+    """Turns ground-truth samples into model states for the drone and its camera.
+
+    drone_name: names the models (``model_names``); rate [Hz]: at most this many states per model per
+    second of stamp time (``rate_tolerance`` = fraction of a period a sample may come early);
+    stale_timeout [s]: samples older than this (now - stamp) are rejected and the mirror holds;
+    camera_offset: camera position in the body frame [m]; spawn_camera: mirror the camera model too;
+    lag_window: number of lag samples kept; retry_period / missing_grace: see ``SpawnTracker``.
+    """
+
+    def __init__(self, drone_name='anafi', rate=100.0, stale_timeout=0.2, camera_offset=DEFAULT_CAMERA_OFFSET,
+                 drone_model_name='', camera_model_name='', spawn_camera=True, rate_tolerance=0.3,
+                 lag_window=2000, rate_window=1.0, retry_period=1.0, missing_grace=1.0,
+                 reference_frame='world', low_rate_fraction=0.9):
+        for name, value in (('rate', rate), ('stale_timeout', stale_timeout), ('rate_window', rate_window),
+                            ('retry_period', retry_period)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError('%s must be a finite number > 0, got %r' % (name, value))
+        if not 0.0 <= rate_tolerance < 1.0:
+            raise ValueError('rate_tolerance must be in [0, 1), got %r' % (rate_tolerance,))
+        offset = tuple(float(v) for v in camera_offset)
+        if len(offset) != 3 or not _finite(offset):
+            raise ValueError('camera_offset must be 3 finite numbers [m], got %r' % (camera_offset,))
+        if int(lag_window) < 1:
+            raise ValueError('lag_window must be >= 1')
+        self.drone_model, self.camera_model = model_names(drone_name, drone_model_name, camera_model_name)
+        if self.drone_model == self.camera_model:
+            raise ValueError('drone and camera model names must differ, both are %r' % self.drone_model)
+        self.rate = float(rate)
+        self.period = 1.0 / self.rate
+        self.stale_timeout = float(stale_timeout)
+        self.camera_offset = offset
+        self.spawn_camera = bool(spawn_camera)
+        self.reference_frame = reference_frame
+        self.rate_window = float(rate_window)
+        self.low_rate_fraction = low_rate_fraction
+        self._early = rate_tolerance * self.period
+        names = (self.drone_model, self.camera_model) if self.spawn_camera else (self.drone_model,)
+        self.spawn = SpawnTracker(names, retry_period, missing_grace)
+        # counters
+        self.received = 0
+        self.accepted = 0
+        self.sent = 0                  # cycles that produced states to send
+        self.decimated = 0
+        self.rejected_nonfinite = 0
+        self.rejected_stale = 0
+        self.rejected_future = 0       # stamp ahead of the clock by more than stale_timeout
+        self.duplicates = 0
+        self.stamp_resets = 0          # stamp jumped back (simulator / interface restart)
+        self.not_spawned = 0           # accepted samples with no model in the world to move
+        self.holds = 0
+        self.gimbal_received = 0
+        self.gimbal_rejected = 0
+        # state
+        self.gimbal = None             # (roll, pitch) [rad]
+        self.gimbal_stamp = None
+        self.last_stamp = None
+        self.last_receipt = None       # 'now' of the last accepted sample
+        self.last_states = []
+        self._held = False
+        self._next_due = None
+        self._lags = collections.deque(maxlen=int(lag_window))
+        self._sent_times = collections.deque()
+        self._seen = {}
+
+    # --- inputs -------------------------------------------------------------------------------
+
+    def on_gimbal(self, gimbal_roll, gimbal_pitch, stamp, now):
+        """Gimbal motor angles [rad, relative to the body]; returns True when accepted."""
+        self.gimbal_received += 1
+        if not _finite((gimbal_roll, gimbal_pitch, stamp, now)):
+            self.gimbal_rejected += 1
+            return False
+        self.gimbal = (float(gimbal_roll), float(gimbal_pitch))
+        self.gimbal_stamp = float(stamp)
+        return True
+
+    def on_ground_truth(self, position, orientation, linear_body, angular_body, stamp, now):
+        """A ground-truth sample (see module doc; ``stamp`` and ``now`` on the ROS clock [s]).
+
+        Returns the ModelStateSpec list to send now (drone, then camera; only models that are spawned),
+        possibly empty.
+        """
+        self.received += 1
+        numbers = tuple(position) + tuple(orientation) + tuple(linear_body) + tuple(angular_body)
+        if len(numbers) != 13 or not _finite(numbers + (stamp, now)):
+            self.rejected_nonfinite += 1
+            return []
+        try:
+            q = normalized_quaternion(orientation)
+        except ValueError:
+            self.rejected_nonfinite += 1
+            return []
+        age = now - stamp
+        if age > self.stale_timeout:
+            self.rejected_stale += 1
+            return []
+        if age < -self.stale_timeout:
+            self.rejected_future += 1
+            return []
+        last = self.last_stamp
+        if last is not None:
+            if stamp == last:
+                self.duplicates += 1
+                return []
+            if stamp < last:
+                self.stamp_resets += 1
+                self._next_due = None
+        self.last_stamp = stamp
+        self.last_receipt = now
+        self.accepted += 1
+        due = self._next_due
+        if due is not None and stamp < due - self._early:
+            self.decimated += 1
+            return []
+        due = stamp + self.period if due is None else due + self.period
+        if due <= stamp:  # input slower than the rate: re-anchor on it
+            due = stamp + self.period
+        self._next_due = due
+
+        states = [drone_model_state(self.drone_model, position, q, linear_body, angular_body,
+                                    self.reference_frame)]
+        if self.spawn_camera:
+            g_roll, g_pitch = self.gimbal if self.gimbal is not None else (0.0, 0.0)
+            states.append(camera_model_state(self.camera_model, position, q, linear_body, angular_body,
+                                             g_roll, g_pitch, self.camera_offset, self.reference_frame))
+        self.last_states = states
+        self._held = False
+        states = [s for s in states if self.spawn.is_spawned(s.model_name)]
+        if not states:
+            self.not_spawned += 1
+        return states
+
+    def check_stale(self, now):
+        """Called periodically: once the input is stale, returns the last states with zero twist (once)."""
+        if self._held or not self.last_states or self.last_receipt is None:
+            return []
+        if now - self.last_receipt <= self.stale_timeout:
+            return []
+        self._held = True
+        self.holds += 1
+        return [hold_state(s) for s in self.last_states if self.spawn.is_spawned(s.model_name)]
+
+    def record_sent(self, stamp, sent_time):
+        """The states of the sample stamped ``stamp`` went out at ``sent_time`` (ROS clock [s])."""
+        self.sent += 1
+        self._lags.append(sent_time - stamp)
+        times = self._sent_times
+        times.append(sent_time)
+        while times and times[0] < sent_time - self.rate_window:
+            times.popleft()
+
+    # --- statistics and health ----------------------------------------------------------------
+
+    def sent_rate(self, now):
+        """Send cycles per second over the last ``rate_window`` seconds."""
+        times = self._sent_times
+        while times and times[0] < now - self.rate_window:
+            times.popleft()
+        return len(times) / self.rate_window
+
+    def lag_stats(self):
+        """LagStats [s] of ground-truth stamp -> sent over the last ``lag_window`` cycles."""
+        if not self._lags:
+            return LagStats(0, None, None, None, None)
+        lags = np.asarray(self._lags, dtype=float)
+        return LagStats(len(lags), float(lags.mean()), float(np.percentile(lags, 50)),
+                        float(np.percentile(lags, 99)), float(lags.max()))
+
+    def input_age(self, now):
+        """Seconds since the last accepted sample, or None."""
+        return None if self.last_receipt is None else now - self.last_receipt
+
+    def health(self, now):
+        """Diagnostics summary (``ground_truth.Health``) at ``now``."""
+        sp = self.spawn
+        rate = self.sent_rate(now)
+        lag = self.lag_stats()
+        age = self.input_age(now)
+
+        def ms(v):
+            return 'n/a' if v is None else '%.1f' % (1000.0 * v)
+
+        values = [
+            ('mirror rate [Hz]', '%.1f' % rate),
+            ('target rate [Hz]', '%.1f' % self.rate),
+            ('lag p50 [ms]', ms(lag.p50)),
+            ('lag p99 [ms]', ms(lag.p99)),
+            ('lag max [ms]', ms(lag.max)),
+            ('input age [s]', 'none yet' if age is None else '%.3f' % age),
+            ('samples received', str(self.received)),
+            ('samples sent', str(self.sent)),
+            ('samples decimated', str(self.decimated)),
+            ('rejected non-finite', str(self.rejected_nonfinite)),
+            ('rejected stale', str(self.rejected_stale)),
+            ('rejected future stamp', str(self.rejected_future)),
+            ('duplicates', str(self.duplicates)),
+            ('stamp resets', str(self.stamp_resets)),
+            ('holds (zero twist on stale input)', str(self.holds)),
+            ('gimbal received', str(self.gimbal_received)),
+            ('gimbal rejected', str(self.gimbal_rejected)),
+            ('world available', str(sp.world_available)),
+            ('models', ', '.join('%s=%s' % (n, sp.state[n]) for n in sp.names)),
+            ('spawns', str(sp.spawns)),
+            ('respawns', str(sp.respawns)),
+            ('spawn failures', str(sp.spawn_failures)),
+            ('world restarts', str(sp.world_restarts)),
+            ('world losses', str(sp.world_losses)),
+            ('models missing', str(sp.models_missing)),
+            ('last error', sp.last_error or 'none'),
+        ]
+        current = {'non-finite samples': self.rejected_nonfinite, 'stale samples': self.rejected_stale,
+                   'future-stamped samples': self.rejected_future, 'gimbal rejects': self.gimbal_rejected,
+                   'spawn failures': sp.spawn_failures, 'world restarts': sp.world_restarts + sp.world_losses,
+                   'missing models': sp.models_missing}
+        news = ['%d new %s' % (c - self._seen.get(k, 0), k) for k, c in current.items() if c > self._seen.get(k, 0)]
+        self._seen = current
+
+        if not sp.world_available:
+            level = ERROR
+            message = ('Gazebo not available (waiting for spawn service, retrying)' if not sp.world_seen
+                       else 'Gazebo went away; waiting to respawn')
+        elif not sp.all_spawned:
+            level, message = WARN, 'spawning models (%s)' % (sp.last_error or 'in progress')
+        elif age is None:
+            level = ERROR
+            message = 'no ground truth accepted yet'
+            if self.rejected_stale or self.rejected_future:
+                message += ' (%d stale / %d future-stamped: clock mismatch?)' % (self.rejected_stale,
+                                                                                 self.rejected_future)
+        elif age > self.stale_timeout:
+            level, message = ERROR, 'ground truth stale for %.1f s: holding models' % age
+        elif rate < self.low_rate_fraction * self.rate:
+            level, message = WARN, 'mirroring %.1f Hz < %.1f Hz' % (rate, self.rate)
+        elif self.spawn_camera and self.gimbal is None:
+            level, message = WARN, 'mirroring %.1f Hz, no gimbal angles yet (camera at 0, 0)' % rate
+        elif news:
+            level, message = WARN, 'mirroring %.1f Hz but ' % rate + ', '.join(news)
+        else:
+            level, message = OK, 'mirroring %.1f Hz' % rate
+        if news and level == ERROR:
+            message += ' (' + ', '.join(news) + ')'
+        return Health(level, message, values)
+
+
+def namespaced_model_xml(xml, drone_name, default_name='anafi'):
+    """Model XML with the ``<frameName>default_name/...`` of sensor plugins renamed to ``drone_name/...``."""
+    base = str(drone_name).strip('/')
+    if not base or base == default_name:
+        return xml
+    return xml.replace('<frameName>%s/' % default_name, '<frameName>%s/' % base)

@@ -52,3 +52,118 @@ def format_sample(sample, prefix=DEFAULT_PREFIX):
     """The lines ``tlm-data-logger`` prints for one sample, as one string (ends with a newline)."""
     return ''.join('%s : %.9g\n' % (key, getattr(sample, field))
                    for key, field in key_map(prefix).items())
+
+
+# --- Parsing (interface side) ------------------------------------------------
+
+COUNTER_NAMES = ('lines', 'samples', 'blank', 'malformed', 'nonfinite', 'unknown_key', 'partial_samples')
+
+
+class TelemetryParser(object):
+    """Turns ``tlm-data-logger`` output, one line at a time, into ``TelemetrySample`` s.
+
+    A line is read as ``KEY<ws>:<ws>NUMBER``: the value is what follows the
+    last colon, the key is the last whitespace-separated word before it (so a
+    decoration in front of the key is tolerated). Every other line is counted
+    and ignored. A sample completes -- and is returned at once -- when every
+    required field has received a fresh finite value since the last completed
+    sample. A required key that repeats before completion means a sample was
+    cut short: it is counted in ``partial_samples``, dropped, and a new sample
+    starts with that key. Known keys outside ``required_fields`` only update
+    their last value (0.0 until first seen) and never complete a sample.
+
+    Counters (``counters`` property, a dict): lines, samples, blank,
+    malformed (no colon, value not a number, line cut short),
+    nonfinite (NaN/inf: value ignored), unknown_key, partial_samples.
+    """
+
+    def __init__(self, prefix=DEFAULT_PREFIX, required_fields=FIELDS):
+        required = set(required_fields)
+        unknown = required.difference(FIELDS)
+        if unknown:
+            raise ValueError('unknown telemetry fields: %s' % ', '.join(sorted(unknown)))
+        if not required:
+            raise ValueError('required_fields must name at least one field')
+        index = dict((f, i) for i, f in enumerate(FIELDS))
+        # full key -> (field index, required?)
+        self._keys = dict((key, (index[field], field in required))
+                          for key, field in key_map(prefix).items())
+        self._n_required = len(required)
+        self._last = [0.0] * len(FIELDS)   # last values (seeds optional fields)
+        self._pending = {}                  # field index -> value of the sample being assembled
+        self.prefix = prefix
+        self.required_fields = tuple(f for f in FIELDS if f in required)
+        self.lines = 0
+        self.samples = 0
+        self.blank = 0
+        self.malformed = 0
+        self.nonfinite = 0
+        self.unknown_key = 0
+        self.partial_samples = 0
+
+    @property
+    def counters(self):
+        """Snapshot of the counters as a dict (names in ``COUNTER_NAMES``)."""
+        return dict((name, getattr(self, name)) for name in COUNTER_NAMES)
+
+    @property
+    def errors(self):
+        """Lines or samples lost to bad input: malformed + nonfinite + partial_samples."""
+        return self.malformed + self.nonfinite + self.partial_samples
+
+    def reset(self):
+        """Forget the sample being assembled (e.g. the telemetry process restarted); counts it if non-empty."""
+        if self._pending:
+            self.partial_samples += 1
+            self._pending = {}
+
+    def feed_line(self, line, complete=True):
+        """Parse one line (trailing newline optional); return a completed ``TelemetrySample`` or None.
+
+        ``complete=False`` marks a line known to be cut short (e.g. the last
+        bytes before the process died, without newline): counted as malformed.
+        """
+        self.lines += 1
+        head, sep, value_text = line.rpartition(':')
+        if not sep:
+            if line.strip():
+                self.malformed += 1
+            else:
+                self.blank += 1
+            return None
+        if not complete:
+            self.malformed += 1
+            return None
+        key = head.strip()
+        entry = self._keys.get(key)
+        if entry is None:
+            words = key.split()
+            entry = self._keys.get(words[-1]) if words else None
+            if entry is None:
+                self.unknown_key += 1
+                return None
+        try:
+            value = float(value_text)
+        except ValueError:
+            self.malformed += 1
+            return None
+        if value - value != 0.0:  # NaN or +-inf
+            self.nonfinite += 1
+            return None
+        idx, required = entry
+        if not required:
+            self._last[idx] = value
+            return None
+        pending = self._pending
+        if idx in pending:
+            self.partial_samples += 1
+            pending = self._pending = {}
+        pending[idx] = value
+        if len(pending) < self._n_required:
+            return None
+        values = list(self._last)
+        for i, v in pending.items():
+            values[i] = v
+        self._pending = {}
+        self.samples += 1
+        return TelemetrySample._make(values)

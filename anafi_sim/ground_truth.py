@@ -1,0 +1,247 @@
+"""Ground-truth interface core: telemetry samples -> what the interface publishes (pure, no ROS).
+
+Stage: telemetry -> **interface** -> (mirror | controllers).
+
+``GroundTruthInterface`` decides which parsed ``TelemetrySample`` s are
+published (decimation to ``publish_rate`` on the samples' simulation
+timestamps, rejection of non-finite samples and duplicates, detection of a
+simulator restart), tracks staleness on the receipt (wall) clock and sums the
+health up for ``/diagnostics``.
+
+The conversion helpers turn a sample into poses, all in SI units:
+positions [m] in the world ENU frame, quaternions (x, y, z, w), angles [rad]
+with R = Rz(yaw) Ry(pitch) Rx(roll) (see ``anafi_control.frames``), body
+frame FLU. Frames (REP-105 names, drone ``anafi``): ``world`` ->
+``anafi/stability_axes`` (drone position, heading only) ->
+``anafi/base_link`` (roll and pitch only) -> ``anafi/camera`` (fixed offset,
+then the gimbal roll and pitch motor angles, which are relative to the body;
+camera x axis = viewing direction, FLU like the body, positive gimbal pitch
+looks down).
+"""
+import collections
+import math
+
+import numpy as np
+
+from anafi_control import frames
+
+OK, WARN, ERROR = 0, 1, 2  # same values as diagnostic_msgs/DiagnosticStatus levels
+
+DEFAULT_CAMERA_OFFSET = (0.1, 0.0, 0.0)
+
+Health = collections.namedtuple('Health', 'level message values')
+"""level: OK/WARN/ERROR; message: one line; values: list of (key, value string)."""
+
+Odometry = collections.namedtuple('Odometry', 'position orientation linear angular')
+"""position (x, y, z) world [m]; orientation quaternion world->body; linear [m/s] and angular [rad/s]
+velocity in the body frame (FLU), as nav_msgs/Odometry carries them (twist in child_frame_id)."""
+
+
+def _finite_sample(sample):
+    for v in sample:
+        if v - v != 0.0:
+            return False
+    return True
+
+
+class GroundTruthInterface(object):
+    """Accepts telemetry samples with their receipt time and returns the ones to publish.
+
+    publish_rate [Hz]: at most this rate of simulation time is published; a
+    source at or below it publishes every sample (``rate_tolerance`` is the
+    fraction of a period a sample may come early and still be published, capped
+    at half the source's sample interval). A faster source is decimated on a
+    grid of ``1/publish_rate`` in simulation time, so the average rate is
+    ``publish_rate`` even when it is not an integer fraction of the source rate.
+    stale_timeout [s]: no accepted sample for longer (receipt clock) = stale.
+    rate_window [s]: window of the published rate in ``health``.
+    """
+
+    def __init__(self, publish_rate=100.0, stale_timeout=0.5, rate_window=1.0, rate_tolerance=0.1,
+                 low_rate_fraction=0.9):
+        for name, value in (('publish_rate', publish_rate), ('stale_timeout', stale_timeout),
+                            ('rate_window', rate_window)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError('%s must be a finite number > 0, got %r' % (name, value))
+        if not 0.0 <= rate_tolerance < 1.0:
+            raise ValueError('rate_tolerance must be in [0, 1), got %r' % (rate_tolerance,))
+        self.publish_rate = float(publish_rate)
+        self.period = 1.0 / self.publish_rate
+        self.stale_timeout = float(stale_timeout)
+        self.rate_window = float(rate_window)
+        self._early = rate_tolerance * self.period
+        self.low_rate_fraction = low_rate_fraction
+        self.received = 0          # samples given to on_sample
+        self.published = 0         # samples returned for publishing
+        self.decimated = 0         # finite, in-order samples skipped by the rate limit
+        self.rejected_nonfinite = 0
+        self.duplicates = 0        # same timestamp as the previous sample
+        self.sim_restarts = 0      # timestamp jumped back
+        self.restarted = False     # the last on_sample call detected a simulator restart
+        self.last_timestamp = None     # sim time of the last accepted sample [s]
+        self.last_receipt = None       # receipt time of the last accepted sample [s]
+        self._next_due = None
+        self._published_times = collections.deque()
+        self._seen = {}  # counter values at the previous health() call
+
+    def reset(self):
+        """Forget decimation state and the last timestamp (counters are kept)."""
+        self.last_timestamp = None
+        self._next_due = None
+
+    def on_sample(self, sample, receipt_wall_time):
+        """Return ``sample`` if it is to be published now, else None. ``receipt_wall_time`` [s]."""
+        self.received += 1
+        self.restarted = False
+        if not _finite_sample(sample):
+            self.rejected_nonfinite += 1
+            return None
+        ts = sample.timestamp
+        last = self.last_timestamp
+        if last is not None:
+            if ts < last:
+                self.sim_restarts += 1
+                self.restarted = True
+                self._next_due = None
+            elif ts == last:
+                self.duplicates += 1
+                return None
+        self.last_timestamp = ts
+        self.last_receipt = receipt_wall_time
+        due = self._next_due
+        # a sample may be early by the tolerance, but by less than half a source period
+        early = self._early if last is None or ts <= last else min(self._early, 0.5 * (ts - last))
+        if due is not None and ts < due - early:
+            self.decimated += 1
+            return None
+        due = ts + self.period if due is None else due + self.period
+        if due <= ts:  # the source is slower than publish_rate: re-anchor on it
+            due = ts + self.period
+        self._next_due = due
+        self.published += 1
+        times = self._published_times
+        times.append(receipt_wall_time)
+        while times and times[0] < receipt_wall_time - self.rate_window:
+            times.popleft()
+        return sample
+
+    def sample_age(self, now_wall):
+        """Seconds since the last accepted sample was received, or None if none yet."""
+        if self.last_receipt is None:
+            return None
+        return now_wall - self.last_receipt
+
+    def is_stale(self, now_wall):
+        """True when no sample was accepted within ``stale_timeout`` (or none ever)."""
+        age = self.sample_age(now_wall)
+        return age is None or age > self.stale_timeout
+
+    def published_rate(self, now_wall):
+        """Published samples per second over the last ``rate_window`` seconds of receipt time."""
+        times = self._published_times
+        while times and times[0] < now_wall - self.rate_window:
+            times.popleft()
+        return len(times) / self.rate_window
+
+    def health(self, now_wall, parser_counters=None, process=None):
+        """Diagnostics summary (``Health``) at ``now_wall``.
+
+        parser_counters: dict of ``TelemetryParser.counters``; process: dict of
+        ``ProcessSupervisor.snapshot()``. ERROR when stale; WARN when the rate
+        is below ``low_rate_fraction`` of ``publish_rate``, or since the previous
+        call the process or the simulator restarted or samples were lost
+        (partial samples, non-finite values); OK otherwise. Malformed, blank and
+        unknown-key lines only show in the values (a decorated stream has them
+        all the time). Remembers the counters between calls.
+        """
+        parser_counters = parser_counters or {}
+        process = process or {}
+        rate = self.published_rate(now_wall)
+        age = self.sample_age(now_wall)
+        values = [
+            ('publish rate [Hz]', '%.1f' % rate),
+            ('target rate [Hz]', '%.1f' % self.publish_rate),
+            ('sample age [s]', 'none yet' if age is None else '%.3f' % age),
+            ('last sim timestamp [s]', 'none yet' if self.last_timestamp is None else '%.3f' % self.last_timestamp),
+            ('samples received', str(self.received)),
+            ('samples published', str(self.published)),
+            ('samples decimated', str(self.decimated)),
+            ('rejected non-finite samples', str(self.rejected_nonfinite)),
+            ('duplicate samples', str(self.duplicates)),
+            ('sim restarts', str(self.sim_restarts)),
+        ]
+        for name in ('lines', 'blank', 'malformed', 'nonfinite', 'unknown_key', 'partial_samples'):
+            if name in parser_counters:
+                values.append(('parse ' + name.replace('_', ' '), str(parser_counters[name])))
+        for name in ('running', 'pid', 'starts', 'restarts', 'exits', 'hangs', 'spawn_failures',
+                     'last_exit_code', 'last_stderr'):
+            if name in process:
+                values.append(('process ' + name.replace('_', ' '), str(process[name])))
+
+        news = []
+        current = {
+            'sim restarts': self.sim_restarts,
+            'process restarts': process.get('restarts', 0),
+            'partial samples': parser_counters.get('partial_samples', 0),
+            'non-finite values': parser_counters.get('nonfinite', 0) + self.rejected_nonfinite,
+        }
+        for name, count in current.items():
+            if count > self._seen.get(name, 0):
+                news.append('%d new %s' % (count - self._seen.get(name, 0), name))
+        self._seen = current
+
+        if age is None:
+            level, message = ERROR, 'no telemetry received yet'
+        elif age > self.stale_timeout:
+            level, message = ERROR, 'stale: no telemetry for %.1f s' % age
+        elif rate < self.low_rate_fraction * self.publish_rate:
+            level, message = WARN, 'publishing %.1f Hz < %.1f Hz' % (rate, self.publish_rate)
+        elif news:
+            level, message = WARN, 'ok but ' + ', '.join(news)
+        else:
+            level, message = OK, 'publishing %.1f Hz' % rate
+        if news and level == ERROR:
+            message += ' (' + ', '.join(news) + ')'
+        if process and not process.get('running', True):
+            message += '; telemetry process not running'
+        return Health(level, message, values)
+
+
+# --- conversions (numbers in, numbers out) -------------------------------------
+
+def odometry(sample):
+    """``Odometry`` of a sample: world pose of the body and its body-frame (FLU) twist."""
+    return Odometry(
+        (sample.x, sample.y, sample.z),
+        frames.euler_to_quaternion(sample.roll, sample.pitch, sample.yaw),
+        (sample.body_vx, sample.body_vy, sample.body_vz),
+        (sample.body_wx, sample.body_wy, sample.body_wz))
+
+
+def stability_axes_pose(x, y, z, yaw):
+    """world -> stability axes: translation (x, y, z) [m] and the heading-only quaternion."""
+    return (x, y, z), frames.euler_to_quaternion(0.0, 0.0, yaw)
+
+
+def base_link_in_stability_axes(roll, pitch):
+    """stability axes -> base_link: zero translation and the roll/pitch-only quaternion."""
+    return (0.0, 0.0, 0.0), frames.euler_to_quaternion(roll, pitch, 0.0)
+
+
+def camera_in_base_link(gimbal_roll, gimbal_pitch, offset=DEFAULT_CAMERA_OFFSET):
+    """base_link -> camera: translation ``offset`` (body frame [m]) and the gimbal rotation R(roll, pitch, 0)."""
+    return (float(offset[0]), float(offset[1]), float(offset[2])), \
+        frames.euler_to_quaternion(gimbal_roll, gimbal_pitch, 0.0)
+
+
+def camera_pose(drone_position, roll, pitch, yaw, gimbal_roll, gimbal_pitch, offset=DEFAULT_CAMERA_OFFSET):
+    """World pose of the camera: (position (x, y, z) [m], quaternion (x, y, z, w)).
+
+    camera = base_link * translate(offset) * R(gimbal_roll, gimbal_pitch, 0);
+    the gimbal angles [rad] are relative to the body, ``offset`` is in the body frame.
+    """
+    rot = frames.rotation_matrix(roll, pitch, yaw)
+    position = np.asarray(drone_position, dtype=float) + rot.dot(np.asarray(offset, dtype=float))
+    q_body = frames.euler_to_quaternion(roll, pitch, yaw)
+    q = frames.quaternion_multiply(q_body, frames.euler_to_quaternion(gimbal_roll, gimbal_pitch, 0.0))
+    return tuple(float(v) for v in position), q

@@ -1,0 +1,288 @@
+#!/usr/bin/env python3
+"""The paper's "Interface": Sphinx ground-truth telemetry -> ROS (thin node).
+
+Stage: telemetry -> **interface** -> (mirror | controllers).
+Runs ~telemetry_command as one supervised subprocess (anafi_sim.supervisor),
+parses its lines (anafi_sim.telemetry.TelemetryParser), decimates to ~rate
+and checks them (anafi_sim.ground_truth.GroundTruthInterface), and publishes
+each accepted sample at once, from the reader thread (all publishers are
+queued, so ROS I/O never blocks the reader):
+
+- sphinx/drone_data (anafi_sim/DroneData): every telemetry value;
+- ground_truth/odom (nav_msgs/Odometry): ~frame_id -> <drone>/base_link,
+  twist in the body frame;
+- /tf, one TFMessage per sample: ~frame_id -> <drone>/stability_axes
+  (position, heading) -> <drone>/base_link (roll, pitch) -> <drone>/camera
+  (~camera_offset, gimbal roll and pitch);
+- /diagnostics at 1 Hz of wall time (so it reports even when /clock stops).
+
+Namespace /<drone> (default drone name: the namespace's last part; in the
+root namespace the topics go under /<~drone_name>/). Parameters: see
+anafi_sim/config/interface.yaml. Bad parameters: logfatal and exit code 2.
+"""
+import math
+import re
+import sys
+import threading
+import time
+
+import rospy
+import tf2_ros
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import TransformStamped
+from nav_msgs.msg import Odometry
+
+from anafi_sim import ground_truth as gt
+from anafi_sim.msg import DroneData
+from anafi_sim.supervisor import ProcessSupervisor
+from anafi_sim.telemetry import DEFAULT_PREFIX, TelemetryParser
+
+DEFAULT_COMMAND = 'tlm-data-logger -r 0 inet:127.0.0.1:9060'
+STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
+_LEVELS = {gt.OK: DiagnosticStatus.OK, gt.WARN: DiagnosticStatus.WARN, gt.ERROR: DiagnosticStatus.ERROR}
+
+
+def _positive(params, name, default, minimum=0.0):
+    value = rospy.get_param('~' + name, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or value <= minimum:
+        raise ValueError('~%s must be a finite number > %g, got %r' % (name, minimum, value))
+    params[name] = float(value)
+
+
+def read_params():
+    """All ~params, validated; raises ValueError with a clear message."""
+    p = {}
+    command = rospy.get_param('~telemetry_command', DEFAULT_COMMAND)
+    if isinstance(command, str):
+        if not command.strip():
+            raise ValueError('~telemetry_command is empty')
+    elif isinstance(command, list):
+        if not command or not all(isinstance(a, (str, int, float)) for a in command):
+            raise ValueError('~telemetry_command list must be non-empty strings, got %r' % (command,))
+    else:
+        raise ValueError('~telemetry_command must be a string or a list, got %r' % (command,))
+    p['telemetry_command'] = command
+    prefix = rospy.get_param('~prefix', DEFAULT_PREFIX)
+    if not isinstance(prefix, str) or any(c.isspace() or c == ':' for c in prefix):
+        raise ValueError('~prefix must be a string without spaces or colons, got %r' % (prefix,))
+    p['prefix'] = prefix
+    _positive(p, 'rate', 100.0)
+    _positive(p, 'stale_timeout', 0.5)
+    _positive(p, 'restart_timeout', 2.0)
+    _positive(p, 'backoff_initial', 0.2)
+    _positive(p, 'backoff_max', 5.0)
+    if p['backoff_max'] < p['backoff_initial']:
+        raise ValueError('~backoff_max (%g) must be >= ~backoff_initial (%g)' % (p['backoff_max'], p['backoff_initial']))
+    offset = rospy.get_param('~camera_offset', [0.1, 0.0, 0.0])
+    if not isinstance(offset, (list, tuple)) or len(offset) != 3 or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in offset):
+        raise ValueError('~camera_offset must be a list of 3 finite numbers [m], got %r' % (offset,))
+    p['camera_offset'] = tuple(float(v) for v in offset)
+    frame_id = rospy.get_param('~frame_id', 'world')
+    if not isinstance(frame_id, str) or not frame_id.strip() or ' ' in frame_id:
+        raise ValueError('~frame_id must be a non-empty frame name, got %r' % (frame_id,))
+    p['frame_id'] = frame_id
+    namespace = rospy.get_namespace().strip('/')
+    drone_name = rospy.get_param('~drone_name', namespace.split('/')[-1] if namespace else 'anafi')
+    if not isinstance(drone_name, str) or not re.match(r'^[A-Za-z][A-Za-z0-9_]*$', drone_name):
+        raise ValueError('~drone_name must be a ROS name (letters, digits, _), got %r' % (drone_name,))
+    p['drone_name'] = drone_name
+    stamp = rospy.get_param('~stamp_with_sample_time', False)
+    if not isinstance(stamp, bool):
+        raise ValueError('~stamp_with_sample_time must be true or false, got %r' % (stamp,))
+    p['stamp_with_sample_time'] = stamp
+    p['topic_base'] = '' if namespace else drone_name + '/'
+    return p
+
+
+def _transform(stamp, parent, child, translation, rotation):
+    t = TransformStamped()
+    t.header.stamp = stamp
+    t.header.frame_id = parent
+    t.child_frame_id = child
+    t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = translation
+    r = t.transform.rotation
+    r.x, r.y, r.z, r.w = rotation
+    return t
+
+
+class InterfaceNode(object):
+    def __init__(self, params):
+        self.p = params
+        drone = params['drone_name']
+        self.frame_id = params['frame_id']
+        self.base_link = drone + '/base_link'
+        self.stability_axes = drone + '/stability_axes'
+        self.camera = drone + '/camera'
+        self.parser = TelemetryParser(prefix=params['prefix'])
+        self.core = gt.GroundTruthInterface(publish_rate=params['rate'], stale_timeout=params['stale_timeout'])
+        self.lock = threading.Lock()  # parser + core: reader thread vs diagnostics thread
+        self.publish_errors = 0
+        self.last_publish_error = ''
+        base = params['topic_base']
+        self.pub_data = rospy.Publisher(base + 'sphinx/drone_data', DroneData, queue_size=50)
+        self.pub_odom = rospy.Publisher(base + 'ground_truth/odom', Odometry, queue_size=50)
+        self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=10)
+        self.tf = tf2_ros.TransformBroadcaster()
+        self.diag_name = '%s: ground truth interface' % rospy.get_name()
+        self.supervisor = ProcessSupervisor(
+            params['telemetry_command'], self.on_line, restart_timeout=params['restart_timeout'],
+            backoff_initial=params['backoff_initial'], backoff_max=params['backoff_max'],
+            on_event=self.on_event)
+        self._stop = threading.Event()
+        self._diag_thread = threading.Thread(target=self._diagnostics_loop, name='diagnostics', daemon=True)
+
+    def start(self):
+        rospy.loginfo('interface: running %r, publishing %s at %.0f Hz', self.supervisor.argv,
+                      self.p['topic_base'] + 'ground_truth/odom', self.p['rate'])
+        self.supervisor.start()
+        self._diag_thread.start()
+
+    def shutdown(self):
+        self._stop.set()
+        self.supervisor.stop()
+
+    # -- supervisor callbacks (supervisor threads) ---------------------------------------
+    def on_event(self, kind, info):
+        if kind == 'start':
+            with self.lock:
+                self.parser.reset()  # a sample cut by the previous process must not be completed by this one
+            rospy.loginfo('interface: telemetry process started (pid %s)', info.get('pid'))
+        elif kind == 'exit':
+            rospy.logwarn('interface: telemetry process %s exited with code %s%s; restarting in %.1f s',
+                          info.get('pid'), info.get('code'),
+                          (' (stderr: %s)' % info['stderr']) if info.get('stderr') else '', info.get('restart_in', 0.0))
+        elif kind == 'hang':
+            rospy.logwarn('interface: telemetry process %s printed nothing for %.1f s: killed, restarting in %.1f s',
+                          info.get('pid'), info.get('silent_for', float('nan')), info.get('restart_in', 0.0))
+        elif kind == 'spawn_failed':
+            rospy.logerr('interface: cannot start telemetry command %r: %s; retrying in %.1f s',
+                         self.supervisor.argv, info.get('message'), info.get('restart_in', 0.0))
+        elif kind == 'callback_error':
+            rospy.logerr('interface: %s', info.get('message'))
+
+    def on_line(self, line, wall_time):
+        with self.lock:
+            sample = self.parser.feed_line(line, line.endswith('\n'))
+            if sample is None:
+                return
+            out = self.core.on_sample(sample, wall_time)
+            restarted = self.core.restarted
+        if restarted:
+            rospy.logwarn('interface: simulator restart detected (timestamp jumped back to %.3f s); state reset',
+                          sample.timestamp)
+        if out is not None:
+            try:
+                self.publish(out)
+            except Exception as exc:  # e.g. shutting down, a value rospy cannot stamp
+                self.publish_errors += 1
+                self.last_publish_error = '%s: %s' % (type(exc).__name__, exc)
+                if not rospy.is_shutdown():
+                    rospy.logerr_throttle(5.0, 'interface: publishing failed (%d times): %s'
+                                          % (self.publish_errors, self.last_publish_error))
+
+    # -- publishing --------------------------------------------------------------------
+    def publish(self, s):
+        stamp = rospy.Time.from_sec(s.timestamp) if self.p['stamp_with_sample_time'] else rospy.Time.now()
+
+        d = DroneData()
+        d.header.stamp = stamp
+        d.header.frame_id = self.frame_id
+        d.posX, d.posY, d.posZ = s.x, s.y, s.z
+        d.velXENU, d.velYENU, d.velZENU = s.vx, s.vy, s.vz
+        d.attitudeX, d.attitudeY, d.attitudeZ = s.roll, s.pitch, s.yaw
+        d.velXABC, d.velYABC, d.velZABC = s.body_vx, s.body_vy, s.body_vz
+        d.angVelXABC, d.angVelYABC, d.angVelZABC = s.body_wx, s.body_wy, s.body_wz
+        d.accXABC, d.accYABC, d.accZABC = s.body_ax, s.body_ay, s.body_az
+        d.angAccXABC, d.angAccYABC, d.angAccZABC = s.body_alpha_x, s.body_alpha_y, s.body_alpha_z
+        d.timeStamp = s.timestamp
+        d.gimbalPitchMotorAngle = s.gimbal_pitch
+        d.gimbalRollMotorAngle = s.gimbal_roll
+
+        odo = gt.odometry(s)
+        o = Odometry()
+        o.header.stamp = stamp
+        o.header.frame_id = self.frame_id
+        o.child_frame_id = self.base_link
+        pose, twist = o.pose.pose, o.twist.twist
+        pose.position.x, pose.position.y, pose.position.z = odo.position
+        q = pose.orientation
+        q.x, q.y, q.z, q.w = odo.orientation
+        twist.linear.x, twist.linear.y, twist.linear.z = odo.linear
+        twist.angular.x, twist.angular.y, twist.angular.z = odo.angular
+
+        t_sa, q_sa = gt.stability_axes_pose(s.x, s.y, s.z, s.yaw)
+        t_bl, q_bl = gt.base_link_in_stability_axes(s.roll, s.pitch)
+        t_cam, q_cam = gt.camera_in_base_link(s.gimbal_roll, s.gimbal_pitch, self.p['camera_offset'])
+        transforms = [_transform(stamp, self.frame_id, self.stability_axes, t_sa, q_sa),
+                      _transform(stamp, self.stability_axes, self.base_link, t_bl, q_bl),
+                      _transform(stamp, self.base_link, self.camera, t_cam, q_cam)]
+
+        self.pub_odom.publish(o)
+        self.pub_data.publish(d)
+        self.tf.sendTransform(transforms)
+
+    # -- diagnostics (own thread, wall clock) ---------------------------------------------
+    def _diagnostics_loop(self):
+        stale_since_log = None
+        while not self._stop.wait(1.0) and not rospy.is_shutdown():
+            try:
+                now = time.time()
+                with self.lock:
+                    health = self.core.health(now, self.parser.counters, self.supervisor.snapshot())
+                    stale = self.core.is_stale(now)
+                    age = self.core.sample_age(now)
+                if stale:
+                    mono = time.monotonic()
+                    if stale_since_log is None or mono - stale_since_log >= STALE_LOG_PERIOD:
+                        stale_since_log = mono
+                        rospy.logerr('interface: %s (telemetry process %s): publishing paused',
+                                     'no ground truth received yet' if age is None
+                                     else 'no ground truth for %.1f s' % age,
+                                     'running' if self.supervisor.running else 'not running')
+                elif stale_since_log is not None:
+                    stale_since_log = None
+                    rospy.loginfo('interface: ground truth flowing again')
+                self.publish_diagnostics(health)
+            except Exception as exc:  # never let diagnostics kill the node
+                if not rospy.is_shutdown():
+                    rospy.logerr_throttle(10.0, 'interface: diagnostics failed: %s: %s' % (type(exc).__name__, exc))
+
+    def publish_diagnostics(self, health):
+        status = DiagnosticStatus()
+        status.level = _LEVELS[health.level]
+        status.name = self.diag_name
+        status.message = health.message
+        status.hardware_id = self.p['drone_name']
+        values = list(health.values)
+        values.append(('publish errors', str(self.publish_errors)))
+        values.append(('telemetry command', ' '.join(self.supervisor.argv)))
+        status.values = [KeyValue(k, v) for k, v in values]
+        array = DiagnosticArray()
+        array.header.stamp = rospy.Time.now()
+        array.status = [status]
+        self.pub_diag.publish(array)
+
+
+def main():
+    rospy.init_node('interface')
+    try:
+        params = read_params()
+    except ValueError as exc:
+        rospy.logfatal('interface: bad parameter: %s', exc)
+        return 2
+    try:
+        node = InterfaceNode(params)
+    except ValueError as exc:  # e.g. a command string shlex cannot split
+        rospy.logfatal('interface: bad parameter: %s', exc)
+        return 2
+    rospy.on_shutdown(node.shutdown)
+    node.start()
+    rospy.spin()
+    node.shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,243 @@
+"""Runs the telemetry command as one supervised subprocess (pure: subprocess + threads, no ROS).
+
+Stage: telemetry -> **interface** (the process that prints the telemetry).
+
+``ProcessSupervisor`` starts the command in its own process group, hands
+every stdout line to ``on_line(line, wall_time)`` (line as text, with its
+newline if it had one; wall_time = ``time.time()`` [s] at receipt) from a
+reader thread, and restarts the command when it exits, fails to start or
+hangs (prints nothing for ``restart_timeout`` s, also right after start).
+Restarts wait an exponential back-off (``backoff_initial`` doubling up to
+``backoff_max`` s), back to ``backoff_initial`` after a run that printed for
+at least ``healthy_time`` s. Nothing raised by the process or the callbacks
+escapes: it is counted.
+"""
+import os
+import shlex
+import signal
+import subprocess
+import threading
+import time
+
+
+class ProcessSupervisor(object):
+    """Keeps one subprocess running and streams its stdout lines.
+
+    command: a string (shlex-split) or a list of arguments.
+    on_line(line, wall_time): called from the reader thread for each stdout line.
+    on_event(kind, info): optional; kind in 'start', 'exit', 'hang', 'spawn_failed', 'callback_error';
+    info: a dict (pid, exit code, message ...).
+    """
+
+    def __init__(self, command, on_line, restart_timeout=2.0, backoff_initial=0.2, backoff_max=5.0,
+                 on_event=None, healthy_time=1.0, kill_grace=0.2, poll_period=0.05, env=None):
+        if isinstance(command, str):
+            argv = shlex.split(command)
+        else:
+            argv = [str(a) for a in command]
+        if not argv:
+            raise ValueError('empty command')
+        for name, value in (('restart_timeout', restart_timeout), ('backoff_initial', backoff_initial),
+                            ('backoff_max', backoff_max)):
+            if not value > 0:
+                raise ValueError('%s must be > 0, got %r' % (name, value))
+        if backoff_max < backoff_initial:
+            raise ValueError('backoff_max (%r) < backoff_initial (%r)' % (backoff_max, backoff_initial))
+        self.argv = argv
+        self.on_line = on_line
+        self.on_event = on_event
+        self.restart_timeout = float(restart_timeout)
+        self.backoff_initial = float(backoff_initial)
+        self.backoff_max = float(backoff_max)
+        self.healthy_time = float(healthy_time)
+        self.kill_grace = float(kill_grace)
+        self.poll_period = float(poll_period)
+        self.env = env
+        # counters / state (read from any thread; written by the supervisor threads)
+        self.attempts = 0          # launch attempts
+        self.starts = 0            # successful spawns
+        self.restarts = 0          # launch attempts after the first one
+        self.exits = 0             # the process ended by itself
+        self.hangs = 0             # killed for printing nothing for restart_timeout
+        self.spawn_failures = 0    # could not start (missing executable, permissions ...)
+        self.callback_errors = 0   # exceptions raised by on_line
+        self.lines = 0
+        self.last_exit_code = None
+        self.last_stderr = ''
+        self.last_error = ''
+        self.running = False
+        self.pid = None
+        self.backoff = self.backoff_initial  # delay before the next restart [s]
+        self._proc = None
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._thread = None
+        self._last_output = 0.0
+        self._first_output = None
+
+    # -- public -----------------------------------------------------------------
+    def start(self):
+        """Start supervising (returns at once; the process runs in the background)."""
+        if self._thread is not None:
+            return
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._supervise, name='supervisor', daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout=3.0):
+        """Kill the process (group) and stop the threads; True if supervision ended within ``timeout`` s."""
+        self._stop.set()
+        with self._lock:
+            proc = self._proc
+        if proc is not None:
+            self._kill(proc)
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            thread.join(timeout)
+            return not thread.is_alive()
+        return True
+
+    def snapshot(self):
+        """Counters and state as a dict."""
+        return dict(running=self.running, pid=self.pid, attempts=self.attempts, starts=self.starts,
+                    restarts=self.restarts, exits=self.exits, hangs=self.hangs,
+                    spawn_failures=self.spawn_failures, callback_errors=self.callback_errors,
+                    lines=self.lines, last_exit_code=self.last_exit_code, last_stderr=self.last_stderr,
+                    last_error=self.last_error, backoff=self.backoff)
+
+    # -- internals ----------------------------------------------------------------
+    def _event(self, kind, **info):
+        if self.on_event is None:
+            return
+        try:
+            self.on_event(kind, info)
+        except Exception:  # a logging callback must not stop supervision
+            self.callback_errors += 1
+
+    def _supervise(self):
+        while not self._stop.is_set():
+            if self.attempts:
+                self.restarts += 1
+            self.attempts += 1
+            healthy = self._run_once()
+            if self._stop.is_set():
+                break
+            delay = self._next_delay(healthy)
+            self.backoff = min(delay * 2.0, self.backoff_max)
+            self._stop.wait(delay)
+
+    def _next_delay(self, healthy):
+        """Delay [s] before the next attempt after a run that was (not) healthy."""
+        return self.backoff_initial if healthy else self.backoff
+
+    def _run_once(self):
+        """Run the command once; return True if it printed healthily for healthy_time."""
+        try:
+            proc = subprocess.Popen(self.argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                    stderr=subprocess.PIPE, start_new_session=True, env=self.env)
+        except Exception as exc:  # missing executable, permission denied, bad argument ...
+            self.spawn_failures += 1
+            self.last_error = '%s: %s' % (type(exc).__name__, exc)
+            self._event('spawn_failed', message=self.last_error, restart_in=self._next_delay(False))
+            return False
+        with self._lock:
+            self._proc = proc
+        self.starts += 1
+        self.pid = proc.pid
+        self.running = True
+        self._first_output = None
+        self._last_output = time.monotonic()
+        self._event('start', pid=proc.pid, argv=self.argv)
+        readers = [threading.Thread(target=self._read_stdout, args=(proc,), name='stdout', daemon=True),
+                   threading.Thread(target=self._read_stderr, args=(proc,), name='stderr', daemon=True)]
+        for t in readers:
+            t.start()
+        hung = False
+        while not self._stop.is_set():
+            if proc.poll() is not None:
+                break
+            if time.monotonic() - self._last_output > self.restart_timeout:
+                hung = True
+                break
+            self._stop.wait(self.poll_period)
+        first = self._first_output
+        healthy = first is not None and self._last_output - first >= self.healthy_time
+        if hung:
+            self.hangs += 1
+            self._event('hang', pid=proc.pid, silent_for=time.monotonic() - self._last_output,
+                        restart_in=self._next_delay(healthy))
+        if proc.poll() is None:
+            self._kill(proc)
+        else:  # the leader is gone: take any children left in its group with it
+            self._killpg(proc.pid, signal.SIGKILL)
+        for t in readers:
+            t.join(1.0)
+        code = proc.poll()
+        self.last_exit_code = code
+        self.running = False
+        with self._lock:
+            self._proc = None
+        if not hung and not self._stop.is_set():
+            self.exits += 1
+            self._event('exit', pid=proc.pid, code=code, stderr=self.last_stderr,
+                        restart_in=self._next_delay(healthy))
+        for stream in (proc.stdout, proc.stderr):
+            try:
+                stream.close()
+            except Exception:
+                pass
+        return healthy
+
+    def _kill(self, proc):
+        """SIGTERM the process group, SIGKILL it after kill_grace, reap the process."""
+        for sig, wait in ((signal.SIGTERM, self.kill_grace), (signal.SIGKILL, 2.0)):
+            self._killpg(proc.pid, sig)
+            try:
+                proc.wait(wait)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+            except Exception:
+                break
+        self._killpg(proc.pid, signal.SIGKILL)  # children left in the group after the leader died
+
+    @staticmethod
+    def _killpg(pgid, sig):
+        try:
+            os.killpg(pgid, sig)
+        except OSError:  # already gone
+            pass
+
+    def _read_stdout(self, proc):
+        readline = proc.stdout.readline
+        on_line = self.on_line
+        while True:
+            try:
+                raw = readline()
+            except (ValueError, OSError):
+                break
+            if not raw:
+                break
+            now = time.monotonic()
+            if self._first_output is None:
+                self._first_output = now
+            self._last_output = now
+            self.lines += 1
+            try:
+                on_line(raw.decode('utf-8', 'replace'), time.time())
+            except Exception as exc:
+                self.callback_errors += 1
+                self.last_error = 'on_line: %s: %s' % (type(exc).__name__, exc)
+                self._event('callback_error', message=self.last_error)
+
+    def _read_stderr(self, proc):
+        while True:
+            try:
+                raw = proc.stderr.readline()
+            except (ValueError, OSError):
+                break
+            if not raw:
+                break
+            text = raw.decode('utf-8', 'replace').strip()
+            if text:
+                self.last_stderr = text[:500]

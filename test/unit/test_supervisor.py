@@ -1,0 +1,196 @@
+"""ProcessSupervisor with small sh / python commands: lines, exits, hangs, back-off, missing executables."""
+import os
+import threading
+import time
+
+import psutil
+import pytest
+
+from anafi_sim.supervisor import ProcessSupervisor
+
+PY = '/usr/bin/python3'
+
+
+class Recorder(object):
+    def __init__(self):
+        self.lines = []
+        self.events = []
+        self.cond = threading.Condition()
+
+    def on_line(self, line, wall_time):
+        with self.cond:
+            self.lines.append((line, wall_time))
+            self.cond.notify_all()
+
+    def on_event(self, kind, info):
+        with self.cond:
+            self.events.append((kind, dict(info), time.monotonic()))
+            self.cond.notify_all()
+
+    def kinds(self, kind):
+        with self.cond:
+            return [e for e in self.events if e[0] == kind]
+
+    def wait_for(self, predicate, timeout=4.0):
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while not predicate():
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self.cond.wait(min(left, 0.05))
+        return True
+
+
+@pytest.fixture
+def rec():
+    return Recorder()
+
+
+def make(rec, command, **kwargs):
+    kwargs.setdefault('restart_timeout', 2.0)
+    sup = ProcessSupervisor(command, rec.on_line, on_event=rec.on_event, **kwargs)
+    sup.start()
+    return sup
+
+
+def gone(pid):
+    try:
+        return psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return True
+
+
+def test_lines_are_delivered_in_order_with_wall_time(rec):
+    t0 = time.time()
+    sup = make(rec, [PY, '-c', 'import sys, time\nfor i in range(5): print("k%d : %d" % (i, i), flush=True)\n'
+                                 'sys.stdout.write("cut"); sys.stdout.flush(); time.sleep(30)'],
+               restart_timeout=0.5, backoff_initial=2.0)
+    # the unterminated "cut" comes out when the silent process is killed (hang) and its pipe closes
+    try:
+        assert rec.wait_for(lambda: len(rec.lines) >= 6)
+        assert [l for l, _ in rec.lines[:6]] == ['k%d : %d\n' % (i, i) for i in range(5)] + ['cut']
+        assert all(t0 <= t <= time.time() for _, t in rec.lines)
+        assert sup.starts == 1 and sup.lines == 6 and sup.hangs == 1
+    finally:
+        pid = sup.pid
+        sup.stop()
+    assert gone(pid)
+    assert not sup.running
+
+
+def test_command_string_is_shlex_split(rec):
+    sup = make(rec, "sh -c 'echo \"a b : 1\"; sleep 30'")
+    try:
+        assert rec.wait_for(lambda: rec.lines)
+        assert rec.lines[0][0] == 'a b : 1\n'
+        assert sup.argv == ['sh', '-c', 'echo "a b : 1"; sleep 30']
+    finally:
+        sup.stop()
+
+
+def test_exiting_process_is_restarted_with_growing_backoff(rec):
+    sup = make(rec, ['sh', '-c', 'echo out; echo oops >&2; exit 3'], backoff_initial=0.05, backoff_max=0.4)
+    try:
+        assert rec.wait_for(lambda: len(rec.kinds('start')) >= 5, timeout=4.0)
+    finally:
+        sup.stop()
+    snap = sup.snapshot()
+    assert snap['exits'] >= 4 and snap['restarts'] >= 4 and snap['hangs'] == 0
+    assert snap['last_stderr'] == 'oops'
+    assert [e[1]['code'] for e in rec.kinds('exit')] == [3] * snap['exits']
+    starts = [t for _, _, t in rec.kinds('start')]
+    # restart k waits at least backoff_initial * 2**k (capped): lower bounds only, no timing upper bounds
+    for k in range(4):
+        assert starts[k + 1] - starts[k] >= min(0.05 * 2 ** k, 0.4) * 0.95, (k, starts)
+    assert snap['backoff'] == 0.4
+
+
+def test_backoff_resets_after_healthy_output(rec):
+    script = 'import time\nfor i in range(6):\n    print(i, flush=True)\n    time.sleep(0.05)\n'
+    sup = make(rec, [PY, '-c', script], backoff_initial=0.05, backoff_max=2.0, healthy_time=0.15)
+    try:
+        assert rec.wait_for(lambda: len(rec.kinds('start')) >= 4, timeout=4.5)
+    finally:
+        sup.stop()
+    # every run printed for >= healthy_time, so the back-off never grew past its first doubling
+    assert sup.backoff == pytest.approx(0.1)
+    assert sup.exits >= 3 and all(e[1]['code'] == 0 for e in rec.kinds('exit'))
+
+
+def test_hanging_process_is_killed_and_restarted(rec):
+    sup = make(rec, ['sh', '-c', 'echo hello; exec sleep 30'], restart_timeout=0.3, backoff_initial=0.05)
+    try:
+        assert rec.wait_for(lambda: [l for l, _ in rec.lines].count('hello\n') >= 2)
+        first_pid = rec.kinds('start')[0][1]['pid']
+        assert rec.wait_for(lambda: gone(first_pid))
+    finally:
+        sup.stop()
+    assert sup.hangs >= 1
+    assert rec.kinds('hang')[0][1]['pid'] == first_pid
+    assert sup.exits == 0  # killed for hanging, not counted as exiting by itself
+
+
+def test_process_that_never_prints_is_detected_as_hung(rec):
+    sup = make(rec, ['sleep', '30'], restart_timeout=0.2, backoff_initial=0.05)
+    try:
+        assert rec.wait_for(lambda: len(rec.kinds('hang')) >= 2)
+    finally:
+        sup.stop()
+    assert sup.lines == 0 and sup.starts >= 2
+
+
+def test_whole_process_group_is_killed(rec):
+    sup = make(rec, ['sh', '-c', 'sleep 30 & echo $!; sleep 30'], restart_timeout=0.3, backoff_initial=1.0)
+    try:
+        assert rec.wait_for(lambda: rec.lines)
+        child = int(rec.lines[0][0])
+        assert not gone(child)
+        assert rec.wait_for(lambda: rec.kinds('hang'))
+        assert rec.wait_for(lambda: gone(child))
+    finally:
+        sup.stop()
+
+
+def test_missing_executable_is_counted_and_retried(rec):
+    sup = make(rec, ['/nonexistent/tlm-data-logger', '-r', '0'], backoff_initial=0.05, backoff_max=0.2)
+    try:
+        assert rec.wait_for(lambda: len(rec.kinds('spawn_failed')) >= 3)
+    finally:
+        sup.stop()
+    assert sup.starts == 0 and sup.spawn_failures >= 3 and sup.restarts >= 2
+    assert 'FileNotFoundError' in sup.last_error
+    assert not sup.running
+
+
+def test_callback_errors_are_counted_not_raised(rec):
+    calls = []
+
+    def bad_on_line(line, wall_time):
+        calls.append(line)
+        raise RuntimeError('boom')
+
+    sup = ProcessSupervisor(['sh', '-c', 'echo 1; echo 2; sleep 30'], bad_on_line, on_event=rec.on_event)
+    sup.start()
+    try:
+        assert rec.wait_for(lambda: len(calls) >= 2)
+    finally:
+        sup.stop()
+    assert calls == ['1\n', '2\n']
+    assert sup.callback_errors == 2 and 'boom' in sup.last_error
+
+
+def test_stop_during_backoff_returns_quickly(rec):
+    sup = make(rec, ['sh', '-c', 'exit 1'], backoff_initial=5.0, backoff_max=5.0)
+    assert rec.wait_for(lambda: rec.kinds('exit'))
+    assert sup.stop(timeout=2.0)  # the 5 s back-off wait is interrupted
+    assert sup.starts == 1
+
+
+def test_bad_arguments_raise_at_construction():
+    for kwargs in (dict(restart_timeout=0.0), dict(backoff_initial=-1.0), dict(backoff_initial=2.0, backoff_max=1.0)):
+        with pytest.raises(ValueError):
+            ProcessSupervisor(['true'], lambda l, t: None, **kwargs)
+    with pytest.raises(ValueError):
+        ProcessSupervisor('', lambda l, t: None)
+    assert os.path.exists(PY)

@@ -51,7 +51,7 @@ def run_rostest(test_file):
     if os.path.exists(xml):
         os.remove(xml)
     cmd = ['rostest', '--results-base-dir', base, '--results-filename', 'rostest-%s.xml' % name,
-           'anafi_sim', test_file]
+           'anafi_sim', os.path.basename(test_file)]
     print('$ ' + ' '.join(cmd), flush=True)
     t0 = time.time()
     rc = subprocess.call(cmd, cwd=ROOT)

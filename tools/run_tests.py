@@ -9,6 +9,7 @@ or a runner broke without writing results. Run it inside ``env.bash``
 import argparse
 import glob
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -45,22 +46,27 @@ def run_pytest():
 
 
 def run_rostest(test_file):
+    """Run one .test file; count the test cases of its test nodes (rosunit-*.xml)."""
     name = os.path.splitext(os.path.basename(test_file))[0]
-    base = os.path.join(RESULTS, 'rostest')
-    xml = os.path.join(base, 'anafi_sim', 'rostest-%s.xml' % name)
-    if os.path.exists(xml):
-        os.remove(xml)
-    cmd = ['rostest', '--results-base-dir', base, '--results-filename', 'rostest-%s.xml' % name,
+    base = os.path.join(RESULTS, 'rostest', name)
+    shutil.rmtree(base, ignore_errors=True)
+    cmd = ['rostest', '--results-base-dir', base, '--results-filename', name + '.xml',
            'anafi_sim', os.path.basename(test_file)]
     print('$ ' + ' '.join(cmd), flush=True)
     t0 = time.time()
     rc = subprocess.call(cmd, cwd=ROOT)
     print('  (%s: exit %d, %.0f s)' % (name, rc, time.time() - t0), flush=True)
-    if not os.path.exists(xml):
+    summary = glob.glob(os.path.join(base, '*', 'rostest-*.xml'))
+    cases = glob.glob(os.path.join(base, '*', 'rosunit-*.xml'))
+    if not summary and not cases:
         return 0, 1, 0, '%s wrote no results (exit %d)' % (name, rc)
-    p, f, s = junit_counts(xml)
-    if rc != 0 and f == 0:
-        f += 1
+    p = f = s = 0
+    for path in cases:
+        cp, cf, cs = junit_counts(path)
+        p, f, s = p + cp, f + cf, s + cs
+    summary_failed = sum(junit_counts(path)[1] for path in summary)
+    if (summary_failed or rc != 0) and f == 0:   # a test node died, timed out, ...
+        f = 1
     if p + f + s == 0:
         return 0, 1, 0, '%s ran no test' % name
     return p, f, s, None

@@ -28,6 +28,9 @@ from anafi_control import frames
 OK, WARN, ERROR = 0, 1, 2  # same values as diagnostic_msgs/DiagnosticStatus levels
 
 DEFAULT_CAMERA_OFFSET = (0.1, 0.0, 0.0)
+# <drone>/camera (FLU: x along the view) -> <drone>/camera_optical (REP-103 optical: z along the view,
+# x right, y down), the frame the Gazebo camera plugin stamps its images with: rpy (-pi/2, 0, -pi/2).
+CAMERA_OPTICAL_ROTATION = (-0.5, 0.5, -0.5, 0.5)
 
 Health = collections.namedtuple('Health', 'level message values')
 """level: OK/WARN/ERROR; message: one line; values: list of (key, value string)."""

@@ -13,7 +13,8 @@ queued, so ROS I/O never blocks the reader):
   twist in the body frame;
 - /tf, one TFMessage per sample: ~frame_id -> <drone>/stability_axes
   (position, heading) -> <drone>/base_link (roll, pitch) -> <drone>/camera
-  (~camera_offset, gimbal roll and pitch);
+  (~camera_offset, gimbal roll and pitch); static <drone>/camera ->
+  <drone>/camera_optical (z along the view, the Gazebo camera's image frame);
 - /diagnostics at 1 Hz of wall time (so it reports even when /clock stops).
 
 Namespace /<drone> (default drone name: the namespace's last part; in the
@@ -125,6 +126,9 @@ class InterfaceNode(object):
         self.pub_odom = rospy.Publisher(base + 'ground_truth/odom', Odometry, queue_size=50)
         self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=10)
         self.tf = tf2_ros.TransformBroadcaster()
+        self.static_tf = tf2_ros.StaticTransformBroadcaster()
+        self.static_tf.sendTransform(_transform(rospy.Time(0), self.camera, drone + '/camera_optical',
+                                                (0.0, 0.0, 0.0), gt.CAMERA_OPTICAL_ROTATION))
         self.diag_name = '%s: ground truth interface' % rospy.get_name()
         self.supervisor = ProcessSupervisor(
             params['telemetry_command'], self.on_line, restart_timeout=params['restart_timeout'],

@@ -260,3 +260,9 @@ def test_camera_pose_equals_the_tf_chain():
     np.testing.assert_allclose(pos, np.add(t1, r12.dot(t3)), atol=1e-12)
     np.testing.assert_allclose(rotmat(q), r12.dot(rotmat(q3)), atol=1e-12)
     assert sum(v * v for v in q) == pytest.approx(1.0)
+
+
+def test_camera_optical_frame_looks_along_the_camera_x_axis():
+    R = frames.rotation_matrix(*frames.quaternion_to_euler(*gt.CAMERA_OPTICAL_ROTATION))
+    # optical z (view) = camera x, optical x (image right) = camera -y, optical y (image down) = camera -z
+    assert np.allclose(R[:, 2], [1, 0, 0]) and np.allclose(R[:, 0], [0, -1, 0]) and np.allclose(R[:, 1], [0, 0, -1])

@@ -1,0 +1,92 @@
+"""Checked reading of node parameters (pure: the node passes its parameter getter).
+
+Every node reads its ``~params`` through a ``ParamReader``:
+
+    p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+    rate = p.number('rate', 100.0, minimum=0.0, strict=True)
+
+A bad value raises ``ParamError`` (a ValueError) whose message names the
+parameter, what it must be and what it got; nodes turn it into a fatal log
+line and a non-zero exit at start-up.
+"""
+import math
+
+
+class ParamError(ValueError):
+    """A parameter has a value the node cannot run with."""
+
+
+def _is_number(value):
+    return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+
+
+class ParamReader(object):
+    """Typed, range-checked parameter access; ``getter(name, default)`` returns the raw value."""
+
+    def __init__(self, getter):
+        self._get = getter
+
+    def number(self, name, default, minimum=None, maximum=None, strict=False):
+        """A finite float; ``minimum``/``maximum`` bound it (exclusive when ``strict``)."""
+        value = self._get(name, default)
+        ok = _is_number(value)
+        if ok and minimum is not None:
+            ok = value > minimum if strict else value >= minimum
+        if ok and maximum is not None:
+            ok = value < maximum if strict else value <= maximum
+        if not ok:
+            bounds = []
+            if minimum is not None:
+                bounds.append('%s %g' % ('>' if strict else '>=', minimum))
+            if maximum is not None:
+                bounds.append('%s %g' % ('<' if strict else '<=', maximum))
+            raise ParamError('~%s must be a finite number%s, got %r'
+                             % (name, (' ' + ' and '.join(bounds)) if bounds else '', value))
+        return float(value)
+
+    def positive(self, name, default):
+        """A finite number > 0."""
+        return self.number(name, default, minimum=0.0, strict=True)
+
+    def integer(self, name, default, minimum=None):
+        """An int (not a bool), optionally >= ``minimum``."""
+        value = self._get(name, default)
+        if isinstance(value, bool) or not isinstance(value, int) or (minimum is not None and value < minimum):
+            raise ParamError('~%s must be an integer%s, got %r'
+                             % (name, '' if minimum is None else ' >= %d' % minimum, value))
+        return value
+
+    def flag(self, name, default):
+        """true or false (no strings, no numbers)."""
+        value = self._get(name, default)
+        if not isinstance(value, bool):
+            raise ParamError('~%s must be true or false, got %r' % (name, value))
+        return value
+
+    def string(self, name, default, allow_empty=True):
+        """A string, stripped of surrounding white space."""
+        value = self._get(name, default)
+        if not isinstance(value, str) or (not allow_empty and not value.strip()):
+            raise ParamError('~%s must be a %sstring, got %r' % (name, '' if allow_empty else 'non-empty ', value))
+        return value.strip()
+
+    def ros_name(self, name, default):
+        """A non-empty ROS name without white space (a trailing '/' is dropped)."""
+        value = self._get(name, default)
+        if not isinstance(value, str) or not value.strip() or any(c.isspace() for c in value):
+            raise ParamError('~%s must be a non-empty ROS name, got %r' % (name, value))
+        return value.rstrip('/') or '/'
+
+    def vector(self, name, default, length):
+        """A list of ``length`` finite numbers, as a tuple of floats."""
+        value = self._get(name, default)
+        if not isinstance(value, (list, tuple)) or len(value) != length or not all(_is_number(v) for v in value):
+            raise ParamError('~%s must be a list of %d finite numbers, got %r' % (name, length, value))
+        return tuple(float(v) for v in value)
+
+    def choice(self, name, default, choices):
+        """One of ``choices`` (strings)."""
+        value = self._get(name, default)
+        if value not in choices:
+            raise ParamError('~%s must be one of %s, got %r' % (name, ', '.join(choices), value))
+        return value

@@ -1,0 +1,52 @@
+"""anafi_sim.params: checked parameter reading (every bad value refused with the name in the message)."""
+import math
+
+import pytest
+
+from anafi_sim.params import ParamError, ParamReader
+
+
+def reader(**values):
+    return ParamReader(lambda name, default: values.get(name, default))
+
+
+def test_defaults_and_values():
+    p = reader(rate=50)
+    assert p.number('rate', 100.0) == 50.0 and isinstance(p.number('rate', 1), float)
+    assert p.number('missing', 2.5) == 2.5
+    assert p.flag('on', True) is True
+    assert p.string('cmd', ' tlm ') == 'tlm'
+    assert p.vector('offset', [0.1, 0, 0], 3) == (0.1, 0.0, 0.0)
+    assert p.integer('seed', 3, minimum=0) == 3
+    assert p.ros_name('ns', '/gazebo/') == '/gazebo'
+    assert p.choice('mode', 'single', ('single', 'distributed')) == 'single'
+
+
+@pytest.mark.parametrize('value', [float('nan'), float('inf'), 'fast', True, None, [1]])
+def test_non_numbers_refused(value):
+    with pytest.raises(ParamError, match='~rate'):
+        reader(rate=value).number('rate', 1.0)
+
+
+def test_bounds_inclusive_and_strict():
+    assert reader(x=0.0).number('x', 1.0, minimum=0.0) == 0.0
+    with pytest.raises(ParamError, match='> 0'):
+        reader(x=0.0).positive('x', 1.0)
+    with pytest.raises(ParamError, match='<= 1'):
+        reader(x=1.5).number('x', 0.0, maximum=1.0)
+    assert reader(x=200).number('x', 0.0, minimum=200) == 200.0
+    with pytest.raises(ParamError, match='>= 200'):
+        reader(x=199.9).number('x', 0.0, minimum=200)
+
+
+@pytest.mark.parametrize('method,args,value', [
+    ('flag', (True,), 'true'), ('flag', (True,), 1),
+    ('integer', (0,), 1.5), ('integer', (0,), True), ('integer', (0, 0), -1),
+    ('string', ('',), 3), ('string', ('x', False), '  '),
+    ('ros_name', ('a',), 'has space'), ('ros_name', ('a',), ''),
+    ('vector', ([0, 0, 0], 3), [0, 0]), ('vector', ([0, 0, 0], 3), [0, math.nan, 0]),
+    ('choice', ('a', ('a', 'b')), 'c'),
+])
+def test_bad_values_refused(method, args, value):
+    with pytest.raises(ParamError, match='~p '):
+        getattr(reader(p=value), method)('p', *args)

@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""Command node of the paper's distributed PID framework (thin node).
+
+Stage: controllers -> piloting command. Collects the control efforts of the
+four command loops (anafi_control.pid_wiring.COMMAND_LOOPS: roll <- y_inner
+[deg], pitch <- x_inner [deg], yaw rate <- yaw [deg/s], gaz <- vertical
+[m/s]; std_msgs/Float64 on <~pid_namespace>/<loop>/control_effort) and
+publishes one olympe_bridge/PilotingCommand (wire-identical, see
+anafi_sim.wire_types) on ~command_topic (default drone/rpyt, relative to
+/<drone>/) every 1/~rate s of ROS time (10 Hz).
+
+Safety (anafi_control.pid_wiring.CommandAssembler): pid disabled
+(<pid_namespace>/pid_enable false), an effort missing, older than
+~effort_timeout s or non-finite -> hover command (all zeros), counted and
+reported on /diagnostics (1 Hz wall). Bad parameters: logfatal, exit code 1.
+"""
+import sys
+import threading
+import time
+
+import rospy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from std_msgs.msg import Bool, Float64
+
+from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler
+from anafi_sim.params import ParamReader
+from anafi_sim.wire_types import piloting_command_class
+
+
+class PidCommandNode(object):
+    def __init__(self):
+        p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+        self.rate = p.positive('rate', 10.0)
+        self.assembler = CommandAssembler(p.positive('effort_timeout', 0.5))
+        pid_ns = p.ros_name('pid_namespace', 'pid')
+        command_topic = p.ros_name('command_topic', 'drone/rpyt')
+        self.frame_id = p.string('frame_id', '')
+        self.lock = threading.Lock()
+        self.cls = piloting_command_class()
+        self.pub = rospy.Publisher(command_topic, self.cls, queue_size=10)
+        self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
+        for field, loop in COMMAND_LOOPS.items():
+            rospy.Subscriber('%s/%s/control_effort' % (pid_ns, loop), Float64,
+                             self._on_effort, callback_args=field, queue_size=10)
+        rospy.Subscriber(pid_ns + '/pid_enable', Bool, self._on_enable, queue_size=5)
+        self.command_topic = rospy.resolve_name(command_topic)
+        rospy.loginfo('%s: efforts from %s/<loop>/control_effort -> %s at %g Hz', rospy.get_name(),
+                      rospy.resolve_name(pid_ns), self.command_topic, self.rate)
+
+    def _on_effort(self, msg, field):
+        with self.lock:
+            ok = self.assembler.on_effort(field, rospy.get_time(), msg.data)
+        if not ok:
+            rospy.logwarn_throttle(5.0, '%s: non-finite %s effort refused (%d so far): hovering'
+                                   % (rospy.get_name(), field, self.assembler.bad_efforts))
+
+    def _on_enable(self, msg):
+        with self.lock:
+            self.assembler.on_enable(msg.data)
+
+    def _on_timer(self, event):
+        stamp = rospy.Time.now()
+        with self.lock:
+            cmd, reason = self.assembler.command(stamp.to_sec())
+        if reason is not None and not reason.startswith('pid disabled'):
+            rospy.logwarn_throttle(10.0, '%s: hover command: %s' % (rospy.get_name(), reason))
+        msg = self.cls()
+        msg.header.stamp = stamp
+        msg.header.frame_id = self.frame_id
+        msg.roll, msg.pitch, msg.yaw, msg.gaz = cmd
+        self.pub.publish(msg)
+
+    def _diagnostics_loop(self):
+        last_hovers = 0
+        while not rospy.is_shutdown():
+            time.sleep(1.0)
+            a = self.assembler
+            with self.lock:
+                reason, hovers, commands, bad = a.last_reason, a.hovers, a.commands, a.bad_efforts
+                last = dict((f, a.values[f]) for f in COMMAND_LOOPS)
+            status = DiagnosticStatus()
+            status.name = 'pid_command: %s' % rospy.get_name()
+            status.hardware_id = rospy.get_namespace().strip('/') or 'anafi'
+            if reason is None:
+                status.level, status.message = DiagnosticStatus.OK, 'commanding'
+            else:
+                status.level = DiagnosticStatus.OK if reason.startswith('pid disabled') else DiagnosticStatus.WARN
+                status.message = 'hover command: %s' % reason
+            values = [('commands sent', str(commands)), ('hover commands', str(hovers)),
+                      ('hover commands last second', str(hovers - last_hovers)),
+                      ('refused efforts (non-finite)', str(bad)), ('command topic', self.command_topic)]
+            values += [('%s effort' % f, 'none' if v is None else ('bad' if v is False else '%g' % v))
+                       for f, v in last.items()]
+            last_hovers = hovers
+            status.values = [KeyValue(k, v) for k, v in values]
+            array = DiagnosticArray()
+            array.status = [status]
+            try:
+                array.header.stamp = rospy.Time.now()
+                self.pub_diag.publish(array)
+            except rospy.ROSException:
+                break
+
+    def run(self):
+        threading.Thread(target=self._diagnostics_loop, name='diagnostics', daemon=True).start()
+        rospy.Timer(rospy.Duration(1.0 / self.rate), self._on_timer)
+        rospy.spin()
+
+
+def main():
+    rospy.init_node('pid_command')
+    try:
+        node = PidCommandNode()
+    except ValueError as error:
+        rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
+        sys.exit(1)
+    node.run()
+
+
+if __name__ == '__main__':
+    main()

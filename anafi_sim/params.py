@@ -48,12 +48,18 @@ class ParamReader(object):
         """A finite number > 0."""
         return self.number(name, default, minimum=0.0, strict=True)
 
-    def integer(self, name, default, minimum=None):
-        """An int (not a bool), optionally >= ``minimum``."""
+    def integer(self, name, default, minimum=None, maximum=None):
+        """An int (not a bool), optionally >= ``minimum`` and <= ``maximum``."""
         value = self._get(name, default)
-        if isinstance(value, bool) or not isinstance(value, int) or (minimum is not None and value < minimum):
+        if isinstance(value, bool) or not isinstance(value, int) or (minimum is not None and value < minimum) \
+                or (maximum is not None and value > maximum):
+            bounds = []
+            if minimum is not None:
+                bounds.append('>= %d' % minimum)
+            if maximum is not None:
+                bounds.append('<= %d' % maximum)
             raise ParamError('~%s must be an integer%s, got %r'
-                             % (name, '' if minimum is None else ' >= %d' % minimum, value))
+                             % (name, (' ' + ' and '.join(bounds)) if bounds else '', value))
         return value
 
     def flag(self, name, default):

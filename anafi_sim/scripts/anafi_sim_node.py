@@ -33,6 +33,7 @@ from std_msgs.msg import Empty, Float32, String
 from anafi_control.frames import euler_to_quaternion
 from anafi_sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
+from anafi_sim.params import ParamReader
 from anafi_sim.state_estimate import StateEstimate
 from anafi_sim.telemetry import DEFAULT_PREFIX
 from anafi_sim.telemetry_server import TelemetryServer
@@ -41,51 +42,23 @@ from anafi_sim.wire_types import piloting_command_class
 MAX_LAG = 0.25   # s of wall time behind schedule before the pacing re-anchors (counted)
 
 
-def _number(name, default, minimum=None, strictly=False):
-    value = rospy.get_param('~' + name, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError('~%s must be a finite number, got %r' % (name, value))
-    if minimum is not None and (value < minimum or (strictly and value == minimum)):
-        raise ValueError('~%s must be %s %s, got %r' % (name, '>' if strictly else '>=', minimum, value))
-    return float(value)
-
-
-def _bool(name, default):
-    value = rospy.get_param('~' + name, default)
-    if not isinstance(value, bool):
-        raise ValueError('~%s must be true or false, got %r' % (name, value))
-    return value
-
-
-def _string(name, default):
-    value = rospy.get_param('~' + name, default)
-    if not isinstance(value, str):
-        raise ValueError('~%s must be a string, got %r' % (name, value))
-    return value
-
-
 class AnafiSimNode(object):
     def __init__(self):
-        self.rate = _number('rate', 200.0)
-        if self.rate < 200.0:
-            raise ValueError('~rate must be >= 200 Hz (physics), got %r' % self.rate)
-        self.rtf = _number('rtf', 1.0, 0.0, strictly=True)
-        self.publish_clock = _bool('publish_clock', False)
-        seed = rospy.get_param('~seed', 0)
-        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-            raise ValueError('~seed must be a non-negative integer, got %r' % (seed,))
-        self.telemetry_rate = _number('telemetry_rate', 100.0, 0.0, strictly=True)
-        self.estimate_publish_rate = _number('estimate_publish_rate', 30.0, 0.0, strictly=True)
-        host = _string('telemetry_host', '127.0.0.1')
-        port = rospy.get_param('~telemetry_port', 9060)
-        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port < 65536:
-            raise ValueError('~telemetry_port must be an integer port (0 = any), got %r' % (port,))
-        prefix = _string('telemetry_prefix', DEFAULT_PREFIX)
-        self.auto_takeoff = _bool('auto_takeoff', True)
-        mapping = PilotingMapping(_number('max_tilt_deg', MAX_TILT_DEG, 0.0, True),
-                                  _number('max_vertical_speed', MAX_VERTICAL_SPEED, 0.0, True),
-                                  _number('max_yaw_rate_deg', MAX_YAW_RATE_DEG, 0.0, True))
-        settings = dict((k, _number(k, v)) for k, v in DEFAULT_SETTINGS.items())
+        p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+        self.rate = p.number('rate', 200.0, minimum=200.0)   # physics [Hz]
+        self.rtf = p.positive('rtf', 1.0)
+        self.publish_clock = p.flag('publish_clock', False)
+        seed = p.integer('seed', 0, minimum=0)
+        self.telemetry_rate = p.positive('telemetry_rate', 100.0)
+        self.estimate_publish_rate = p.positive('estimate_publish_rate', 30.0)
+        host = p.string('telemetry_host', '127.0.0.1')
+        port = p.integer('telemetry_port', 9060, minimum=0, maximum=65535)   # 0 = any free port
+        prefix = p.string('telemetry_prefix', DEFAULT_PREFIX)
+        self.auto_takeoff = p.flag('auto_takeoff', True)
+        mapping = PilotingMapping(p.positive('max_tilt_deg', MAX_TILT_DEG),
+                                  p.positive('max_vertical_speed', MAX_VERTICAL_SPEED),
+                                  p.positive('max_yaw_rate_deg', MAX_YAW_RATE_DEG))
+        settings = dict((k, p.number(k, v)) for k, v in DEFAULT_SETTINGS.items())
         model_params = rospy.get_param('~model', None)
         if model_params is None:
             model_params = load_model_params()
@@ -95,7 +68,7 @@ class AnafiSimNode(object):
         self.estimate = StateEstimate(self.model.params)
 
         ns = rospy.get_namespace()
-        self.drone = _string('drone_name', ns.strip('/') or 'anafi')
+        self.drone = p.string('drone_name', ns.strip('/') or 'anafi')
         base = '/%s/' % self.drone if ns == '/' else ''
         self.child_frame = '%s/base_link' % self.drone
 

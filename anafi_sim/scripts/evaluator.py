@@ -25,7 +25,6 @@ or 'all') to ~csv_file in the reference-log format ('' = none); with
 positions below are excluded as not flying. ~name: label (default: the
 scenario name from the begin signal).
 """
-import math
 import os
 import threading
 
@@ -37,23 +36,8 @@ from std_msgs.msg import Header, String
 
 from anafi_sim.evaluation import LiveEvaluator, stamp_ns
 from anafi_sim.msg import Waypoint
+from anafi_sim.params import ParamReader
 from anafi_sim.reference_log import write_log
-
-
-def _number(name, default, minimum=None):
-    value = rospy.get_param('~' + name, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or (minimum is not None and value <= minimum):
-        raise ValueError('~%s must be a finite number%s, got %r' % (
-            name, '' if minimum is None else ' > %g' % minimum, value))
-    return float(value)
-
-
-def _flag(name, default):
-    value = rospy.get_param('~' + name, default)
-    if not isinstance(value, bool):
-        raise ValueError('~%s must be true or false, got %r' % (name, value))
-    return value
 
 
 def markdown(summary):
@@ -79,19 +63,18 @@ def markdown(summary):
 
 class EvaluatorNode(object):
     def __init__(self):
-        self.publish_period = _number('publish_period', 1.0, minimum=0.0)
-        self.finalize_timeout = _number('finalize_timeout', 2.0, minimum=0.0)
-        self.min_altitude = _number('min_altitude', -1.0)
-        self.use_header_stamp = _flag('use_header_stamp', True)
-        self.exit_when_done = _flag('exit_when_done', False)
+        p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+        self.publish_period = p.positive('publish_period', 1.0)
+        self.finalize_timeout = p.positive('finalize_timeout', 2.0)
+        self.min_altitude = p.number('min_altitude', -1.0)
+        self.use_header_stamp = p.flag('use_header_stamp', True)
+        self.exit_when_done = p.flag('exit_when_done', False)
         self.summary_file = str(rospy.get_param('~summary_file', '') or '')
         self.csv_file = str(rospy.get_param('~csv_file', '') or '')
-        self.csv_window = str(rospy.get_param('~csv_window', 'measured'))
-        if self.csv_window not in ('measured', 'all'):
-            raise ValueError("~csv_window must be 'measured' or 'all', got %r" % self.csv_window)
+        self.csv_window = p.choice('csv_window', 'measured', ('measured', 'all'))
         self.name = str(rospy.get_param('~name', '') or '')
         self.core = LiveEvaluator(name=self.name, min_altitude=self.min_altitude,
-                                  max_samples=int(_number('max_samples', 500000, minimum=0.0)))
+                                  max_samples=int(p.positive('max_samples', 500000)))
         self.lock = threading.Lock()
         self.end_seen_at = None
         self.finished = False

@@ -19,7 +19,6 @@ Pure core: anafi_sim.mirror (Mirror, SpawnTracker). Runs in /<drone>:
 
 Parameters: anafi_sim/config/mirror.yaml. Bad parameters or unreadable URDFs: logfatal, exit code 2.
 """
-import math
 import os
 import signal
 import sys
@@ -37,32 +36,10 @@ from anafi_sim import gazebo_types, urdf_model
 from anafi_sim.ground_truth import ERROR, OK, WARN
 from anafi_sim.mirror import Mirror, model_names, namespaced_model_xml
 from anafi_sim.msg import DroneData
+from anafi_sim.params import ParamReader
 
 _LEVELS = {OK: DiagnosticStatus.OK, WARN: DiagnosticStatus.WARN, ERROR: DiagnosticStatus.ERROR}
 LOG_REPEAT = 5.0  # s between repeated "Gazebo not available" log lines
-
-
-def _number(name, default, minimum, strict=True):
-    value = rospy.get_param('~' + name, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or value < minimum or (strict and value == minimum):
-        raise ValueError('~%s must be a finite number %s %g, got %r'
-                         % (name, '>' if strict else '>=', minimum, value))
-    return float(value)
-
-
-def _flag(name, default):
-    value = rospy.get_param('~' + name, default)
-    if not isinstance(value, bool):
-        raise ValueError('~%s must be true or false, got %r' % (name, value))
-    return value
-
-
-def _string(name, default):
-    value = rospy.get_param('~' + name, default)
-    if not isinstance(value, str):
-        raise ValueError('~%s must be a string, got %r' % (name, value))
-    return value.strip()
 
 
 def _load_model(path, what):
@@ -85,37 +62,32 @@ def _load_model(path, what):
 
 def read_params():
     """All ~params, validated; raises ValueError with a clear message."""
+    r = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
     namespace = rospy.get_namespace().strip('/')
     p = {
-        'drone_name': _string('drone_name', namespace.split('/')[-1] if namespace else 'anafi'),
-        'rate': _number('rate', 100.0, 0.0),
-        'use_service': _flag('use_service', False),
-        'persistent_service': _flag('persistent_service', False),
-        'stale_timeout': _number('stale_timeout', 0.2, 0.0),
-        'retry_period': _number('retry_period', 1.0, 0.0),
-        'world_check_period': _number('world_check_period', 0.5, 0.0),
-        'missing_grace': _number('missing_grace', 1.0, 0.0, strict=False),
-        'drone_model_name': _string('drone_model_name', ''),
-        'camera_model_name': _string('camera_model_name', ''),
-        'spawn_camera': _flag('spawn_camera', True),
-        'reference_frame': _string('reference_frame', 'world'),
-        'gazebo_namespace': _string('gazebo_namespace', '/gazebo').rstrip('/'),
-        'delete_on_shutdown': _flag('delete_on_shutdown', True),
-        'diagnostics_period': _number('diagnostics_period', 1.0, 0.0),
-        'odom_topic': _string('odom_topic', 'ground_truth/odom'),
-        'drone_data_topic': _string('drone_data_topic', 'sphinx/drone_data'),
+        'drone_name': r.string('drone_name', namespace.split('/')[-1] if namespace else 'anafi', allow_empty=False),
+        'rate': r.positive('rate', 100.0),
+        'use_service': r.flag('use_service', False),
+        'persistent_service': r.flag('persistent_service', False),
+        'stale_timeout': r.positive('stale_timeout', 0.2),
+        'retry_period': r.positive('retry_period', 1.0),
+        'world_check_period': r.positive('world_check_period', 0.5),
+        'missing_grace': r.number('missing_grace', 1.0, minimum=0.0),
+        'drone_model_name': r.string('drone_model_name', ''),
+        'camera_model_name': r.string('camera_model_name', ''),
+        'spawn_camera': r.flag('spawn_camera', True),
+        'reference_frame': r.string('reference_frame', 'world'),
+        'gazebo_namespace': r.string('gazebo_namespace', '/gazebo').rstrip('/'),
+        'delete_on_shutdown': r.flag('delete_on_shutdown', True),
+        'diagnostics_period': r.positive('diagnostics_period', 1.0),
+        'odom_topic': r.string('odom_topic', 'ground_truth/odom'),
+        'drone_data_topic': r.string('drone_data_topic', 'sphinx/drone_data'),
+        'camera_offset': r.vector('camera_offset', [0.1, 0.0, 0.0], 3),   # [m]
     }
-    if not p['drone_name']:
-        raise ValueError('~drone_name is empty')
-    offset = rospy.get_param('~camera_offset', [0.1, 0.0, 0.0])
-    if not isinstance(offset, (list, tuple)) or len(offset) != 3 or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in offset):
-        raise ValueError('~camera_offset must be 3 finite numbers [m], got %r' % (offset,))
-    p['camera_offset'] = [float(v) for v in offset]
     urdf_dir = os.path.join(rospkg.RosPack().get_path('anafi_sim'), 'anafi_sim', 'urdf')
-    p['urdf_file'] = _string('urdf_file', '') or os.path.join(urdf_dir, 'anafi.urdf')
-    p['camera_urdf_file'] = _string('camera_urdf_file', '') or os.path.join(urdf_dir, 'anafi_camera.urdf')
-    p['robot_namespace'] = _string('robot_namespace', '') or '/' + p['drone_name'].strip('/')
+    p['urdf_file'] = r.string('urdf_file', '') or os.path.join(urdf_dir, 'anafi.urdf')
+    p['camera_urdf_file'] = r.string('camera_urdf_file', '') or os.path.join(urdf_dir, 'anafi_camera.urdf')
+    p['robot_namespace'] = r.string('robot_namespace', '') or '/' + p['drone_name'].strip('/')
     return p
 
 

@@ -21,7 +21,6 @@ Namespace /<drone> (default drone name: the namespace's last part; in the
 root namespace the topics go under /<~drone_name>/). Parameters: see
 anafi_sim/config/interface.yaml. Bad parameters: logfatal and exit code 2.
 """
-import math
 import re
 import sys
 import threading
@@ -35,6 +34,7 @@ from nav_msgs.msg import Odometry
 
 from anafi_sim import ground_truth as gt
 from anafi_sim.msg import DroneData
+from anafi_sim.params import ParamReader
 from anafi_sim.supervisor import ProcessSupervisor
 from anafi_sim.telemetry import DEFAULT_PREFIX, TelemetryParser
 
@@ -43,16 +43,9 @@ STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
 _LEVELS = {gt.OK: DiagnosticStatus.OK, gt.WARN: DiagnosticStatus.WARN, gt.ERROR: DiagnosticStatus.ERROR}
 
 
-def _positive(params, name, default, minimum=0.0):
-    value = rospy.get_param('~' + name, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or value <= minimum:
-        raise ValueError('~%s must be a finite number > %g, got %r' % (name, minimum, value))
-    params[name] = float(value)
-
-
 def read_params():
     """All ~params, validated; raises ValueError with a clear message."""
+    reader = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
     p = {}
     command = rospy.get_param('~telemetry_command', DEFAULT_COMMAND)
     if isinstance(command, str):
@@ -68,31 +61,19 @@ def read_params():
     if not isinstance(prefix, str) or any(c.isspace() or c == ':' for c in prefix):
         raise ValueError('~prefix must be a string without spaces or colons, got %r' % (prefix,))
     p['prefix'] = prefix
-    _positive(p, 'rate', 100.0)
-    _positive(p, 'stale_timeout', 0.5)
-    _positive(p, 'restart_timeout', 2.0)
-    _positive(p, 'backoff_initial', 0.2)
-    _positive(p, 'backoff_max', 5.0)
+    for name, default in (('rate', 100.0), ('stale_timeout', 0.5), ('restart_timeout', 2.0),
+                          ('backoff_initial', 0.2), ('backoff_max', 5.0)):
+        p[name] = reader.positive(name, default)
     if p['backoff_max'] < p['backoff_initial']:
         raise ValueError('~backoff_max (%g) must be >= ~backoff_initial (%g)' % (p['backoff_max'], p['backoff_initial']))
-    offset = rospy.get_param('~camera_offset', [0.1, 0.0, 0.0])
-    if not isinstance(offset, (list, tuple)) or len(offset) != 3 or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in offset):
-        raise ValueError('~camera_offset must be a list of 3 finite numbers [m], got %r' % (offset,))
-    p['camera_offset'] = tuple(float(v) for v in offset)
-    frame_id = rospy.get_param('~frame_id', 'world')
-    if not isinstance(frame_id, str) or not frame_id.strip() or ' ' in frame_id:
-        raise ValueError('~frame_id must be a non-empty frame name, got %r' % (frame_id,))
-    p['frame_id'] = frame_id
+    p['camera_offset'] = reader.vector('camera_offset', [0.1, 0.0, 0.0], 3)   # [m]
+    p['frame_id'] = reader.ros_name('frame_id', 'world')
     namespace = rospy.get_namespace().strip('/')
     drone_name = rospy.get_param('~drone_name', namespace.split('/')[-1] if namespace else 'anafi')
     if not isinstance(drone_name, str) or not re.match(r'^[A-Za-z][A-Za-z0-9_]*$', drone_name):
         raise ValueError('~drone_name must be a ROS name (letters, digits, _), got %r' % (drone_name,))
     p['drone_name'] = drone_name
-    stamp = rospy.get_param('~stamp_with_sample_time', False)
-    if not isinstance(stamp, bool):
-        raise ValueError('~stamp_with_sample_time must be true or false, got %r' % (stamp,))
-    p['stamp_with_sample_time'] = stamp
+    p['stamp_with_sample_time'] = reader.flag('stamp_with_sample_time', False)
     p['topic_base'] = '' if namespace else drone_name + '/'
     return p
 

@@ -32,44 +32,23 @@ from std_msgs.msg import String
 
 from anafi_sim import gazebo_types
 from anafi_sim.kinematic_world import KinematicWorld, Result
-
-
-def _number(name, default, minimum, strict=True):
-    value = rospy.get_param('~' + name, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or value < minimum or (strict and value == minimum):
-        raise ValueError('~%s must be a finite number %s %g, got %r'
-                         % (name, '>' if strict else '>=', minimum, value))
-    return float(value)
-
-
-def _flag(name, default):
-    value = rospy.get_param('~' + name, default)
-    if not isinstance(value, bool):
-        raise ValueError('~%s must be true or false, got %r' % (name, value))
-    return value
-
-
-def _name(name, default):
-    value = rospy.get_param('~' + name, default)
-    if not isinstance(value, str) or not value.strip() or any(c.isspace() for c in value):
-        raise ValueError('~%s must be a non-empty ROS name, got %r' % (name, value))
-    return value.rstrip('/') or '/'
+from anafi_sim.params import ParamReader
 
 
 def read_params():
     """All ~params, validated; raises ValueError with a clear message."""
+    r = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
     p = {
-        'rate': _number('rate', 100.0, 0.0),
-        'max_step': _number('max_step', 0.01, 0.0),
-        'max_cycle': _number('max_cycle', 0.1, 0.0),
-        'rtf': _number('rtf', 1.0, 0.0),
-        'publish_clock': _flag('publish_clock', False),
-        'gravity': _number('gravity', 9.81, 0.0, strict=False),
-        'ground_plane': _flag('ground_plane', True),
-        'gazebo_namespace': _name('gazebo_namespace', '/gazebo'),
-        'contacts_topic': _name('contacts_topic', '/gazebo/contacts'),
-        'diagnostics_rate': _number('diagnostics_rate', 1.0, 0.0),
+        'rate': r.positive('rate', 100.0),
+        'max_step': r.positive('max_step', 0.01),
+        'max_cycle': r.positive('max_cycle', 0.1),
+        'rtf': r.positive('rtf', 1.0),
+        'publish_clock': r.flag('publish_clock', False),
+        'gravity': r.number('gravity', 9.81, minimum=0.0),
+        'ground_plane': r.flag('ground_plane', True),
+        'gazebo_namespace': r.ros_name('gazebo_namespace', '/gazebo'),
+        'contacts_topic': r.ros_name('contacts_topic', '/gazebo/contacts'),
+        'diagnostics_rate': r.positive('diagnostics_rate', 1.0),
     }
     if p['max_cycle'] < p['max_step']:
         raise ValueError('~max_cycle (%g s) must be >= ~max_step (%g s)' % (p['max_cycle'], p['max_step']))

@@ -25,7 +25,6 @@ stop keep publishing the last position with zero velocity), ~exit_when_done
 exit code 0; 1 when the drone never flew within ~start_timeout), ~frame_id
 (world). A bad scenario or parameter: logfatal and exit 1.
 """
-import math
 import threading
 import time
 
@@ -34,6 +33,7 @@ import yaml
 from std_msgs.msg import Header, String
 
 from anafi_sim.msg import Waypoint
+from anafi_sim.params import ParamReader
 from anafi_sim.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
                                   load_scenario)
 
@@ -43,36 +43,16 @@ except ImportError:   # std_srvs missing: the ~command topic still works
     Trigger = TriggerResponse = None
 
 
-def _positive(name, default):
-    value = rospy.get_param('~' + name, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise ValueError('~%s must be a finite number > 0, got %r' % (name, value))
-    return float(value)
-
-
-def _non_negative(name, default):
-    value = rospy.get_param('~' + name, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-        raise ValueError('~%s must be a finite number >= 0, got %r' % (name, value))
-    return float(value)
-
-
-def _flag(name, default):
-    value = rospy.get_param('~' + name, default)
-    if not isinstance(value, bool):
-        raise ValueError('~%s must be true or false, got %r' % (name, value))
-    return value
-
-
 class TrajectoryGeneratorNode(object):
     def __init__(self):
-        self.rate = _positive('rate', 10.0)
-        self.autostart = _flag('autostart', True)
-        self.wait_for_flying = _flag('wait_for_flying', True)
-        self.hold_when_idle = _flag('hold_when_idle', True)
-        self.exit_when_done = _flag('exit_when_done', False)
-        self.start_timeout = _non_negative('start_timeout', 0.0)
-        self.exit_delay = _non_negative('exit_delay', 1.0)
+        p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+        self.rate = p.positive('rate', 10.0)
+        self.autostart = p.flag('autostart', True)
+        self.wait_for_flying = p.flag('wait_for_flying', True)
+        self.hold_when_idle = p.flag('hold_when_idle', True)
+        self.exit_when_done = p.flag('exit_when_done', False)
+        self.start_timeout = p.number('start_timeout', 0.0, minimum=0.0)
+        self.exit_delay = p.number('exit_delay', 1.0, minimum=0.0)
         self.frame_id = str(rospy.get_param('~frame_id', 'world'))
         self.scenario_dir = str(rospy.get_param('~scenario_dir', '') or SCENARIO_DIR)
         scenario_file = str(rospy.get_param('~scenario_file', '') or '')

@@ -50,3 +50,12 @@ def test_bounds_inclusive_and_strict():
 def test_bad_values_refused(method, args, value):
     with pytest.raises(ParamError, match='~p '):
         getattr(reader(p=value), method)('p', *args)
+
+
+def test_integer_range_inclusive():
+    assert reader(port=0).integer('port', 9060, minimum=0, maximum=65535) == 0
+    assert reader(port=65535).integer('port', 9060, minimum=0, maximum=65535) == 65535
+    with pytest.raises(ParamError, match='~port must be an integer >= 0 and <= 65535'):
+        reader(port=65536).integer('port', 9060, minimum=0, maximum=65535)
+    with pytest.raises(ParamError, match='<= 10'):
+        reader(n=11).integer('n', 0, maximum=10)

@@ -1,0 +1,376 @@
+"""Experiment monitor core (pure Python, no ROS): start gate, live progress and end of one experiment run.
+
+Stage: experiment orchestration, beside trajectory -> waypoint -> controller -> drone -> evaluator.
+Used by anafi_sim/scripts/experiment_monitor.py (experiment.launch, demo.launch). Units: positions [m]
+in the ENU world frame, ROS time [s] (simulation time under /use_sim_time), wall time [s] (monotonic).
+
+``ExperimentMonitor`` is fed by the node (drone state, controller commands, waypoints, estimates,
+generator status, evaluator summaries, the simulator's diagnostics) and decides, in ``tick``:
+
+- when to start the scenario: once the drone is flying, the controller has sent ``min_commands``
+  non-zero piloting commands (it is up and engaged: every loop of the distributed PID has its
+  input, the MPC solves; a hover command is all zero) and the node reports the recorder /
+  evaluator subscribed ('start' action). Meanwhile the node holds the drone at the scenario's
+  start with a waypoint of its own (``hold_waypoint``), so the controller has something to engage
+  on. This keeps a simulator that runs faster than real time from flying the scenario's first
+  phases while the other nodes are still starting;
+- failures: not ready within ``ready_timeout`` s of wall time, the scenario not ending within its
+  duration + ``end_margin`` s of ROS time, no final evaluator summary ``final_timeout`` s of wall
+  time after the end ('fail' action with the reason);
+- the end: the evaluator's summary with state 'final' ('done' action).
+
+``progress_line`` gives the one-line live status (phase, current e against the estimate, the
+evaluator's statistics so far, the simulator's achieved real-time factor); ``run_info`` the figures
+of the run (wall / sim durations, achieved real-time factor, simulator overruns, MPC solve times,
+controller CPU time) for the batch report.
+"""
+import math
+
+WAITING, STARTED, MEASURING, MEASURED, FINAL, FAILED = (
+    'waiting', 'started', 'measuring', 'measured', 'final', 'failed')
+
+# keys of the simulator's diagnostic status (anafi_sim_node.py) read by ``on_sim_diagnostics``
+SIM_RTF_KEY = 'real-time factor achieved'
+SIM_RATE_KEY = 'physics rate achieved [Hz wall]'
+SIM_WANTED_KEY = 'physics rate wanted [Hz wall]'
+SIM_OVERRUNS_KEY = 'overruns (steps late by > 1 period)'
+SIM_REANCHOR_PREFIX = 'schedule re-anchors'
+
+
+def _finite(values):
+    return [float(v) for v in values if v is not None and math.isfinite(float(v))]
+
+
+def _stats(values):
+    """{'mean', 'max', 'min', 'n'} of the finite values (None entries when there are none)."""
+    v = _finite(values)
+    if not v:
+        return {'mean': None, 'max': None, 'min': None, 'n': 0}
+    return {'mean': sum(v) / len(v), 'max': max(v), 'min': min(v), 'n': len(v)}
+
+
+def _fmt(value, spec='%.2f'):
+    return '-' if value is None or not math.isfinite(value) else spec % value
+
+
+class ExperimentMonitor(object):
+    """State machine of one run; see the module doc.
+
+    ``scenario_duration``: total scenario time [s] (``trajectory.Scenario.duration``);
+    ``min_commands``: controller commands to see before starting; ``ready_timeout``: wall s to become
+    ready; ``end_margin``: ROS s after the scenario's nominal end before declaring it stuck;
+    ``final_timeout``: wall s between the measured segment's end and the evaluator's final summary;
+    ``max_hover_commands``, ``max_command_gap`` [s]: limits of ``disturbed``.
+    """
+
+    def __init__(self, scenario_duration, min_commands=5, ready_timeout=90.0, end_margin=30.0,
+                 final_timeout=30.0, max_samples=100000, max_hover_commands=2, max_command_gap=0.5):
+        for name, value in (('scenario_duration', scenario_duration), ('ready_timeout', ready_timeout),
+                            ('end_margin', end_margin), ('final_timeout', final_timeout)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or value <= 0:
+                raise ValueError('%s must be a finite number > 0, got %r' % (name, value))
+        if isinstance(min_commands, bool) or not isinstance(min_commands, int) or min_commands < 0:
+            raise ValueError('min_commands must be an integer >= 0, got %r' % (min_commands,))
+        self.scenario_duration = float(scenario_duration)
+        self.min_commands = min_commands
+        self.ready_timeout = float(ready_timeout)
+        self.end_margin = float(end_margin)
+        self.final_timeout = float(final_timeout)
+        self.max_samples = int(max_samples)
+        self.state = WAITING
+        self.reason = ''
+        self.drone_state = ''
+        self.commands = 0
+        self.phase = ''
+        self.generator_state = ''
+        self.waypoint = None           # (x, y, z) [m]
+        self.estimate = None           # (x, y, z) [m]
+        self.summary = None            # the evaluator's latest summary dict
+        self.wall_created = None
+        self.wall_start = self.wall_end = self.wall_final = None
+        self.ros_start = self.ros_begin = self.ros_end = None
+        self.ros_now = None
+        self.sim = {}                  # latest simulator diagnostics values (floats)
+        self.sim_at_start = None
+        self.sim_rtf_samples = []      # achieved real-time factors reported while the scenario ran
+        self.solve_times = []          # MPC solve times [s, wall]
+        self.cycle_times = []          # MPC node cycle times [s, wall]
+        self.mpc_hover_cycles = None
+        self.mpc_cycles = None
+        self.cpu_start = None          # controller CPU seconds at the start
+        self.cpu_end = None
+        self.epoch = {}                # wall-clock (epoch) seconds of created / started / ended / final
+        self.scenario_commands = 0     # controller commands while the scenario ran
+        self.hover_commands = 0        # ... of which all zero (hover)
+        self.max_command_gap = 0.0     # s of ROS time
+        self._last_command_time = None
+        self.max_hover_commands = int(max_hover_commands)
+        self.max_command_gap_limit = float(max_command_gap)
+
+    # ------------------------------------------------------------ inputs
+    def on_drone_state(self, text):
+        self.drone_state = str(text)
+
+    def on_command(self, values=None, ros_time=None):
+        """A piloting command (roll, pitch, yaw, gaz) from the controller at ROS time ``ros_time`` [s].
+
+        Before the start only engaged (non-zero, finite) commands count toward ``min_commands``
+        (``values`` None: counted as engaged). While the scenario runs (start .. end of the measured
+        segment) every command is counted, all-zero ones as hover commands (the controller fell back to
+        hovering: stale or missing input), and the largest gap between commands in ROS time is kept."""
+        engaged = True
+        if values is not None:
+            vals = [float(v) for v in values]
+            engaged = all(math.isfinite(v) for v in vals) and any(abs(v) > 1e-9 for v in vals)
+        if self.state in (STARTED, MEASURING):
+            self.scenario_commands += 1
+            if not engaged:
+                self.hover_commands += 1
+            if ros_time is not None:
+                t = float(ros_time)
+                if self._last_command_time is not None and t >= self._last_command_time:
+                    self.max_command_gap = max(self.max_command_gap, t - self._last_command_time)
+                self._last_command_time = t
+        if engaged:
+            self.commands += 1
+
+    def disturbed(self):
+        """'' when the controller ran undisturbed during the scenario, else why not: more than
+        ``max_hover_commands`` hover (all-zero) commands or a gap between commands longer than
+        ``max_command_gap`` s of ROS time (e.g. CPU starvation of a controller node)."""
+        reasons = []
+        if self.hover_commands > self.max_hover_commands:
+            reasons.append('%d hover commands' % self.hover_commands)
+        if self.max_command_gap > self.max_command_gap_limit:
+            reasons.append('commands stopped for %.2f s' % self.max_command_gap)
+        return ', '.join(reasons)
+
+    @property
+    def holding(self):
+        """True while the node should publish the hold waypoint (before the start)."""
+        return self.state == WAITING
+
+    def on_waypoint(self, position):
+        self.waypoint = tuple(float(v) for v in position[:3])
+
+    def on_estimate(self, position):
+        self.estimate = tuple(float(v) for v in position[:3])
+
+    def on_status(self, phase, state=''):
+        """Generator status (trajectory/status): current phase name and generator state."""
+        self.phase = str(phase or '')
+        self.generator_state = str(state or '')
+
+    def on_begin(self, ros_time):
+        self.ros_begin = float(ros_time)
+        if self.state in (STARTED, WAITING):
+            self.state = MEASURING
+
+    def on_end(self, ros_time, wall_now):
+        self.ros_end = float(ros_time)
+        self.wall_end = float(wall_now)
+        if self.state in (STARTED, MEASURING, WAITING):
+            self.state = MEASURED
+
+    def on_summary(self, summary, wall_now):
+        """The evaluator's summary dict (evaluation/summary); state 'final' ends the run."""
+        if not isinstance(summary, dict):
+            return
+        self.summary = summary
+        if summary.get('state') == 'final' and self.state not in (FINAL, FAILED):
+            self.state = FINAL
+            self.wall_final = float(wall_now)
+
+    def on_sim_diagnostics(self, values):
+        """{key: text} of the simulator's diagnostic status; numbers are kept (see SIM_* keys)."""
+        parsed = {}
+        for key, text in values.items():
+            try:
+                parsed[key] = float(text)
+            except (TypeError, ValueError):
+                continue
+        reanchor = [v for k, v in parsed.items() if k.startswith(SIM_REANCHOR_PREFIX)]
+        if reanchor:
+            parsed['reanchors'] = reanchor[0]
+        self.sim = parsed
+        if self.state in (STARTED, MEASURING, MEASURED) and SIM_RTF_KEY in parsed:
+            if len(self.sim_rtf_samples) < self.max_samples:
+                self.sim_rtf_samples.append(parsed[SIM_RTF_KEY])
+
+    def on_mpc_stats(self, solve_time, cycle_time, cycles=None, hover_cycles=None):
+        if self.state in (STARTED, MEASURING, MEASURED) and len(self.solve_times) < self.max_samples:
+            self.solve_times.append(float(solve_time))
+            self.cycle_times.append(float(cycle_time))
+        if cycles is not None:
+            self.mpc_cycles = int(cycles)
+        if hover_cycles is not None:
+            self.mpc_hover_cycles = int(hover_cycles)
+
+    def on_controller_cpu(self, seconds):
+        """Total CPU seconds of the controller's processes now (the node samples at start and end)."""
+        if seconds is None:
+            return
+        if self.cpu_start is None:
+            self.cpu_start = float(seconds)
+        else:
+            self.cpu_end = float(seconds)
+
+    # ------------------------------------------------------------ decisions
+    def ready(self, subscribers_ok=True):
+        """True when the scenario may start (see the module doc)."""
+        return self.drone_state == 'flying' and self.commands >= self.min_commands and bool(subscribers_ok)
+
+    def waiting_for(self, subscribers_ok=True):
+        """Text: what the start still waits for ('' when ready)."""
+        missing = []
+        if self.drone_state != 'flying':
+            missing.append('drone flying (state %r)' % (self.drone_state or 'none'))
+        if self.commands < self.min_commands:
+            missing.append('engaged controller commands (%d of %d)' % (self.commands, self.min_commands))
+        if not subscribers_ok:
+            missing.append('recorder / evaluator subscriptions')
+        return ', '.join(missing)
+
+    def tick(self, ros_now, wall_now, subscribers_ok=True, epoch=None):
+        """[(action, text)] with action 'start' | 'fail' | 'done'; call regularly. ``epoch``: the wall
+        clock (time.time()) for the run_info timestamps (optional)."""
+        previous = self.state
+        self.ros_now = float(ros_now)
+        if self.wall_created is None:
+            self.wall_created = float(wall_now)
+        actions = []
+        if self.state == WAITING:
+            if self.ready(subscribers_ok):
+                self.state = STARTED
+                self.wall_start = float(wall_now)
+                self.ros_start = float(ros_now)
+                self.sim_at_start = dict(self.sim)
+                actions.append(('start', 'ready after %.1f s wall' % (wall_now - self.wall_created)))
+            elif wall_now - self.wall_created > self.ready_timeout:
+                actions.append(self._fail('not ready after %.0f s wall: waiting for %s'
+                                          % (self.ready_timeout, self.waiting_for(subscribers_ok))))
+        elif self.state in (STARTED, MEASURING):
+            if ros_now - self.ros_start > self.scenario_duration + self.end_margin:
+                actions.append(self._fail('the measured segment did not end within %.0f s of ROS time '
+                                          '(scenario %.1f s)' % (self.scenario_duration + self.end_margin,
+                                                                 self.scenario_duration)))
+        elif self.state == MEASURED:
+            if wall_now - self.wall_end > self.final_timeout:
+                actions.append(self._fail('no final evaluator summary %.0f s after the end' % self.final_timeout))
+        if self.state == FINAL:
+            actions.append(('done', 'final summary received'))
+        if epoch is not None:
+            self.epoch.setdefault('created', float(epoch))
+            if self.state != previous or self.state in (MEASURED, FINAL):
+                for state, key in ((STARTED, 'started'), (MEASURED, 'ended'), (FINAL, 'final')):
+                    if self.state == state or (key == 'ended' and self.state == FINAL):
+                        self.epoch.setdefault(key, float(epoch))
+                if self.state in (MEASURING, MEASURED, FINAL):
+                    self.epoch.setdefault('started', float(epoch))
+        return actions
+
+    def _fail(self, reason):
+        self.state = FAILED
+        self.reason = reason
+        return ('fail', reason)
+
+    # ------------------------------------------------------------ outputs
+    def current_error(self):
+        """|waypoint - estimate| [m] of the latest samples, None before both arrived."""
+        if self.waypoint is None or self.estimate is None:
+            return None
+        return math.sqrt(sum((a - b) ** 2 for a, b in zip(self.waypoint, self.estimate)))
+
+    def progress_line(self, label=''):
+        """One line: ROS time since start, phase, positions, current e, statistics so far, rtf."""
+        t = (self.ros_now - self.ros_start) if (self.ros_start is not None and self.ros_now is not None) else None
+        head = '%s%s' % (label + ' ' if label else '', '[%s]' % self.state)
+        if self.state == WAITING:
+            return '%s waiting for %s' % (head, self.waiting_for(True) or 'subscriptions')
+        parts = [head, 't %s s' % _fmt(t, '%6.1f'), 'phase %-8s' % (self.phase or '-')]
+        if self.waypoint is not None:
+            parts.append('wp (%s)' % ', '.join('%5.2f' % v for v in self.waypoint))
+        if self.estimate is not None:
+            parts.append('drone (%s)' % ', '.join('%5.2f' % v for v in self.estimate))
+        parts.append('e %s m' % _fmt(self.current_error()))
+        est = (self.summary or {}).get('estimate') if (self.summary or {}).get('state') in ('measuring', 'final',
+                                                                                           'ended') else None
+        if est:
+            parts.append('measured so far: e_mu %s e_max %s' % (_fmt(est.get('e_mu')), _fmt(est.get('e_max'))))
+        if SIM_RTF_KEY in self.sim:
+            parts.append('rtf %s' % _fmt(self.sim[SIM_RTF_KEY]))
+        return '  '.join(parts)
+
+    def run_info(self):
+        """Figures of the run (plain dict, YAML ready): state, reason, durations, sim keeping up, MPC, CPU."""
+        def r(v, n=4):
+            return None if v is None or not math.isfinite(v) else round(float(v), n)
+        sim_s = wall_s = None
+        if self.ros_start is not None and self.ros_end is not None:
+            sim_s = self.ros_end - self.ros_start
+        if self.wall_start is not None and self.wall_end is not None:
+            wall_s = self.wall_end - self.wall_start
+        start = self.sim_at_start or {}
+        overruns = reanchors = None
+        if SIM_OVERRUNS_KEY in self.sim:
+            overruns = self.sim[SIM_OVERRUNS_KEY] - start.get(SIM_OVERRUNS_KEY, 0.0)
+        if 'reanchors' in self.sim:
+            reanchors = self.sim['reanchors'] - start.get('reanchors', 0.0)
+        rtf = _stats(self.sim_rtf_samples)
+        solve = _stats(self.solve_times)
+        cycle = _stats(self.cycle_times)
+        cpu = None
+        if self.cpu_start is not None and self.cpu_end is not None:
+            cpu = self.cpu_end - self.cpu_start
+        info = {
+            'state': self.state,
+            'wall_clock': dict((k, r(v, 3)) for k, v in (('created', self.epoch.get('created')),
+                                                          ('started', self.epoch.get('started')),
+                                                          ('ended', self.epoch.get('ended')),
+                                                          ('final', self.epoch.get('final')))),
+            'reason': self.reason,
+            'startup_wall_s': r(self.wall_start - self.wall_created) if self.wall_start is not None
+            and self.wall_created is not None else None,
+            'scenario_sim_s': r(sim_s, 3),
+            'scenario_wall_s': r(wall_s, 3),
+            'achieved_rtf': r(sim_s / wall_s, 3) if sim_s and wall_s else None,
+            'sim_reported_rtf_mean': r(rtf['mean'], 3),
+            'sim_reported_rtf_min': r(rtf['min'], 3),
+            'sim_overruns': int(overruns) if overruns is not None else None,
+            'sim_reanchors': int(reanchors) if reanchors is not None else None,
+            'sim_physics_rate_hz': r(self.sim.get(SIM_RATE_KEY), 1),
+            'sim_physics_rate_wanted_hz': r(self.sim.get(SIM_WANTED_KEY), 1),
+            'mpc_solve_time_mean_ms': r(solve['mean'] * 1e3, 3) if solve['n'] else None,
+            'mpc_solve_time_max_ms': r(solve['max'] * 1e3, 3) if solve['n'] else None,
+            'mpc_cycle_time_mean_ms': r(cycle['mean'] * 1e3, 3) if cycle['n'] else None,
+            'mpc_cycles': self.mpc_cycles,
+            'mpc_hover_cycles': self.mpc_hover_cycles,
+            'scenario_commands': self.scenario_commands,
+            'hover_commands': self.hover_commands,
+            'max_command_gap_s': r(self.max_command_gap, 3),
+            'disturbed': self.disturbed(),
+            'controller_cpu_s': r(cpu, 3),
+            'controller_cpu_per_sim_s': r(cpu / sim_s, 4) if cpu is not None and sim_s else None,
+        }
+        return info
+
+
+def summary_lines(summary, label=''):
+    """Human-readable lines of an evaluator summary dict (evaluation/summary YAML)."""
+    if not isinstance(summary, dict):
+        return ['%s: no evaluator summary' % (label or 'run')]
+    lines = ['%s: %s samples, state %s' % (label or summary.get('name') or 'run', summary.get('samples'),
+                                          summary.get('state'))]
+    for key, text in (('estimate', 'vs drone estimate (paper)'), ('truth', 'vs ground truth')):
+        res = summary.get(key)
+        if not res:
+            lines.append('  %-26s absent' % text)
+            continue
+        lines.append('  %-26s e_max %s  e_mu %s  e_sigma %s m' % (
+            text, _fmt(res.get('e_max'), '%.3f'), _fmt(res.get('e_mu'), '%.3f'), _fmt(res.get('e_sigma'), '%.3f')))
+    for g in summary.get('garbage') or []:
+        lines.append('  GARBAGE (excluded): %s' % g)
+    for w in summary.get('warnings') or []:
+        lines.append('  warning: %s' % w)
+    return lines

@@ -1,0 +1,160 @@
+#!/usr/bin/env python3
+"""Model follower node: a Gazebo model's pose (e.g. the airship) -> the drone's waypoint with velocity.
+
+Stage: target -> waypoint (-> PID / MPC controller). Thin node over anafi_sim.model_follower.ModelFollower.
+
+- in ~model_states_topic (default /gazebo/model_states, gazebo_msgs/ModelStates: works with Gazebo and
+  with anafi_sim's kinematic world); the entry named ~model_name (airship);
+- out ~waypoint_topic (default position_control/waypoint relative to the node's namespace /<drone>/,
+  anafi_sim/Waypoint: ENU position [m], velocity [m/s], yaw [deg]) at ~rate Hz (10) of ROS time, while
+  the target is fresh (last seen within ~stale_timeout s, 1.0; else nothing is published, so the
+  controllers hover after their waypoint timeout, and a warning says why); /diagnostics at 1 Hz (wall).
+
+Waypoint = target position + ~offset [m] ([-6, 0, -2]: behind and below) in ~offset_frame (heading |
+world), yaw by ~yaw_mode (heading | face | fixed) + ~yaw_offset [deg], velocity from ~velocity_source
+(auto | twist | difference; ~smoothing [s] of the difference filter). Bad parameters: logfatal, exit 1.
+"""
+import math
+import threading
+import time
+
+import rospy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from anafi_sim import gazebo_types
+from anafi_sim.model_follower import ModelFollower
+from anafi_sim.msg import Waypoint
+
+
+def _number(name, default, minimum=None):
+    value = rospy.get_param('~' + name, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or (minimum is not None and value <= minimum):
+        raise ValueError('~%s must be a finite number%s, got %r' % (
+            name, '' if minimum is None else ' > %g' % minimum, value))
+    return float(value)
+
+
+class ModelFollowerNode(object):
+    def __init__(self):
+        self.model_name = str(rospy.get_param('~model_name', 'airship'))
+        if not self.model_name:
+            raise ValueError('~model_name must not be empty')
+        self.rate = _number('rate', 10.0, 0.0)
+        self.stale_timeout = _number('stale_timeout', 1.0, 0.0)
+        self.frame_id = str(rospy.get_param('~frame_id', 'world'))
+        offset = rospy.get_param('~offset', [-6.0, 0.0, -2.0])
+        self.core = ModelFollower(offset=offset,
+                                  offset_frame=rospy.get_param('~offset_frame', 'heading'),
+                                  yaw_mode=rospy.get_param('~yaw_mode', 'heading'),
+                                  yaw_offset=_number('yaw_offset', 0.0),
+                                  velocity_source=rospy.get_param('~velocity_source', 'auto'),
+                                  smoothing=_number('smoothing', 0.3, -1e-12))
+        self.lock = threading.Lock()
+        self.latest = None          # (t, position, orientation, linear, angular_z)
+        self.consumed = None
+        self.waypoint = None
+        self.missing = 0
+        self.published = 0
+        self.state_msgs = 0
+        self.pub = rospy.Publisher(str(rospy.get_param('~waypoint_topic', 'position_control/waypoint')),
+                                   Waypoint, queue_size=10)
+        self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
+        topic = str(rospy.get_param('~model_states_topic', '/gazebo/model_states'))
+        rospy.Subscriber(topic, gazebo_types.model_states_class(), self._on_model_states, queue_size=1)
+        rospy.loginfo('%s: following model %s from %s -> %s at %g Hz, offset %s (%s frame), yaw %s',
+                      rospy.get_name(), self.model_name, rospy.resolve_name(topic),
+                      rospy.resolve_name(self.pub.name), self.rate, list(self.core.offset), self.core.offset_frame,
+                      self.core.yaw_mode)
+
+    def _on_model_states(self, msg):
+        self.state_msgs += 1
+        try:
+            i = list(msg.name).index(self.model_name)
+        except ValueError:
+            self.missing += 1
+            rospy.logwarn_throttle(10.0, '%s: no model %r in model_states (%s)' % (
+                rospy.get_name(), self.model_name, ', '.join(msg.name) or 'empty'))
+            return
+        p, q = msg.pose[i].position, msg.pose[i].orientation
+        tw = msg.twist[i] if i < len(msg.twist) else None
+        linear = (tw.linear.x, tw.linear.y, tw.linear.z) if tw is not None else None
+        with self.lock:
+            self.latest = (rospy.get_time(), (p.x, p.y, p.z), (q.x, q.y, q.z, q.w), linear,
+                           tw.angular.z if tw is not None else None)
+
+    def tick(self):
+        now = rospy.get_time()
+        with self.lock:
+            latest = self.latest
+            if latest is not None and latest is not self.consumed:
+                self.consumed = latest
+                wp = self.core.update(*latest)
+                if wp is not None:
+                    self.waypoint = wp
+        if latest is None or now - latest[0] > self.stale_timeout or self.waypoint is None:
+            rospy.logwarn_throttle(5.0, '%s: target %s %s: no waypoint published' % (
+                rospy.get_name(), self.model_name, 'never seen' if latest is None else 'stale'))
+            return
+        msg = Waypoint()
+        msg.header.stamp = rospy.Time.from_sec(now)
+        msg.header.frame_id = self.frame_id
+        msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz, msg.yaw = self.waypoint
+        self.pub.publish(msg)
+        self.published += 1
+
+    def diagnostics(self):
+        status = DiagnosticStatus(name='%s: following %s' % (rospy.get_name(), self.model_name),
+                                  hardware_id=self.model_name)
+        with self.lock:
+            latest = self.latest
+        age = rospy.get_time() - latest[0] if latest is not None else None
+        if latest is None or age > self.stale_timeout:
+            status.level = DiagnosticStatus.WARN
+            status.message = 'target never seen' if latest is None else 'target stale (%.1f s)' % age
+        else:
+            status.level = DiagnosticStatus.OK
+            status.message = 'following'
+        status.values = [KeyValue(k, str(v)) for k, v in (
+            ('waypoints published', self.published), ('model_states received', self.state_msgs),
+            ('model_states without the model', self.missing), ('refused samples', self.core.rejected),
+            ('velocity from', 'twist' if self.core.used_twist else 'finite difference'),
+            ('target age [s]', '-' if age is None else '%.2f' % age))]
+        arr = DiagnosticArray()
+        arr.header.stamp = rospy.Time.now()
+        arr.status = [status]
+        self.pub_diag.publish(arr)
+
+    def run(self):
+        period = 1.0 / self.rate
+        next_diag = time.monotonic()
+        use_sim_time = rospy.get_param('/use_sim_time', False)
+        while use_sim_time and not rospy.is_shutdown() and rospy.get_time() == 0.0:
+            time.sleep(0.05)
+        rate = rospy.Rate(1.0 / period)
+        while not rospy.is_shutdown():
+            self.tick()
+            if time.monotonic() >= next_diag:
+                next_diag = time.monotonic() + 1.0
+                self.diagnostics()
+            try:
+                rate.sleep()
+            except rospy.ROSTimeMovedBackwardsException:
+                with self.lock:
+                    self.core.reset()
+            except rospy.ROSInterruptException:
+                break
+
+
+def main():
+    rospy.init_node('model_follower')
+    try:
+        node = ModelFollowerNode()
+    except ValueError as e:
+        rospy.logfatal(str(e))
+        raise SystemExit(1)
+    node.run()
+
+
+if __name__ == '__main__':
+    main()

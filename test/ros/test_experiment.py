@@ -1,0 +1,154 @@
+#!/usr/bin/env python3
+"""rostest (experiment.test): one short scenario end to end per controller (~controller: mpc | pid).
+
+Starts ``roslaunch anafi_sim experiment.launch`` with the test scenario experiment_short.yaml (10 s of
+simulation time, rtf 2, kinematic world + mirror, record) as a subprocess on its own private ROS master
+(free port, own ROS_HOME) and waits for the experiment monitor (the launch's required node) to end it;
+every process of the run is stopped by id afterwards. Then checks the run's files:
+
+- RUN.bag: a readable bag with the waypoint, the estimate, ground truth, the commands and the
+  begin/end signals recorded;
+- RUN.csv: reference-log columns, one row per estimate sample, finite waypoint and positions;
+- RUN.yaml (evaluator summary): state final, e_max, e_mu, e_sigma finite (vs estimate and vs ground
+  truth), the measured window 4 s long, e_mu < 2 m (the drone did track the 1 m circle);
+- RUN.run.yaml (monitor): state final, the simulator's real-time factor and the scenario durations.
+"""
+import math
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+import rospy
+import rostest
+import yaml
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SCENARIO = os.path.join(HERE, 'experiment_short.yaml')
+RUN_TIMEOUT = 130.0       # s wall for the whole launch
+
+
+def free_port():
+    s = socket.socket()
+    s.bind(('127.0.0.1', 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def stop(proc):
+    """SIGINT the launch, then SIGKILL whatever it started that is still alive (by process id)."""
+    try:
+        import psutil
+        procs = psutil.Process(proc.pid).children(recursive=True)
+    except Exception:
+        procs = []
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=20.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    for p in procs:
+        try:
+            if p.is_running():
+                p.kill()
+        except Exception:
+            pass
+
+
+class TestExperiment(unittest.TestCase):
+    def test_short_scenario_end_to_end(self):
+        controller = rospy.get_param('~controller', 'mpc')
+        out = tempfile.mkdtemp(prefix='anafi_experiment_%s_' % controller)
+        name = 'short_%s' % controller
+        port = free_port()
+        env = dict(os.environ)
+        env['ROS_MASTER_URI'] = 'http://127.0.0.1:%d' % port
+        env['ROS_HOME'] = os.path.join(out, 'ros_home')
+        try:     # nodes started through /usr/bin/python3 relay scripts must find osqp (the MPC) too
+            import osqp
+            env['PYTHONPATH'] = os.pathsep.join(p for p in (env.get('PYTHONPATH', ''), os.path.dirname(
+                os.path.dirname(os.path.abspath(osqp.__file__)))) if p)
+        except ImportError:
+            pass
+        cmd = ['roslaunch', '-p', str(port), 'anafi_sim', 'experiment.launch', 'controller:=' + controller,
+               'scenario:=experiment_short', 'scenario_file:=' + SCENARIO, 'rtf:=2.0', 'mirror:=true',
+               'record:=true', 'out_dir:=' + out, 'run_name:=' + name, 'plot:=false', 'progress_period:=0',
+               'telemetry_port:=%d' % free_port()]
+        log_path = os.path.join(out, 'launch.log')
+        with open(log_path, 'w') as log:
+            proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+            base = os.path.join(out, name)
+            deadline = time.monotonic() + RUN_TIMEOUT
+            try:
+                while time.monotonic() < deadline and proc.poll() is None:
+                    if os.path.exists(base + '.run.yaml') and os.path.exists(base + '.bag'):
+                        break          # results complete; skip the slow rest of roslaunch's shutdown
+                    time.sleep(0.5)
+                time.sleep(0.5)
+            finally:
+                stop(proc)
+        try:
+            self.check(base)
+        except AssertionError:
+            with open(log_path) as f:
+                tail = f.read()[-3000:]
+            raise AssertionError('%s\n(run files in %s; launch log tail:)\n%s' % (sys.exc_info()[1], out, tail))
+        shutil.rmtree(out, ignore_errors=True)
+
+    def check(self, base):
+        info = self.load_yaml(base + '.run.yaml')
+        self.assertEqual(info.get('state'), 'final', 'monitor: %s' % info)
+        self.assertGreater(info['scenario_sim_s'], 9.0)
+        self.assertGreater(info['achieved_rtf'], 0.0)
+
+        summary = self.load_yaml(base + '.yaml')
+        self.assertEqual(summary.get('state'), 'final')
+        for source in ('estimate', 'truth'):
+            res = summary.get(source)
+            self.assertIsInstance(res, dict, '%s missing in %s' % (source, summary))
+            for key in ('e_max', 'e_mu', 'e_sigma'):
+                self.assertTrue(isinstance(res.get(key), float) and math.isfinite(res[key]),
+                                '%s %s = %r' % (source, key, res.get(key)))
+            self.assertGreater(res['n_valid'], 40)                 # 4 s of the estimate at 30 Hz
+            self.assertLessEqual(res['e_mu'], res['e_max'])
+        self.assertLess(summary['estimate']['e_mu'], 2.0)
+        w = summary['window']
+        self.assertAlmostEqual(w[1] - w[0], 4.0, delta=0.2)
+
+        from anafi_sim.reference_log import COLUMNS, read_log
+        with open(base + '.csv') as f:
+            self.assertEqual(f.readline().strip().split(','), list(COLUMNS))
+        log = read_log(base + '.csv')
+        self.assertGreater(len(log), 150)                          # >= 10 s at 30 Hz incl. the hold
+        for column in ('wp_x', 'x_anafi', 'z_anafi', 'x_sphinx'):
+            values = log.columns[column]
+            self.assertGreater(sum(1 for v in values if math.isfinite(v)), 0.9 * len(values), column)
+
+        import rosbag
+        with rosbag.Bag(base + '.bag') as bag:
+            topics = bag.get_type_and_topic_info().topics
+        for topic in ('position_control/waypoint', 'drone/odom', 'ground_truth/odom', 'drone/rpyt',
+                      'trajectory/begin', 'trajectory/end'):
+            self.assertIn('/anafi/' + topic, topics, 'bag topics: %s' % sorted(topics))
+            self.assertGreater(topics['/anafi/' + topic].message_count, 0, topic)
+        self.assertGreater(topics['/anafi/drone/odom'].message_count, 200)
+
+    def load_yaml(self, path):
+        self.assertTrue(os.path.exists(path), '%s not written' % path)
+        with open(path) as f:
+            data = yaml.safe_load(f)
+        self.assertIsInstance(data, dict, path)
+        return data
+
+
+if __name__ == '__main__':
+    rospy.init_node('test_experiment', anonymous=True)
+    rostest.rosrun('anafi_sim', 'test_experiment', TestExperiment, sys.argv)

@@ -1,0 +1,166 @@
+"""anafi_sim.experiment_monitor: start gate, failures, end and run figures of one experiment (pure core)."""
+import pytest
+
+from anafi_sim import experiment_monitor as em
+
+SIM = {em.SIM_RTF_KEY: '2.50', em.SIM_OVERRUNS_KEY: '10', 'schedule re-anchors (> 0.25 s behind)': '1',
+       em.SIM_RATE_KEY: '500.0', em.SIM_WANTED_KEY: '600.0', 'flight state': 'flying'}
+
+
+def ready_monitor(**kw):
+    m = em.ExperimentMonitor(20.0, min_commands=3, **kw)
+    m.on_drone_state('flying')
+    for _ in range(3):
+        m.on_command((0.0, 1.5, 0.0, 0.2))
+    return m
+
+
+def test_start_waits_for_flying_engaged_commands_and_subscribers():
+    m = em.ExperimentMonitor(20.0, min_commands=3)
+    assert m.tick(0.0, 100.0) == []
+    m.on_drone_state('taking_off')
+    for _ in range(5):
+        m.on_command((0.0, 0.0, 0.0, 0.0))          # hover commands: not engaged
+    m.on_command((float('nan'), 1.0, 0.0, 0.0))      # garbage: not counted
+    assert m.commands == 0
+    for _ in range(3):
+        m.on_command((0.0, 0.0, 0.0, 0.4))
+    assert m.tick(1.0, 101.0) == []                  # still not flying
+    assert 'drone flying' in m.waiting_for()
+    m.on_drone_state('flying')
+    assert m.tick(2.0, 102.0, subscribers_ok=False) == []
+    assert 'subscriptions' in m.waiting_for(False)
+    assert m.holding
+    actions = m.tick(3.0, 103.0, subscribers_ok=True)
+    assert [a for a, _ in actions] == ['start']
+    assert m.state == em.STARTED and not m.holding
+    assert m.tick(3.1, 103.1) == []                  # started only once
+
+
+def test_not_ready_in_time_fails_with_the_reason():
+    m = em.ExperimentMonitor(20.0, min_commands=3, ready_timeout=10.0)
+    m.tick(0.0, 50.0)
+    m.on_drone_state('flying')
+    assert m.tick(1.0, 59.0) == []
+    actions = m.tick(2.0, 60.5)
+    assert actions[0][0] == 'fail' and 'controller commands (0 of 3)' in actions[0][1]
+    assert m.state == em.FAILED
+
+
+def test_scenario_not_ending_in_ros_time_fails():
+    m = ready_monitor(end_margin=5.0)
+    m.tick(100.0, 0.0)                               # start at ROS 100 s
+    m.on_begin(105.0)
+    assert m.state == em.MEASURING
+    assert m.tick(124.9, 10.0) == []                 # 20 s scenario + 5 s margin not yet over
+    actions = m.tick(125.1, 11.0)
+    assert actions[0][0] == 'fail' and 'did not end' in actions[0][1]
+
+
+def test_end_then_final_summary_is_done_else_timeout():
+    m = ready_monitor(final_timeout=4.0)
+    m.tick(0.0, 0.0)
+    m.on_begin(5.0)
+    m.on_end(20.0, 8.0)
+    assert m.state == em.MEASURED
+    m.on_summary({'state': 'measuring'}, 9.0)
+    assert m.tick(20.5, 9.0) == []
+    m.on_summary({'state': 'final', 'estimate': {'e_mu': 0.2}}, 9.5)
+    assert [a for a, _ in m.tick(21.0, 9.5)] == ['done']
+
+    m2 = ready_monitor(final_timeout=4.0)
+    m2.tick(0.0, 0.0)
+    m2.on_end(20.0, 8.0)
+    assert m2.tick(21.0, 11.9) == []
+    assert m2.tick(21.0, 12.1)[0][0] == 'fail'
+
+
+def test_progress_line_shows_phase_error_and_statistics():
+    m = ready_monitor()
+    assert 'waiting' in m.progress_line('run')
+    m.tick(10.0, 0.0)
+    m.on_status('settle', 'running')
+    m.on_waypoint((3.0, 4.0, 5.0, 0.0))
+    m.on_estimate((0.0, 0.0, 5.0))
+    assert m.current_error() == pytest.approx(5.0)
+    m.on_summary({'state': 'measuring', 'estimate': {'e_mu': 0.25, 'e_max': 0.5}}, 1.0)
+    m.on_sim_diagnostics(SIM)
+    m.tick(22.5, 1.0)
+    line = m.progress_line('circle_mpc')
+    assert 'circle_mpc' in line and 'settle' in line and 'e 5.00 m' in line
+    assert 't   12.5 s' in line and 'e_mu 0.25' in line and 'rtf 2.50' in line
+
+
+def test_run_info_durations_rtf_overruns_since_start_and_cpu():
+    m = ready_monitor()
+    m.on_sim_diagnostics({em.SIM_RTF_KEY: '3.0', em.SIM_OVERRUNS_KEY: '4',
+                          'schedule re-anchors (> 0.25 s behind)': '0'})
+    m.on_controller_cpu(10.0)
+    m.tick(10.0, 100.0, epoch=1000.0)                # start: counters taken as the baseline
+    m.on_sim_diagnostics(SIM)
+    m.on_sim_diagnostics(dict(SIM, **{em.SIM_RTF_KEY: '1.5'}))
+    m.on_mpc_stats(0.002, 0.005, 10, 1)
+    m.on_mpc_stats(0.004, 0.007, 20, 1)
+    m.on_begin(15.0)
+    m.on_end(40.0, 110.0)                            # 30 s of ROS time in 10 s of wall time
+    m.on_controller_cpu(13.0)
+    info = m.run_info()
+    assert info['scenario_sim_s'] == pytest.approx(30.0)
+    assert info['scenario_wall_s'] == pytest.approx(10.0)
+    assert info['achieved_rtf'] == pytest.approx(3.0)
+    assert info['sim_reported_rtf_mean'] == pytest.approx(2.0)
+    assert info['sim_reported_rtf_min'] == pytest.approx(1.5)
+    assert info['sim_overruns'] == 6 and info['sim_reanchors'] == 1
+    assert info['mpc_solve_time_mean_ms'] == pytest.approx(3.0)
+    assert info['mpc_solve_time_max_ms'] == pytest.approx(4.0)
+    assert info['mpc_cycles'] == 20
+    assert info['controller_cpu_s'] == pytest.approx(3.0)
+    assert info['controller_cpu_per_sim_s'] == pytest.approx(0.1)
+    assert info['wall_clock']['created'] == pytest.approx(1000.0)
+    assert info['wall_clock']['started'] == pytest.approx(1000.0)
+
+
+def test_bad_parameters_are_refused():
+    with pytest.raises(ValueError):
+        em.ExperimentMonitor(0.0)
+    with pytest.raises(ValueError):
+        em.ExperimentMonitor(float('nan'))
+    with pytest.raises(ValueError):
+        em.ExperimentMonitor(10.0, min_commands=-1)
+    with pytest.raises(ValueError):
+        em.ExperimentMonitor(10.0, ready_timeout=True)
+
+
+def test_summary_lines():
+    lines = em.summary_lines({'name': 'x', 'samples': 10, 'state': 'final',
+                              'estimate': {'e_max': 1.0, 'e_mu': 0.5, 'e_sigma': 0.25},
+                              'truth': None, 'garbage': ['z_anafi: 1 x 65280'], 'warnings': []})
+    text = '\n'.join(lines)
+    assert 'e_max 1.000' in text and 'e_mu 0.500' in text and 'e_sigma 0.250' in text
+    assert 'ground truth' in text and 'absent' in text and 'GARBAGE' in text
+    assert 'no evaluator summary' in em.summary_lines(None, 'run')[0]
+
+
+def test_hover_commands_and_gaps_while_the_scenario_runs_make_it_disturbed():
+    m = ready_monitor()
+    for k in range(5):
+        m.on_command((0.0, 0.0, 0.0, 0.0), 0.1 * k)        # hover before the start: not counted
+    m.tick(1.0, 0.0)
+    t = 1.0
+    for k in range(30):
+        t += 0.1
+        m.on_command((0.1, 0.0, 0.0, 0.0), t)
+    assert m.disturbed() == '' and m.scenario_commands == 30 and m.hover_commands == 0
+    assert m.max_command_gap == pytest.approx(0.1)
+    for k in range(3):
+        t += 0.1
+        m.on_command((0.0, 0.0, 0.0, 0.0), t)
+    t += 0.8
+    m.on_command((0.2, 0.0, 0.0, 0.0), t)
+    reason = m.disturbed()
+    assert '3 hover commands' in reason and 'stopped for 0.80 s' in reason
+    m.on_end(t, 5.0)
+    m.on_command((0.0, 0.0, 0.0, 0.0), t + 5.0)            # after the end: not counted
+    info = m.run_info()
+    assert info['hover_commands'] == 3 and info['max_command_gap_s'] == pytest.approx(0.8)
+    assert info['disturbed'] == reason

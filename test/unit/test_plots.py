@@ -1,0 +1,110 @@
+"""anafi_sim.plots: run and comparison figures from reference-log CSV files (Agg, no display)."""
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from experiment_logs import make_log  # noqa: E402
+
+from anafi_sim import plots  # noqa: E402
+from anafi_sim.reference_log import write_log  # noqa: E402
+
+REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+REFERENCE_LOGS = os.path.join(REPO, '..', 'shared', 'reference_logs')
+PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
+
+
+def circle_log(n=600, lag=0.3):
+    t = np.arange(n) * (1.0 / 30.0)
+    a = t / 2.0                                   # r = 2, v = 1 -> w = 0.5 rad/s
+    wp = np.column_stack([2 * np.cos(a), 2 * np.sin(a), np.full(n, 5.0)])
+    est = np.column_stack([2 * np.cos(a - lag), 2 * np.sin(a - lag), np.full(n, 5.0)])
+    return t, make_log(t, est, wp, truth=est + 0.01)
+
+
+def static_log(n=400):
+    t = np.arange(n) * 0.05
+    wp = np.where((t >= 5.0)[:, None], [3.0, 2.0, 5.0], [0.0, 0.0, 1.0])
+    frac = np.clip(1 - np.exp(-np.clip(t - 5.0, 0, None) / 0.8), 0, 1)
+    est = np.array([0.0, 0.0, 1.0]) + np.outer(frac, [3.0, 2.0, 4.0])
+    return t, make_log(t, est, wp)
+
+
+def test_moves_in_plane_tells_circles_from_steps():
+    _, circle = circle_log()
+    t, step = static_log()
+    assert plots.moves_in_plane(circle)
+    assert plots.moves_in_plane(circle, window=(5.0, 15.0))
+    # a step into the window is not planar motion; the waypoint never spans x and y afterwards
+    assert not plots.moves_in_plane(step, window=(5.0, t[-1]))
+    assert not plots.moves_in_plane(step, window=(10.0, t[-1]))
+
+
+def test_window_mask_and_summary_window():
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    assert plots.window_mask(t, (1.0, 2.0)).tolist() == [False, True, True, False]
+    assert plots.window_mask(t, None).all()
+    assert plots.summary_window({'window': [1.5, 3.0]}) == (1.5, 3.0)
+    assert plots.summary_window({'window': [3.0, 1.0]}) is None
+    assert plots.summary_window({'window': None}) is None
+    assert plots.summary_window(None) is None
+
+
+def test_plot_run_writes_a_small_png_from_the_csv(tmp_path):
+    _, log = circle_log()
+    csv = str(tmp_path / 'run.csv')
+    write_log(csv, log)
+    png = str(tmp_path / 'sub' / 'run.png')
+    out = plots.plot_run(csv, png, summary={'name': 'circle', 'window': [5.0, 17.0]})
+    assert out == png
+    with open(png, 'rb') as f:
+        data = f.read()
+    assert data[:8] == PNG_MAGIC
+    assert 5000 < len(data) < 150000
+    # a figure with the xy path (the waypoint moves in x and y) has 5 axes, the yaw variant too
+    fig = plots.run_figure(plots.load(csv), window=(5.0, 17.0), title='x')
+    titles = [ax.get_title() for ax in fig.axes]
+    assert any('xy path' in ti for ti in titles)
+    _, step = static_log()
+    fig = plots.run_figure(step, window=(5.0, 19.9))
+    assert any(ti == 'yaw' for ti in [ax.get_title() for ax in fig.axes])
+
+
+def test_error_line_is_the_mean_over_the_window():
+    t, log = circle_log(lag=0.3)
+    fig = plots.run_figure(log, window=(2.0, 10.0))
+    err_ax = fig.axes[-1]
+    labels = [line.get_label() for line in err_ax.get_lines()] + [c.get_label() for c in err_ax.collections]
+    expected = 2 * 2 * math.sin(0.3 / 2)          # chord of the 0.3 rad lag on r = 2
+    assert any(('e_mu %.2f m' % expected) == lab for lab in labels)
+
+
+def test_plot_run_refuses_an_empty_csv(tmp_path):
+    _, log = circle_log(n=3)
+    csv = str(tmp_path / 'empty.csv')
+    write_log(csv, log.select(np.zeros(3, dtype=bool)))
+    with pytest.raises(ValueError):
+        plots.plot_run(csv, str(tmp_path / 'x.png'))
+
+
+def test_comparison_png(tmp_path):
+    paths = []
+    for i, lag in enumerate((0.1, 0.4)):
+        _, log = circle_log(lag=lag)
+        p = str(tmp_path / ('r%d.csv' % i))
+        write_log(p, log)
+        paths.append(('run %d' % i, p, 1.0 * i))
+    png = plots.plot_comparison(paths, str(tmp_path / 'cmp.png'), title='cmp')
+    with open(png, 'rb') as f:
+        assert f.read(8) == PNG_MAGIC
+
+
+def test_plot_of_a_shared_reference_log(tmp_path):
+    path = os.path.join(REFERENCE_LOGS, 'static_waypoint_yaw_180_mpc.csv')
+    if not os.path.isfile(path):
+        pytest.skip('shared reference logs not found at %s (../shared beside the repo)' % REFERENCE_LOGS)
+    png = plots.plot_run(path, str(tmp_path / 'ref.png'), title='reference')
+    assert os.path.getsize(png) < 150000

@@ -3,6 +3,6 @@ from setuptools import setup
 from catkin_pkg.python_setup import generate_distutils_setup
 
 setup(**generate_distutils_setup(
-    packages=['anafi_sim', 'anafi_control'],
+    packages=['anafi_sim', 'anafi_sim.ros', 'anafi_control'],
     package_dir={'': '.'},
 ))

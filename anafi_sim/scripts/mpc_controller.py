@@ -18,12 +18,11 @@ dynamic_reconfigure (cfg/Mpc.cfg): weights, limits, horizon, carry_cumulative_er
 Parameters: anafi_sim/config/mpc.yaml. Bad parameters: logfatal, exit code 1.
 """
 import math
-import sys
 import threading
 import time
 
 import rospy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from dynamic_reconfigure.server import Server
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry, Path
@@ -33,7 +32,7 @@ from anafi_control.mpc_tracking import (COUNTER_NAMES, DEFAULTS, RECONFIGURABLE,
                                         predicted_positions, reference_positions)
 from anafi_sim.cfg import MpcConfig
 from anafi_sim.msg import MpcStats, Waypoint
-from anafi_sim.params import ParamReader
+from anafi_sim.ros.node import diagnostic_status, private_params, run_node, start_diagnostics_thread
 from anafi_sim.wire_types import piloting_command_class
 
 #: flat MPC parameter names read from ~params (v_max split per axis, as the reconfigure server has them)
@@ -44,7 +43,7 @@ WAITING = ('no_state', 'no_waypoint')   # hover reasons that are normal before t
 
 class MpcControllerNode(object):
     def __init__(self):
-        p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+        p = private_params()
         self.rate = p.positive('rate', 10.0)
         state_topic = p.ros_name('state_topic', 'drone/odom')
         waypoint_topic = p.ros_name('waypoint_topic', 'position_control/waypoint')
@@ -166,57 +165,35 @@ class MpcControllerNode(object):
         return path
 
     # -- diagnostics (own thread, wall clock: reports even when /clock stops) --------------------
-    def diagnostics_loop(self, stop):
-        while not stop.wait(1.0) and not rospy.is_shutdown():
-            with self.lock:
-                last = self.core.last
-                counters = dict(self.core.counters)
-                config = self.core.config()
-            st = DiagnosticStatus()
-            st.name = self.name
-            st.hardware_id = self.drone
-            if last.ok:
-                st.level, st.message = DiagnosticStatus.OK, 'tracking (OSQP %s)' % last.result.status
-            elif last.key in WAITING:
-                st.level, st.message = DiagnosticStatus.WARN, 'hover: ' + last.reason
-            else:
-                st.level, st.message = DiagnosticStatus.ERROR, 'hover: ' + last.reason
-            values = [('last_reason', last.reason)]
-            if last.result is not None:
-                values += [('osqp_status', last.result.status), ('iterations', last.result.iterations),
-                           ('solve_time_ms', '%.3f' % (1e3 * last.result.solve_time)),
-                           ('run_time_ms', '%.3f' % (1e3 * last.result.run_time))]
-            values += [(k, counters[k]) for k in COUNTER_NAMES]
-            values += [('N', config['N']), ('r', config['r']), ('q_cum', config['q_cum']),
-                       ('q_cum_terminal', config['q_cum_terminal'])]
-            st.values = [KeyValue(str(k), str(v)) for k, v in values]
-            arr = DiagnosticArray()
-            arr.header.stamp = rospy.Time.now()
-            arr.status = [st]
-            try:
-                self.pub_diag.publish(arr)
-            except rospy.ROSException:
-                break
+    def diagnostic_statuses(self):
+        with self.lock:
+            last = self.core.last
+            counters = dict(self.core.counters)
+            config = self.core.config()
+        if last.ok:
+            level, message = DiagnosticStatus.OK, 'tracking (OSQP %s)' % last.result.status
+        elif last.key in WAITING:
+            level, message = DiagnosticStatus.WARN, 'hover: ' + last.reason
+        else:
+            level, message = DiagnosticStatus.ERROR, 'hover: ' + last.reason
+        values = [('last_reason', last.reason)]
+        if last.result is not None:
+            values += [('osqp_status', last.result.status), ('iterations', last.result.iterations),
+                       ('solve_time_ms', '%.3f' % (1e3 * last.result.solve_time)),
+                       ('run_time_ms', '%.3f' % (1e3 * last.result.run_time))]
+        values += [(k, counters[k]) for k in COUNTER_NAMES]
+        values += [('N', config['N']), ('r', config['r']), ('q_cum', config['q_cum']),
+                   ('q_cum_terminal', config['q_cum_terminal'])]
+        return [diagnostic_status(self.name, level, message, values, hardware_id=self.drone)]
 
-
-def main():
-    rospy.init_node('mpc_controller')
-    try:
-        node = MpcControllerNode()
-    except ValueError as err:
-        rospy.logfatal('mpc_controller: bad parameter: %s', err)
-        sys.exit(1)
-    stop = threading.Event()
-    diag = threading.Thread(target=node.diagnostics_loop, args=(stop,), name='mpc_diagnostics')
-    diag.daemon = True
-    diag.start()
-    timer = rospy.Timer(rospy.Duration.from_sec(1.0 / node.rate), node.cycle)
-    try:
-        rospy.spin()
-    finally:
-        stop.set()
-        timer.shutdown()
+    def run(self):
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
+        timer = rospy.Timer(rospy.Duration.from_sec(1.0 / self.rate), self.cycle)
+        try:
+            rospy.spin()
+        finally:
+            timer.shutdown()
 
 
 if __name__ == '__main__':
-    main()
+    run_node('mpc_controller', MpcControllerNode)

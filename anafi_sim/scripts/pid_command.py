@@ -14,28 +14,28 @@ Safety (anafi_control.pid_wiring.CommandAssembler): pid disabled
 ~effort_timeout s or non-finite -> hover command (all zeros), counted and
 reported on /diagnostics (1 Hz wall). Bad parameters: logfatal, exit code 1.
 """
-import sys
 import threading
-import time
 
 import rospy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler
-from anafi_sim.params import ParamReader
+from anafi_sim.ros.node import (diagnostic_status, namespace_id, private_params, run_node,
+                                start_diagnostics_thread)
 from anafi_sim.wire_types import piloting_command_class
 
 
 class PidCommandNode(object):
     def __init__(self):
-        p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+        p = private_params()
         self.rate = p.positive('rate', 10.0)
         self.assembler = CommandAssembler(p.positive('effort_timeout', 0.5))
         pid_ns = p.ros_name('pid_namespace', 'pid')
         command_topic = p.ros_name('command_topic', 'drone/rpyt')
         self.frame_id = p.string('frame_id', '')
         self.lock = threading.Lock()
+        self.last_hovers = 0       # hover commands at the previous diagnostic
         self.cls = piloting_command_class()
         self.pub = rospy.Publisher(command_topic, self.cls, queue_size=10)
         self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
@@ -70,52 +70,29 @@ class PidCommandNode(object):
         msg.roll, msg.pitch, msg.yaw, msg.gaz = cmd
         self.pub.publish(msg)
 
-    def _diagnostics_loop(self):
-        last_hovers = 0
-        while not rospy.is_shutdown():
-            time.sleep(1.0)
-            a = self.assembler
-            with self.lock:
-                reason, hovers, commands, bad = a.last_reason, a.hovers, a.commands, a.bad_efforts
-                last = dict((f, a.values[f]) for f in COMMAND_LOOPS)
-            status = DiagnosticStatus()
-            status.name = 'pid_command: %s' % rospy.get_name()
-            status.hardware_id = rospy.get_namespace().strip('/') or 'anafi'
-            if reason is None:
-                status.level, status.message = DiagnosticStatus.OK, 'commanding'
-            else:
-                status.level = DiagnosticStatus.OK if reason.startswith('pid disabled') else DiagnosticStatus.WARN
-                status.message = 'hover command: %s' % reason
-            values = [('commands sent', str(commands)), ('hover commands', str(hovers)),
-                      ('hover commands last second', str(hovers - last_hovers)),
-                      ('refused efforts (non-finite)', str(bad)), ('command topic', self.command_topic)]
-            values += [('%s effort' % f, 'none' if v is None else ('bad' if v is False else '%g' % v))
-                       for f, v in last.items()]
-            last_hovers = hovers
-            status.values = [KeyValue(k, v) for k, v in values]
-            array = DiagnosticArray()
-            array.status = [status]
-            try:
-                array.header.stamp = rospy.Time.now()
-                self.pub_diag.publish(array)
-            except rospy.ROSException:
-                break
+    def _diagnostic_statuses(self):
+        a = self.assembler
+        with self.lock:
+            reason, hovers, commands, bad = a.last_reason, a.hovers, a.commands, a.bad_efforts
+            last = dict((f, a.values[f]) for f in COMMAND_LOOPS)
+        if reason is None:
+            level, message = DiagnosticStatus.OK, 'commanding'
+        else:
+            level = DiagnosticStatus.OK if reason.startswith('pid disabled') else DiagnosticStatus.WARN
+            message = 'hover command: %s' % reason
+        values = [('commands sent', commands), ('hover commands', hovers),
+                  ('hover commands last second', hovers - self.last_hovers),
+                  ('refused efforts (non-finite)', bad), ('command topic', self.command_topic)]
+        values += [('%s effort' % f, 'none' if v is None else ('bad' if v is False else '%g' % v))
+                   for f, v in last.items()]
+        self.last_hovers = hovers
+        return [diagnostic_status('pid_command: %s' % rospy.get_name(), level, message, values, namespace_id())]
 
     def run(self):
-        threading.Thread(target=self._diagnostics_loop, name='diagnostics', daemon=True).start()
+        start_diagnostics_thread(1.0, self._diagnostic_statuses, self.pub_diag)
         rospy.Timer(rospy.Duration(1.0 / self.rate), self._on_timer)
         rospy.spin()
 
 
-def main():
-    rospy.init_node('pid_command')
-    try:
-        node = PidCommandNode()
-    except ValueError as error:
-        rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
-        sys.exit(1)
-    node.run()
-
-
 if __name__ == '__main__':
-    main()
+    run_node('pid_command', PidCommandNode)

@@ -25,18 +25,17 @@ Bad parameters (lower_limit > upper_limit, non-finite numbers, empty topic
 names, ...): logfatal and exit code 1 at start-up.
 """
 import math
-import sys
 import threading
 import time
 
 import rospy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from dynamic_reconfigure.server import Server
 from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid import PidController, join_gain, split_gain
 from anafi_sim.cfg import PidConfig
-from anafi_sim.params import ParamReader
+from anafi_sim.ros.node import diagnostic_status, private_params, run_node, start_diagnostics_thread
 
 COALESCE_WINDOW = 0.001     # s of wall time: the pid package's loop sleep
 NUMBER_PARAMS = (('Kp', 1.0), ('Ki', 0.0), ('Kd', 0.0), ('upper_limit', 1000.0),
@@ -48,7 +47,7 @@ TOPIC_PARAMS = (('topic_from_controller', 'control_effort'), ('topic_from_plant'
 
 def read_params():
     """(controller kwargs, topics, (min_freq, max_freq)) from ~params; ValueError (ParamError) on bad values."""
-    p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+    p = private_params()
     kwargs = dict((name, p.number(name, default)) for name, default in NUMBER_PARAMS)
     kwargs['angle_error'] = p.flag('angle_error', False)
     topics = dict((name, p.ros_name(name, default)) for name, default in TOPIC_PARAMS)
@@ -133,7 +132,8 @@ class PidControllerNode(object):
 
     # -- computation thread ---------------------------------------------------------------
     def run(self):
-        threading.Thread(target=self._diagnostics_loop, name='diagnostics', daemon=True).start()
+        self.diag_time = time.monotonic()       # wall time of the previous diagnostic (rate window)
+        start_diagnostics_thread(1.0, self._diagnostic_statuses, self.pub_diag)
         while not rospy.is_shutdown():
             with self.wake:
                 if not self.pending:
@@ -167,63 +167,39 @@ class PidControllerNode(object):
             if effort is not None:
                 self.pub.publish(Float64(effort))
 
-    def _diagnostics_loop(self):
-        last = time.monotonic()
-        while not rospy.is_shutdown():
-            time.sleep(1.0)
-            now = time.monotonic()
-            with self.lock:
-                rate = self.rate_count / max(now - last, 1e-6)
-                self.rate_count_seen = self.rate_count > 0 or self.rate_count_seen
-                self.rate_count = 0
-                p = self.pid
-                values = [
-                    ('Kp', '%g' % p.Kp), ('Ki', '%g' % p.Ki), ('Kd', '%g' % p.Kd),
-                    ('enabled', str(p.enabled)),
-                    ('computations', str(self.computations)),
-                    ('efforts published', str(self.published)),
-                    ('last effort', '%g' % self.last_effort),
-                    ('computation rate [Hz wall]', '%.1f' % rate),
-                    ('skipped, delta_t == 0', str(p.skipped_dt_zero)),
-                    ('ignored, non-finite input', str(p.rejected_nonfinite)),
-                    ('clock jumps back (restarts)', str(p.time_jumps_back)),
-                ]
-                problems = []
-                if p.rejected_nonfinite:
-                    problems.append('%d non-finite inputs ignored' % p.rejected_nonfinite)
-                if self.rate_count_seen and p.enabled and not self.freq_limits[0] <= rate <= self.freq_limits[1]:
-                    problems.append('computation rate %.1f Hz outside [%g, %g]'
-                                    % ((rate,) + self.freq_limits))
-                if self.setpoint is None or self.state is None:
-                    problems.append('waiting for %s' % ('setpoint' if self.setpoint is None else 'state'))
-            status = DiagnosticStatus()
-            status.name = 'pid_controller: %s' % self.name
-            status.hardware_id = self.name
-            status.level = DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
-            status.message = '; '.join(problems) if problems else ('running' if p.enabled else 'disabled')
-            status.values = [KeyValue(k, v) for k, v in values]
-            array = DiagnosticArray()
-            try:
-                array.header.stamp = rospy.Time.now()
-            except rospy.ROSException:
-                break
-            array.status = [status]
-            try:
-                self.pub_diag.publish(array)
-            except rospy.ROSException:
-                break
-            last = now
-
-
-def main():
-    rospy.init_node('controller')
-    try:
-        node = PidControllerNode()
-    except ValueError as error:
-        rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
-        sys.exit(1)
-    node.run()
+    def _diagnostic_statuses(self):
+        now = time.monotonic()
+        with self.lock:
+            rate = self.rate_count / max(now - self.diag_time, 1e-6)
+            self.diag_time = now
+            self.rate_count_seen = self.rate_count > 0 or self.rate_count_seen
+            self.rate_count = 0
+            p = self.pid
+            values = [
+                ('Kp', '%g' % p.Kp), ('Ki', '%g' % p.Ki), ('Kd', '%g' % p.Kd),
+                ('enabled', p.enabled),
+                ('computations', self.computations),
+                ('efforts published', self.published),
+                ('last effort', '%g' % self.last_effort),
+                ('computation rate [Hz wall]', '%.1f' % rate),
+                ('skipped, delta_t == 0', p.skipped_dt_zero),
+                ('ignored, non-finite input', p.rejected_nonfinite),
+                ('clock jumps back (restarts)', p.time_jumps_back),
+            ]
+            problems = []
+            if p.rejected_nonfinite:
+                problems.append('%d non-finite inputs ignored' % p.rejected_nonfinite)
+            if self.rate_count_seen and p.enabled and not self.freq_limits[0] <= rate <= self.freq_limits[1]:
+                problems.append('computation rate %.1f Hz outside [%g, %g]'
+                                % ((rate,) + self.freq_limits))
+            if self.setpoint is None or self.state is None:
+                problems.append('waiting for %s' % ('setpoint' if self.setpoint is None else 'state'))
+            enabled = p.enabled
+        level = DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
+        message = '; '.join(problems) if problems else ('running' if enabled else 'disabled')
+        return [diagnostic_status('pid_controller: %s' % self.name, level, message, values,
+                                  hardware_id=self.name)]
 
 
 if __name__ == '__main__':
-    main()
+    run_node('controller', PidControllerNode)

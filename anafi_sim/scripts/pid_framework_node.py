@@ -19,24 +19,23 @@ Safety: no waypoint yet, no / stale (~state_timeout, ~waypoint_timeout;
 diagnostic (/diagnostics, 1 Hz wall). Bad parameters: logfatal, exit 1.
 No dynamic_reconfigure here (use the distributed mode for live tuning).
 """
-import sys
 import threading
-import time
 
 import rospy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nav_msgs.msg import Odometry
 
 from anafi_control.pid_framework import HOVER, LOOP_NAMES, PidFramework
 from anafi_control.pid_wiring import NO_WAYPOINT, InputGate
 from anafi_sim.msg import Waypoint
-from anafi_sim.params import ParamReader
+from anafi_sim.ros.node import (diagnostic_status, namespace_id, private_params, run_node,
+                                start_diagnostics_thread)
 from anafi_sim.wire_types import piloting_command_class
 
 
 class PidFrameworkNode(object):
     def __init__(self):
-        p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+        p = private_params()
         self.rate = p.positive('rate', 30.0)
         self.command_rate = p.positive('command_rate', 10.0)
         overrides = {}
@@ -105,51 +104,29 @@ class PidFrameworkNode(object):
         msg.roll, msg.pitch, msg.yaw, msg.gaz = cmd
         self.pub.publish(msg)
 
-    def _diagnostics_loop(self):
-        while not rospy.is_shutdown():
-            time.sleep(1.0)
-            with self.lock:
-                g, fw = self.gate, self.framework
-                reason = self.reason
-                values = [('cycles', str(g.cycles)), ('hover cycles', str(g.hover_cycles)),
-                          ('commands sent', str(self.commands)), ('hover commands', str(self.hovers)),
-                          ('refused states (non-finite)', str(g.bad_states)),
-                          ('refused waypoints (non-finite)', str(g.bad_waypoints)),
-                          ('framework refused inputs', str(fw.rejected_inputs))]
-                values += [('%s effort' % loop, '%g' % fw.efforts[loop]) for loop in LOOP_NAMES]
-            status = DiagnosticStatus()
-            status.name = 'pid_framework: %s' % rospy.get_name()
-            status.hardware_id = rospy.get_namespace().strip('/') or 'anafi'
-            if reason is None:
-                status.level, status.message = DiagnosticStatus.OK, 'tracking'
-            else:
-                status.level = DiagnosticStatus.OK if reason == NO_WAYPOINT else DiagnosticStatus.WARN
-                status.message = 'hovering: %s' % reason
-            status.values = [KeyValue(k, v) for k, v in values]
-            array = DiagnosticArray()
-            array.status = [status]
-            try:
-                array.header.stamp = rospy.Time.now()
-                self.pub_diag.publish(array)
-            except rospy.ROSException:
-                break
+    def _diagnostic_statuses(self):
+        with self.lock:
+            g, fw = self.gate, self.framework
+            reason = self.reason
+            values = [('cycles', g.cycles), ('hover cycles', g.hover_cycles),
+                      ('commands sent', self.commands), ('hover commands', self.hovers),
+                      ('refused states (non-finite)', g.bad_states),
+                      ('refused waypoints (non-finite)', g.bad_waypoints),
+                      ('framework refused inputs', fw.rejected_inputs)]
+            values += [('%s effort' % loop, '%g' % fw.efforts[loop]) for loop in LOOP_NAMES]
+        if reason is None:
+            level, message = DiagnosticStatus.OK, 'tracking'
+        else:
+            level = DiagnosticStatus.OK if reason == NO_WAYPOINT else DiagnosticStatus.WARN
+            message = 'hovering: %s' % reason
+        return [diagnostic_status('pid_framework: %s' % rospy.get_name(), level, message, values, namespace_id())]
 
     def run(self):
-        threading.Thread(target=self._diagnostics_loop, name='diagnostics', daemon=True).start()
+        start_diagnostics_thread(1.0, self._diagnostic_statuses, self.pub_diag)
         rospy.Timer(rospy.Duration(1.0 / self.rate), self._on_cycle)
         rospy.Timer(rospy.Duration(1.0 / self.command_rate), self._on_command)
         rospy.spin()
 
 
-def main():
-    rospy.init_node('pid_framework')
-    try:
-        node = PidFrameworkNode()
-    except ValueError as error:
-        rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
-        sys.exit(1)
-    node.run()
-
-
 if __name__ == '__main__':
-    main()
+    run_node('pid_framework', PidFrameworkNode)

@@ -21,19 +21,18 @@ stale state (> ~state_timeout s), stale waypoint (> ~waypoint_timeout s;
 stop, the command node hovers); a diagnostic on /diagnostics (1 Hz wall)
 says why, with counters. Bad parameters: logfatal, exit code 1.
 """
-import sys
 import threading
-import time
 
 import rospy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid_framework import relative_state
 from anafi_control.pid_wiring import NO_WAYPOINT, InputGate, input_topics, loop_inputs
 from anafi_sim.msg import Waypoint
-from anafi_sim.params import ParamReader
+from anafi_sim.ros.node import (diagnostic_status, namespace_id, private_params, run_node,
+                                start_diagnostics_thread)
 
 
 def odometry_numbers(msg):
@@ -44,7 +43,7 @@ def odometry_numbers(msg):
 
 class RelativeStateNode(object):
     def __init__(self):
-        p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+        p = private_params()
         self.rate = p.positive('rate', 30.0)
         state_topic = p.ros_name('state_topic', 'drone/odom')
         waypoint_topic = p.ros_name('waypoint_topic', 'position_control/waypoint')
@@ -105,50 +104,28 @@ class RelativeStateNode(object):
             self.pubs[topic].publish(Float64(value))
         self.published_cycles += 1
 
-    def _diagnostics_loop(self):
-        while not rospy.is_shutdown():
-            time.sleep(1.0)
-            g = self.gate
-            with self.lock:
-                reason = g.last_reason
-                values = [('cycles', str(g.cycles)), ('hover cycles', str(g.hover_cycles)),
-                          ('published cycles', str(self.published_cycles)),
-                          ('refused states (non-finite)', str(g.bad_states)),
-                          ('refused waypoints (non-finite)', str(g.bad_waypoints)),
-                          ('clock jumps back', str(g.clock_jumps)),
-                          ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]
-            status = DiagnosticStatus()
-            status.name = 'pid_relative_state: %s' % rospy.get_name()
-            status.hardware_id = rospy.get_namespace().strip('/') or 'anafi'
-            if reason is None:
-                status.level, status.message = DiagnosticStatus.OK, 'tracking'
-            else:
-                status.level = DiagnosticStatus.OK if reason == NO_WAYPOINT else DiagnosticStatus.WARN
-                status.message = 'hovering: %s' % reason
-            status.values = [KeyValue(k, v) for k, v in values]
-            array = DiagnosticArray()
-            array.status = [status]
-            try:
-                array.header.stamp = rospy.Time.now()
-                self.pub_diag.publish(array)
-            except rospy.ROSException:
-                break
+    def _diagnostic_statuses(self):
+        g = self.gate
+        with self.lock:
+            reason = g.last_reason
+            values = [('cycles', g.cycles), ('hover cycles', g.hover_cycles),
+                      ('published cycles', self.published_cycles),
+                      ('refused states (non-finite)', g.bad_states),
+                      ('refused waypoints (non-finite)', g.bad_waypoints),
+                      ('clock jumps back', g.clock_jumps),
+                      ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]
+        if reason is None:
+            level, message = DiagnosticStatus.OK, 'tracking'
+        else:
+            level = DiagnosticStatus.OK if reason == NO_WAYPOINT else DiagnosticStatus.WARN
+            message = 'hovering: %s' % reason
+        return [diagnostic_status('pid_relative_state: %s' % rospy.get_name(), level, message, values, namespace_id())]
 
     def run(self):
-        threading.Thread(target=self._diagnostics_loop, name='diagnostics', daemon=True).start()
+        start_diagnostics_thread(1.0, self._diagnostic_statuses, self.pub_diag)
         rospy.Timer(rospy.Duration(1.0 / self.rate), self._on_timer)
         rospy.spin()
 
 
-def main():
-    rospy.init_node('pid_relative_state')
-    try:
-        node = RelativeStateNode()
-    except ValueError as error:
-        rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
-        sys.exit(1)
-    node.run()
-
-
 if __name__ == '__main__':
-    main()
+    run_node('pid_relative_state', RelativeStateNode)

@@ -1,0 +1,135 @@
+"""anafi_sim.ros.node: diagnostics building/publishing, ~params and start-up glue (no ROS master needed)."""
+import threading
+
+import pytest
+
+rospy = pytest.importorskip('rospy')
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+
+from anafi_sim.params import ParamError  # noqa: E402
+from anafi_sim.ros import node  # noqa: E402
+
+
+class FakePublisher(object):
+    """Records published messages; raises ROSException (as a closed publisher does) from call ``fail_at``."""
+
+    def __init__(self, fail_at=None):
+        self.sent = []
+        self.fail_at = fail_at
+
+    def publish(self, msg):
+        if self.fail_at is not None and len(self.sent) + 1 >= self.fail_at:
+            raise rospy.ROSException('publish() to a closed topic')
+        self.sent.append(msg)
+
+
+@pytest.fixture
+def ros_time(monkeypatch):
+    """rospy.Time.now() without init_node: a fixed time."""
+    monkeypatch.setattr(rospy.Time, 'now', staticmethod(lambda: rospy.Time(12, 500)))
+
+
+def test_diagnostic_status_fields_and_string_values():
+    st = node.diagnostic_status('pid_command: /anafi/pid_command', DiagnosticStatus.WARN, 'hover command: x',
+                                [('commands sent', 3), ('enabled', True), ('last effort', '0.5'),
+                                 ('ratio', 0.25)], hardware_id='anafi')
+    assert isinstance(st, DiagnosticStatus)
+    assert (st.name, st.level, st.message, st.hardware_id) == \
+        ('pid_command: /anafi/pid_command', DiagnosticStatus.WARN, 'hover command: x', 'anafi')
+    assert [(kv.key, kv.value) for kv in st.values] == \
+        [('commands sent', '3'), ('enabled', 'True'), ('last effort', '0.5'), ('ratio', '0.25')]
+
+
+def test_diagnostic_status_defaults_and_serializes():
+    st = node.diagnostic_status('n', DiagnosticStatus.ERROR, 'hover: solver failed', iter([(1, None)]))
+    assert st.hardware_id == ''
+    assert [(kv.key, kv.value) for kv in st.values] == [('1', 'None')]
+    # what goes on the wire decodes to the same status (types accepted by the message)
+    import io
+    buf = io.BytesIO()
+    DiagnosticArray(status=[st]).serialize(buf)
+    back = DiagnosticArray().deserialize(buf.getvalue())
+    assert back.status[0].level == DiagnosticStatus.ERROR
+    assert back.status[0].message == 'hover: solver failed'
+    assert back.status[0].values[0].key == '1'
+
+
+def test_publish_diagnostics_stamps_one_array(ros_time):
+    pub = FakePublisher()
+    statuses = [node.diagnostic_status('a', DiagnosticStatus.OK, 'ok', []),
+                node.diagnostic_status('b', DiagnosticStatus.WARN, 'w', [])]
+    assert node.publish_diagnostics(pub, statuses) is True
+    assert len(pub.sent) == 1
+    assert pub.sent[0].header.stamp == rospy.Time(12, 500)
+    assert [s.name for s in pub.sent[0].status] == ['a', 'b']
+
+
+def test_publish_diagnostics_false_when_publisher_closed(ros_time):
+    assert node.publish_diagnostics(FakePublisher(fail_at=1), []) is False
+
+
+def test_diagnostics_thread_stops_when_publisher_closes(ros_time):
+    calls = []
+
+    def make_statuses():
+        calls.append(1)
+        return [node.diagnostic_status('t', DiagnosticStatus.OK, 'n=%d' % len(calls), [])]
+
+    pub = FakePublisher(fail_at=3)
+    thread = node.start_diagnostics_thread(0.0, make_statuses, pub)
+    assert thread.daemon
+    thread.join(10.0)
+    assert not thread.is_alive()
+    assert [a.status[0].message for a in pub.sent] == ['n=1', 'n=2']
+    assert len(calls) == 3
+
+
+def test_private_params_reads_tilde_names(monkeypatch):
+    store = {'~rate': 20, '~topic': ' a/b '}
+    monkeypatch.setattr(rospy, 'get_param', lambda name, default=None: store.get(name, default))
+    p = node.private_params()
+    assert p.positive('rate', 30.0) == 20.0
+    assert p.positive('missing', 7.0) == 7.0
+    assert p.string('topic', '') == 'a/b'
+    store['~rate'] = -1
+    with pytest.raises(ParamError, match='~rate'):
+        p.positive('rate', 30.0)
+
+
+def _stub_start_up(monkeypatch):
+    log = []
+    monkeypatch.setattr(rospy, 'init_node', lambda name: log.append(('init', name)))
+    monkeypatch.setattr(rospy, 'get_name', lambda: '/anafi/x')
+    monkeypatch.setattr(rospy, 'logfatal', lambda fmt, *args: log.append(('fatal', fmt % args)))
+    return log
+
+
+def test_run_node_bad_parameters_log_fatal_and_exit(monkeypatch):
+    log = _stub_start_up(monkeypatch)
+
+    def factory():
+        raise ParamError('~rate must be a finite number > 0, got -1')
+
+    with pytest.raises(SystemExit) as exit_info:
+        node.run_node('x', factory, fatal_exit_code=3)
+    assert exit_info.value.code == 3
+    assert log == [('init', 'x'), ('fatal', '/anafi/x: bad parameters: ~rate must be a finite number > 0, got -1')]
+
+
+def test_run_node_runs_the_node(monkeypatch):
+    log = _stub_start_up(monkeypatch)
+    ran = threading.Event()
+
+    class Node(object):
+        def run(self):
+            ran.set()
+
+    node.run_node('x', Node)
+    assert ran.is_set()
+    assert log == [('init', 'x')]
+
+
+@pytest.mark.parametrize('namespace, expected', [('/anafi/', 'anafi'), ('/', 'anafi'), ('/a/b/', 'a/b')])
+def test_namespace_id(monkeypatch, namespace, expected):
+    monkeypatch.setattr(rospy, 'get_namespace', lambda: namespace)
+    assert node.namespace_id() == expected

@@ -38,6 +38,7 @@ from anafi_sim.evaluation import LiveEvaluator, stamp_ns
 from anafi_sim.msg import Waypoint
 from anafi_sim.params import ParamReader
 from anafi_sim.reference_log import write_log
+from anafi_sim.ros.node import run_node
 
 
 def markdown(summary):
@@ -228,15 +229,5 @@ def _makedirs(path):
         os.makedirs(directory)
 
 
-def main():
-    rospy.init_node('evaluator')
-    try:
-        node = EvaluatorNode()
-    except ValueError as e:
-        rospy.logfatal(str(e))
-        raise SystemExit(1)
-    node.run()
-
-
 if __name__ == '__main__':
-    main()
+    run_node('evaluator', EvaluatorNode)

@@ -29,7 +29,6 @@ import rosgraph
 import rospkg
 import rospy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Pose, Twist
 from nav_msgs.msg import Odometry
 
 from anafi_sim import gazebo_types, urdf_model
@@ -37,6 +36,7 @@ from anafi_sim.ground_truth import ERROR, OK, WARN
 from anafi_sim.mirror import Mirror, model_names, namespaced_model_xml
 from anafi_sim.msg import DroneData
 from anafi_sim.params import ParamReader
+from anafi_sim.ros import msgs
 
 _LEVELS = {OK: DiagnosticStatus.OK, WARN: DiagnosticStatus.WARN, ERROR: DiagnosticStatus.ERROR}
 LOG_REPEAT = 5.0  # s between repeated "Gazebo not available" log lines
@@ -89,20 +89,6 @@ def read_params():
     p['camera_urdf_file'] = r.string('camera_urdf_file', '') or os.path.join(urdf_dir, 'anafi_camera.urdf')
     p['robot_namespace'] = r.string('robot_namespace', '') or '/' + p['drone_name'].strip('/')
     return p
-
-
-def _pose(position, orientation):
-    pose = Pose()
-    pose.position.x, pose.position.y, pose.position.z = position
-    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = orientation
-    return pose
-
-
-def _twist(linear, angular):
-    twist = Twist()
-    twist.linear.x, twist.linear.y, twist.linear.z = linear
-    twist.angular.x, twist.angular.y, twist.angular.z = angular
-    return twist
 
 
 def _call_with_timeout(function, timeout):
@@ -192,8 +178,8 @@ class GazeboMirrorNode(object):
                 self.core.record_sent(stamp, rospy.get_time())
 
     def _message(self, state):
-        return self.ModelState(model_name=state.model_name, pose=_pose(state.position, state.orientation),
-                               twist=_twist(state.linear, state.angular), reference_frame=state.reference_frame)
+        return self.ModelState(model_name=state.model_name, pose=msgs.pose(state.position, state.orientation),
+                               twist=msgs.twist(state.linear, state.angular), reference_frame=state.reference_frame)
 
     def send(self, states):
         """Topic: publish; service: one synchronous call per model. True when everything went out."""
@@ -273,7 +259,7 @@ class GazeboMirrorNode(object):
             position, orientation = poses.get(name, ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
             request = self.SpawnModel._request_class(
                 model_name=name, model_xml=self.models[name], robot_namespace=self.p['robot_namespace'],
-                initial_pose=_pose(position, orientation), reference_frame=self.p['reference_frame'])
+                initial_pose=msgs.pose(position, orientation), reference_frame=self.p['reference_frame'])
             ok, result = _call_with_timeout(
                 lambda r=request: rospy.ServiceProxy(self.spawn_service, self.SpawnModel)(r), 30.0)
             success = ok and result.success

@@ -26,13 +26,13 @@ import time
 
 import rospy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Pose, Twist
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from anafi_sim import gazebo_types
 from anafi_sim.kinematic_world import KinematicWorld, Result
 from anafi_sim.params import ParamReader
+from anafi_sim.ros import msgs
 
 
 def read_params():
@@ -53,20 +53,6 @@ def read_params():
     if p['max_cycle'] < p['max_step']:
         raise ValueError('~max_cycle (%g s) must be >= ~max_step (%g s)' % (p['max_cycle'], p['max_step']))
     return p
-
-
-def _pose(position, orientation):
-    pose = Pose()
-    pose.position.x, pose.position.y, pose.position.z = position
-    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = orientation
-    return pose
-
-
-def _twist(linear, angular):
-    twist = Twist()
-    twist.linear.x, twist.linear.y, twist.linear.z = linear
-    twist.angular.x, twist.angular.y, twist.angular.z = angular
-    return twist
 
 
 def _pose_values(pose):
@@ -166,8 +152,8 @@ class KinematicWorldNode(object):
         res.header.stamp = stamp
         res.header.frame_id = req.relative_entity_name
         if state is not None:
-            res.pose = _pose(state.position, state.orientation)
-            res.twist = _twist(state.linear, state.angular)
+            res.pose = msgs.pose(state.position, state.orientation)
+            res.twist = msgs.twist(state.linear, state.angular)
         res.success, res.status_message = result.success, result.status_message
         return res
 
@@ -204,8 +190,8 @@ class KinematicWorldNode(object):
             self.clock_pub.publish(Clock(clock=rospy.Time.from_sec(now)))
         msg = self.ModelStates()
         msg.name = [name for name, _ in states]
-        msg.pose = [_pose(s.position, s.orientation) for _, s in states]
-        msg.twist = [_twist(s.linear, s.angular) for _, s in states]
+        msg.pose = [msgs.pose(s.position, s.orientation) for _, s in states]
+        msg.twist = [msgs.twist(s.linear, s.angular) for _, s in states]
         self.state_pub.publish(msg)
         for event, model_a, model_b, geom_a, geom_b, depth in events:
             self.contact_pub.publish(String(data=json.dumps({

@@ -24,6 +24,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from anafi_sim import gazebo_types
 from anafi_sim.model_follower import ModelFollower
 from anafi_sim.msg import Waypoint
+from anafi_sim.ros.node import run_node
 
 
 def _number(name, default, minimum=None):
@@ -146,15 +147,5 @@ class ModelFollowerNode(object):
                 break
 
 
-def main():
-    rospy.init_node('model_follower')
-    try:
-        node = ModelFollowerNode()
-    except ValueError as e:
-        rospy.logfatal(str(e))
-        raise SystemExit(1)
-    node.run()
-
-
 if __name__ == '__main__':
-    main()
+    run_node('model_follower', ModelFollowerNode)

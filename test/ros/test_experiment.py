@@ -128,9 +128,14 @@ class TestExperiment(unittest.TestCase):
             self.assertEqual(f.readline().strip().split(','), list(COLUMNS))
         log = read_log(base + '.csv')
         self.assertGreater(len(log), 150)                          # >= 10 s at 30 Hz incl. the hold
-        for column in ('wp_x', 'x_anafi', 'z_anafi', 'x_sphinx'):
+        for column in ('wp_x', 'x_anafi', 'z_anafi'):
             values = log.columns[column]
             self.assertGreater(sum(1 for v in values if math.isfinite(v)), 0.9 * len(values), column)
+        # ground truth may start after the estimate (the telemetry CLI connects first; at rtf 2 that is
+        # visible in simulation time), but inside the measured window every row has it
+        inside = [v for t, v in zip(log.time, log.columns['x_sphinx']) if w[0] <= t <= w[1]]
+        self.assertGreater(len(inside), 100, 'rows in the measured window')
+        self.assertTrue(all(math.isfinite(v) for v in inside), 'x_sphinx missing in the measured window')
 
         import rosbag
         with rosbag.Bag(base + '.bag') as bag:

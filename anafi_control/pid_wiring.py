@@ -126,6 +126,17 @@ STALE_WAYPOINT = 'stale waypoint'
 BAD_STATE = 'non-finite state'
 BAD_WAYPOINT = 'non-finite waypoint'
 
+
+def gate_health(reason):
+    """(is_warning, message) of an input gate's last hover reason (None = tracking).
+
+    Waiting for the first waypoint is normal (not a warning); any other hover reason is.
+    """
+    if reason is None:
+        return False, 'tracking'
+    return reason != NO_WAYPOINT, 'hovering: %s' % reason
+
+
 Inputs = collections.namedtuple('Inputs', ['pos', 'vel', 'yaw', 'waypoint'])
 Inputs.__doc__ = 'Drone position [m], world velocity [m/s], heading [rad], waypoint (x,y,z,vx,vy,vz,yaw_deg).'
 

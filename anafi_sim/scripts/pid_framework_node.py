@@ -26,7 +26,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nav_msgs.msg import Odometry
 
 from anafi_control.pid_framework import HOVER, LOOP_NAMES, PidFramework
-from anafi_control.pid_wiring import NO_WAYPOINT, InputGate
+from anafi_control.pid_wiring import NO_WAYPOINT, InputGate, gate_health
 from anafi_sim.msg import Waypoint
 from anafi_sim.ros.node import (diagnostic_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
@@ -114,11 +114,8 @@ class PidFrameworkNode(object):
                       ('refused waypoints (non-finite)', g.bad_waypoints),
                       ('framework refused inputs', fw.rejected_inputs)]
             values += [('%s effort' % loop, '%g' % fw.efforts[loop]) for loop in LOOP_NAMES]
-        if reason is None:
-            level, message = DiagnosticStatus.OK, 'tracking'
-        else:
-            level = DiagnosticStatus.OK if reason == NO_WAYPOINT else DiagnosticStatus.WARN
-            message = 'hovering: %s' % reason
+        warning, message = gate_health(reason)
+        level = DiagnosticStatus.WARN if warning else DiagnosticStatus.OK
         return [diagnostic_status('pid_framework: %s' % rospy.get_name(), level, message, values, namespace_id())]
 
     def run(self):

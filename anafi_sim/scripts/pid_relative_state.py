@@ -29,7 +29,7 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid_framework import relative_state
-from anafi_control.pid_wiring import NO_WAYPOINT, InputGate, input_topics, loop_inputs
+from anafi_control.pid_wiring import NO_WAYPOINT, InputGate, gate_health, input_topics, loop_inputs
 from anafi_sim.msg import Waypoint
 from anafi_sim.ros.node import (diagnostic_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
@@ -114,11 +114,8 @@ class RelativeStateNode(object):
                       ('refused waypoints (non-finite)', g.bad_waypoints),
                       ('clock jumps back', g.clock_jumps),
                       ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]
-        if reason is None:
-            level, message = DiagnosticStatus.OK, 'tracking'
-        else:
-            level = DiagnosticStatus.OK if reason == NO_WAYPOINT else DiagnosticStatus.WARN
-            message = 'hovering: %s' % reason
+        warning, message = gate_health(reason)
+        level = DiagnosticStatus.WARN if warning else DiagnosticStatus.OK
         return [diagnostic_status('pid_relative_state: %s' % rospy.get_name(), level, message, values, namespace_id())]
 
     def run(self):

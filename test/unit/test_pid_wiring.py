@@ -266,3 +266,10 @@ def test_assembler_disable_hovers_and_needs_fresh_efforts_after_enable():
     assert asm.command(0.1)[0] == HOVER            # the old efforts were forgotten
     fill(asm, 0.2)
     assert asm.command(0.2)[1] is None
+
+
+def test_gate_health_waiting_for_the_first_waypoint_is_not_a_warning():
+    from anafi_control.pid_wiring import NO_WAYPOINT, STALE_STATE, gate_health
+    assert gate_health(None) == (False, 'tracking')
+    assert gate_health(NO_WAYPOINT) == (False, 'hovering: ' + NO_WAYPOINT)
+    assert gate_health(STALE_STATE) == (True, 'hovering: ' + STALE_STATE)

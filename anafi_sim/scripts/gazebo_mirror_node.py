@@ -137,6 +137,7 @@ class GazeboMirrorNode(object):
         self.service_failures = 0
         self._set_proxy = None
         self._last_absent_log = None
+        self._world_missed = False
         self._last_pose = None  # spawn pose: the latest ground-truth pose
         self.state_pub = None
         if not params['use_service']:
@@ -208,20 +209,30 @@ class GazeboMirrorNode(object):
 
     # ------------------------------------------------------------------ world / spawning
     def world_endpoint(self):
-        """URI of the reachable spawn service, or None."""
-        try:
-            uri = self.master.lookupService(self.spawn_service)
-        except Exception:  # rosgraph.MasterError (no provider), master unreachable, ...
-            return None
+        """URI of the reachable spawn service, or None.
+
+        The service is contacted first and its URI looked up after: the other order can return the URI of a
+        world that was killed without unregistering while the contact already reaches its successor, and the
+        next check would then take that successor for one more restart.
+        """
         try:
             rospy.wait_for_service(self.spawn_service, timeout=0.5)
         except rospy.ROSException:
-            return None  # registered but dead (killed without unregistering)
-        return uri
+            return None  # not registered, or registered but dead (killed without unregistering)
+        try:
+            return self.master.lookupService(self.spawn_service)
+        except Exception:  # rosgraph.MasterError (no provider), master unreachable, ...
+            return None
 
     def check_world(self):
         uri = self.world_endpoint()
         now = time.monotonic()
+        with self.lock:
+            available = self.core.spawn.world_available
+        if uri is None and available and not self._world_missed:
+            self._world_missed = True   # one missed check of a busy world is not a loss: confirm it next time
+            return
+        self._world_missed = False
         with self.lock:
             was = self.core.spawn.world_available
             restarts = self.core.spawn.world_restarts

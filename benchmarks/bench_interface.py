@@ -47,6 +47,7 @@ from anafi_sim.drone_model import AnafiModel, load_model_params  # noqa: E402
 from anafi_sim.ground_truth import GroundTruthInterface  # noqa: E402
 from anafi_sim.telemetry import FIELDS, TelemetryParser, TelemetrySample, format_sample, key_map  # noqa: E402
 from anafi_sim.telemetry_server import TelemetryServer  # noqa: E402
+from bench_common import cpu_model
 
 CLI_SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'tlm_data_logger.py')
 NODE_SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'interface_node.py')
@@ -572,17 +573,6 @@ def bench_ros(parts, duration, rate, tcp_nodelay, log):
 
 
 # ----------------------------------------------------------------------------- report
-def cpu_model():
-    try:
-        with open('/proc/cpuinfo') as f:
-            for line in f:
-                if line.startswith('model name'):
-                    return line.split(':', 1)[1].strip()
-    except IOError:
-        pass
-    return platform.processor() or 'unknown'
-
-
 def versions():
     out = ['Python %s' % platform.python_version()]
     try:

@@ -32,6 +32,7 @@ if ROOT not in sys.path:
 import osqp  # noqa: E402
 
 from anafi_control.mpc import CumulativeErrorMpc  # noqa: E402
+from bench_common import cpu_model
 
 DT = 0.1
 POS_NOISE = 0.02   # [m] 1-sigma measurement noise
@@ -100,17 +101,6 @@ def stats(rows):
         'cpu_p99': np.percentile(arr[:, 4], 99) * ms,
         'fail': int((~ok).sum()), 'n': len(rows), 'err': err[50:].mean() if len(err) > 50 else err.mean(),
     }
-
-
-def cpu_model():
-    try:
-        with open('/proc/cpuinfo') as f:
-            for line in f:
-                if line.startswith('model name'):
-                    return line.split(':', 1)[1].strip()
-    except IOError:
-        pass
-    return platform.processor() or 'unknown'
 
 
 HEADER = ('| controller | scenario | solve p50 [ms] | solve p99 [ms] | cycle p50 [ms] | cycle p99 [ms] | '

@@ -23,11 +23,8 @@ import sys
 import threading
 import time
 import unittest
-import xmlrpc.client
 
 import numpy as np
-import rosgraph
-import rosnode
 import rospkg
 import rospy
 import rostest
@@ -40,33 +37,13 @@ from anafi_sim import gazebo_types, urdf_model
 from anafi_sim.ground_truth import camera_pose
 from anafi_sim.msg import DroneData
 from anafi_sim.wire_types import piloting_command_class
+from rostest_helpers import node_pid, wait_for
 
 DRONE = 'anafi'
 MODELS = ('anafi', 'anafi_camera')
 PKG = rospkg.RosPack().get_path('anafi_sim')
 ANAFI_URDF = os.path.join(PKG, 'anafi_sim', 'urdf', 'anafi.urdf')
 MATCH_WINDOW = 0.03  # s, +- around a world state's receipt time on the ground-truth trajectory
-
-
-def wait_for(predicate, timeout, step=0.05):
-    deadline = time.time() + timeout
-    while time.time() < deadline:
-        if predicate():
-            return True
-        time.sleep(step)
-    return predicate()
-
-
-def node_pid(name):
-    master = rosgraph.Master('/test_mirror')
-    uri = rosnode.get_api_uri(master, name, skip_cache=True)
-    if not uri:
-        return None
-    try:
-        code, _, pid = xmlrpc.client.ServerProxy(uri).getPid('/test_mirror')
-    except (OSError, xmlrpc.client.Error):
-        return None
-    return pid if code == 1 else None
 
 
 def pose(x, y, z):

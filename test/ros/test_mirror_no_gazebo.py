@@ -13,10 +13,7 @@ import sys
 import threading
 import time
 import unittest
-import xmlrpc.client
 
-import rosgraph
-import rosnode
 import rospkg
 import rospy
 import rostest
@@ -24,29 +21,10 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rosgraph_msgs.msg import Log
 
 from anafi_sim import gazebo_types
+from rostest_helpers import node_pid, wait_for
 
 MIRROR = '/anafi/gazebo_mirror'
 MODELS = ('anafi', 'anafi_camera')
-
-
-def wait_for(predicate, timeout, step=0.05):
-    deadline = time.time() + timeout
-    while time.time() < deadline:
-        if predicate():
-            return True
-        time.sleep(step)
-    return predicate()
-
-
-def node_pid(name):
-    uri = rosnode.get_api_uri(rosgraph.Master('/test_mirror_no_gazebo'), name, skip_cache=True)
-    if not uri:
-        return None
-    try:
-        code, _, pid = xmlrpc.client.ServerProxy(uri).getPid('/test_mirror_no_gazebo')
-    except (OSError, xmlrpc.client.Error):
-        return None
-    return pid if code == 1 else None
 
 
 class TestMirrorWithoutGazebo(unittest.TestCase):

@@ -6,7 +6,7 @@ waypoint (x, y, z [m], v_x, v_y, v_z [m/s], ENU world; yaw [deg], world).
 Output: a ROS ``olympe_bridge/PilotingCommand`` tuple (roll [deg], pitch
 [deg], yaw rate [deg/s], gaz [m/s]) with the anafi_ros signs: +roll = tilt
 right (flies towards -y), +pitch = nose down (flies forward), +yaw rate =
-counter-clockwise seen from above, +gaz = up (see ``anafi_sim/bridge.py``).
+counter-clockwise seen from above, +gaz = up (see ``anafi_sim/sim/bridge.py``).
 
 How each loop is fed (one relative-state step, ~30 Hz, then every loop once):
 

@@ -43,10 +43,10 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
-from anafi_sim.drone_model import AnafiModel, load_model_params  # noqa: E402
-from anafi_sim.ground_truth import GroundTruthInterface  # noqa: E402
-from anafi_sim.telemetry import FIELDS, TelemetryParser, TelemetrySample, format_sample, key_map  # noqa: E402
-from anafi_sim.telemetry_server import TelemetryServer  # noqa: E402
+from anafi_sim.sim.drone_model import AnafiModel, load_model_params  # noqa: E402
+from anafi_sim.interface.ground_truth import GroundTruthInterface  # noqa: E402
+from anafi_sim.telemetry.protocol import FIELDS, TelemetryParser, TelemetrySample, format_sample, key_map  # noqa: E402
+from anafi_sim.telemetry.server import TelemetryServer  # noqa: E402
 from bench_common import cpu_model
 
 CLI_SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'tlm_data_logger.py')

@@ -154,7 +154,7 @@ class WorldWatcher(object):
 
     def __init__(self):
         import rospy
-        from anafi_sim import gazebo_types
+        from anafi_sim.ros import gazebo_types
         self.lock = threading.Lock()
         self.first_seen = {}
         self.names = set()

@@ -30,7 +30,7 @@ import threading
 import rospy
 
 from anafi_sim.msg import DroneData
-from anafi_sim.telemetry import DEFAULT_PREFIX, key_map
+from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, key_map
 
 # sample field -> DroneData field
 MSG_FIELDS = {

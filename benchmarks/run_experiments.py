@@ -7,7 +7,7 @@ its own ROS_HOME, and cleans every process of the run up afterwards (by process 
 evaluator's summaries (e_max, e_mu, e_sigma [m] vs estimate and ground truth), the monitor's run
 figures (achieved real-time factor, simulator overruns, MPC solve times, controller CPU), computes
 the static waypoints' overshoot and settling from the exported CSV, draws one PNG per run
-(anafi_sim.plots) and Fig. 6-style comparisons, and writes ONE Markdown report
+(anafi_sim.experiments.plots) and Fig. 6-style comparisons, and writes ONE Markdown report
 (default benchmarks/results/experiments.md, plots under benchmarks/results/plots/) plus the raw
 records (experiments.yaml beside the report; ``--from-records`` re-renders a report from it).
 
@@ -34,9 +34,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
-from anafi_sim import experiment_report as report          # noqa: E402
-from anafi_sim import step_response                          # noqa: E402
-from anafi_sim.trajectory import list_scenarios, load_scenario   # noqa: E402
+from anafi_sim.experiments import report  # noqa: E402
+from anafi_sim.experiments import step_response  # noqa: E402
+from anafi_sim.experiments.trajectory import list_scenarios, load_scenario   # noqa: E402
 
 try:
     import psutil
@@ -211,7 +211,7 @@ class Run(object):
                 'final_to_cleaned_up': round(self.epoch0 + self.wall_s - clock['final'], 2)}
         if ok and self.scenario.startswith('static'):
             try:
-                from anafi_sim.plots import load, summary_window
+                from anafi_sim.experiments.plots import load, summary_window
                 window = summary_window(summary)
                 rec['step'] = step_response.as_dict(step_response.step_metrics(load(self.files['csv']), window))
             except (IOError, OSError, ValueError, TypeError) as e:
@@ -272,7 +272,7 @@ def parse_args(argv):
 
 def make_plots(records, plots_dir, report_dir):
     """Per-run PNGs and Fig. 6-style comparisons; returns (plots, comparisons) as (label, relative path)."""
-    from anafi_sim import plots
+    from anafi_sim.experiments import plots
     out, comparisons = [], []
     for rec in records:
         name = '%s_%s' % (rec['scenario'], rec['controller'])

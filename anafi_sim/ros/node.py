@@ -10,7 +10,7 @@ import time
 import rospy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from anafi_sim.params import ParamReader
+from anafi_sim.ros.params import ParamReader
 
 
 def private_params():

@@ -2,8 +2,8 @@
 """Airship node: moves the scene's airship along a scripted path in Gazebo (thin node).
 
 Stage: scene actors (the second robot of the paper's airship demo; the drone's tracking target later).
-Pure core: anafi_sim.airship_path.AirshipPath (pose and velocity as functions of time) and
-anafi_sim.mirror.SpawnTracker (spawn bookkeeping). The node spawns ~urdf_file as ~model_name through
+Pure core: anafi_sim.gazebo.airship_path.AirshipPath (pose and velocity as functions of time) and
+anafi_sim.gazebo.mirror.SpawnTracker (spawn bookkeeping). The node spawns ~urdf_file as ~model_name through
 <gazebo_namespace>/spawn_urdf_model (waiting and retrying while Gazebo is absent, respawning after a
 restart), then at ~rate sends its state on the <gazebo_namespace>/set_model_state topic
 (gazebo_msgs/ModelState, world frame) and publishes /<model_name>/odom (nav_msgs/Odometry, frame world ->
@@ -23,9 +23,9 @@ from geometry_msgs.msg import Pose, Twist
 from nav_msgs.msg import Odometry
 
 from anafi_control import frames
-from anafi_sim import gazebo_types
-from anafi_sim.airship_path import SHAPES, AirshipPath
-from anafi_sim.mirror import SpawnTracker
+from anafi_sim.ros import gazebo_types
+from anafi_sim.gazebo.airship_path import SHAPES, AirshipPath
+from anafi_sim.gazebo.mirror import SpawnTracker
 
 
 def read_params():

@@ -2,9 +2,9 @@
 """The simulated Anafi: stand-in for Sphinx + firmware + the anafi_ros bridge (thin ROS node).
 
 Stage: piloting command -> simulated drone -> (telemetry server, bridge-like estimate topics).
-Wires ROS to ``anafi_sim.drone_model.AnafiModel`` (physics at ~rate Hz of
-sim time, paced on the wall clock by ~rtf), ``anafi_sim.state_estimate``
-(the drone's own estimate) and ``anafi_sim.telemetry_server`` (Sphinx-like
+Wires ROS to ``anafi_sim.sim.drone_model.AnafiModel`` (physics at ~rate Hz of
+sim time, paced on the wall clock by ~rtf), ``anafi_sim.sim.state_estimate``
+(the drone's own estimate) and ``anafi_sim.telemetry.server`` (Sphinx-like
 ground truth on TCP ~telemetry_host:~telemetry_port).
 
 Namespace /<drone> (default /anafi; if started in the root namespace the
@@ -31,13 +31,13 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Empty, Float32, String
 
 from anafi_control.frames import euler_to_quaternion
-from anafi_sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
-from anafi_sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
-from anafi_sim.params import ParamReader
-from anafi_sim.state_estimate import StateEstimate
-from anafi_sim.telemetry import DEFAULT_PREFIX
-from anafi_sim.telemetry_server import TelemetryServer
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
+from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
+from anafi_sim.ros.params import ParamReader
+from anafi_sim.sim.state_estimate import StateEstimate
+from anafi_sim.telemetry.protocol import DEFAULT_PREFIX
+from anafi_sim.telemetry.server import TelemetryServer
+from anafi_sim.ros.wire_types import piloting_command_class
 
 MAX_LAG = 0.25   # s of wall time behind schedule before the pacing re-anchors (counted)
 

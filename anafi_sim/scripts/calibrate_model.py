@@ -4,7 +4,7 @@
 Usage: calibrate_model.py [--logs DIR] [--out YAML] [--report MD] [--plot PNG]
 Defaults: logs <repo>/../shared/reference_logs, out anafi_sim/config/anafi_model.yaml,
 report docs/calibration.md, plot docs/calibration_replay.png (paths relative to the repo).
-The fits live in anafi_sim/calibration.py; this script only wires them to files.
+The fits live in anafi_sim/calibration/fit.py; this script only wires them to files.
 """
 import argparse
 import glob
@@ -17,8 +17,8 @@ if REPO not in sys.path:
 
 import numpy as np  # noqa: E402
 
-from anafi_sim import calibration  # noqa: E402
-from anafi_sim.reference_log import read_log  # noqa: E402
+from anafi_sim.calibration import fit as calibration  # noqa: E402
+from anafi_sim.experiments.reference_log import read_log  # noqa: E402
 
 REPLAY_LOG = 'static_waypoint_yaw_0_pid'
 YAW_LOG = 'static_waypoint_yaw_180_pid'

@@ -2,7 +2,7 @@
 """Live tracking-error evaluator node: e = |waypoint - drone position| over the measured segment.
 
 Stage: (waypoint, estimate, ground truth) -> tracking-error summary. Thin
-node over anafi_sim.evaluation.LiveEvaluator (same code as evaluate_log.py
+node over anafi_sim.experiments.evaluation.LiveEvaluator (same code as evaluate_log.py
 for bags and CSV). Topics relative to the node's namespace (/<drone>/):
 
 - in ~waypoint_topic (position_control/waypoint, anafi_sim/Waypoint),
@@ -34,10 +34,10 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
-from anafi_sim.evaluation import LiveEvaluator, stamp_ns
+from anafi_sim.experiments.evaluation import LiveEvaluator, stamp_ns
 from anafi_sim.msg import Waypoint
-from anafi_sim.params import ParamReader
-from anafi_sim.reference_log import write_log
+from anafi_sim.ros.params import ParamReader
+from anafi_sim.experiments.reference_log import write_log
 from anafi_sim.ros.node import run_node
 
 

@@ -2,7 +2,7 @@
 """Experiment monitor node: starts the scenario when everything is up, prints live progress, ends the run.
 
 Stage: experiment orchestration (experiment.launch, demo.launch). Thin node over
-anafi_sim.experiment_monitor.ExperimentMonitor. Topics relative to the node's namespace (/<drone>/):
+anafi_sim.experiments.monitor.ExperimentMonitor. Topics relative to the node's namespace (/<drone>/):
 
 - in drone/state (std_msgs/String), drone/rpyt (olympe_bridge/PilotingCommand: non-zero commands
   counted, the controller is up and engaged; while the scenario runs, hover (all-zero) commands and
@@ -21,7 +21,7 @@ anafi_sim.experiment_monitor.ExperimentMonitor. Topics relative to the node's na
 Every ~progress_period s of wall time (1.0; 0 = quiet) one progress line on stdout. When the
 evaluator's summary is final, the node waits (<= ~evaluator_exit_timeout s wall, 15) for
 ~evaluator_node to exit (it writes ~csv_file and ~summary_file), draws ~plot_file from the CSV
-(anafi_sim.plots; '' = no plot), writes ~info_file (YAML: anafi_sim.experiment_monitor run_info:
+(anafi_sim.experiments.plots; '' = no plot), writes ~info_file (YAML: anafi_sim.experiments.monitor run_info:
 durations, achieved real-time factor, simulator overruns, MPC solve times, controller CPU time of the
 nodes matching ~controller_nodes, fnmatch patterns of absolute node names), prints the summary and
 shuts down (exit 0; 1 on failure: not ready within ~ready_timeout s wall (90), the scenario not ending
@@ -43,10 +43,10 @@ from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
-from anafi_sim.experiment_monitor import FAILED, FINAL, ExperimentMonitor, summary_lines
+from anafi_sim.experiments.monitor import FAILED, FINAL, ExperimentMonitor, summary_lines
 from anafi_sim.msg import MpcStats, Waypoint
-from anafi_sim.trajectory import SCENARIO_DIR, load_scenario
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.experiments.trajectory import SCENARIO_DIR, load_scenario
+from anafi_sim.ros.wire_types import piloting_command_class
 
 try:
     from xmlrpc.client import ServerProxy
@@ -270,7 +270,7 @@ class ExperimentMonitorNode(object):
         if self.files['plot'] and self.files['csv']:
             if os.path.isfile(self.files['csv']):
                 try:
-                    from anafi_sim.plots import plot_run
+                    from anafi_sim.experiments.plots import plot_run
                     plot_run(self.files['csv'], self.files['plot'], summary=summary, title=self.label)
                     info['plot'] = self.files['plot']
                 except Exception as e:    # a plot problem must not hide the result

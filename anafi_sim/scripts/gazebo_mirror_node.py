@@ -2,7 +2,7 @@
 """Gazebo mirror node: the Sphinx ground truth drives an Anafi and its camera in Gazebo (thin node).
 
 Stage: telemetry -> interface -> **mirror** -> Gazebo (or anafi_sim's kinematic stand-in world).
-Pure core: anafi_sim.mirror (Mirror, SpawnTracker). Runs in /<drone>:
+Pure core: anafi_sim.gazebo.mirror (Mirror, SpawnTracker). Runs in /<drone>:
 
 - waits for <gazebo_namespace>/spawn_urdf_model (logs a clear error and retries every ~retry_period while
   it is absent; diagnostics ERROR), spawns the drone model (~urdf_file) and the camera model
@@ -31,11 +31,13 @@ import rospy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 
-from anafi_sim import gazebo_types, urdf_model
-from anafi_sim.ground_truth import ERROR, OK, WARN
-from anafi_sim.mirror import Mirror, model_names, namespaced_model_xml
+from anafi_sim.ros import gazebo_types
+
+from anafi_sim.gazebo import urdf_model
+from anafi_sim.interface.ground_truth import ERROR, OK, WARN
+from anafi_sim.gazebo.mirror import Mirror, model_names, namespaced_model_xml
 from anafi_sim.msg import DroneData
-from anafi_sim.params import ParamReader
+from anafi_sim.ros.params import ParamReader
 from anafi_sim.ros import msgs
 
 _LEVELS = {OK: DiagnosticStatus.OK, WARN: DiagnosticStatus.WARN, ERROR: DiagnosticStatus.ERROR}

@@ -2,9 +2,9 @@
 """The paper's "Interface": Sphinx ground-truth telemetry -> ROS (thin node).
 
 Stage: telemetry -> **interface** -> (mirror | controllers).
-Runs ~telemetry_command as one supervised subprocess (anafi_sim.supervisor),
-parses its lines (anafi_sim.telemetry.TelemetryParser), decimates to ~rate
-and checks them (anafi_sim.ground_truth.GroundTruthInterface), and publishes
+Runs ~telemetry_command as one supervised subprocess (anafi_sim.interface.supervisor),
+parses its lines (anafi_sim.telemetry.protocol.TelemetryParser), decimates to ~rate
+and checks them (anafi_sim.interface.ground_truth.GroundTruthInterface), and publishes
 each accepted sample at once, from the reader thread (all publishers are
 queued, so ROS I/O never blocks the reader):
 
@@ -32,11 +32,11 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
 
-from anafi_sim import ground_truth as gt
+from anafi_sim.interface import ground_truth as gt
 from anafi_sim.msg import DroneData
-from anafi_sim.params import ParamReader
-from anafi_sim.supervisor import ProcessSupervisor
-from anafi_sim.telemetry import DEFAULT_PREFIX, TelemetryParser
+from anafi_sim.ros.params import ParamReader
+from anafi_sim.interface.supervisor import ProcessSupervisor
+from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, TelemetryParser
 
 DEFAULT_COMMAND = 'tlm-data-logger -r 0 inet:127.0.0.1:9060'
 STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines

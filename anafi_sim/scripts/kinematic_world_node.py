@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
-"""Kinematic world node: our stand-in for Gazebo's ROS API (thin node over anafi_sim.kinematic_world).
+"""Kinematic world node: our stand-in for Gazebo's ROS API (thin node over anafi_sim.gazebo.kinematic_world).
 
 Stage: mirror -> **world**. Serves, under ~gazebo_namespace (default /gazebo)
-with the real gazebo_msgs types (anafi_sim.gazebo_types, wire-identical):
+with the real gazebo_msgs types (anafi_sim.ros.gazebo_types, wire-identical):
 
 - services spawn_urdf_model, spawn_sdf_model (both accept URDF or minimal SDF),
   delete_model, set_model_state, get_model_state, get_model_properties;
@@ -29,9 +29,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
-from anafi_sim import gazebo_types
-from anafi_sim.kinematic_world import KinematicWorld, Result
-from anafi_sim.params import ParamReader
+from anafi_sim.ros import gazebo_types
+from anafi_sim.gazebo.kinematic_world import KinematicWorld, Result
+from anafi_sim.ros.params import ParamReader
 from anafi_sim.ros import msgs
 
 

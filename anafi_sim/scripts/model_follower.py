@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Model follower node: a Gazebo model's pose (e.g. the airship) -> the drone's waypoint with velocity.
 
-Stage: target -> waypoint (-> PID / MPC controller). Thin node over anafi_sim.model_follower.ModelFollower.
+Stage: target -> waypoint (-> PID / MPC controller). Thin node over anafi_sim.experiments.model_follower.ModelFollower.
 
 - in ~model_states_topic (default /gazebo/model_states, gazebo_msgs/ModelStates: works with Gazebo and
   with anafi_sim's kinematic world); the entry named ~model_name (airship);
@@ -21,8 +21,8 @@ import time
 import rospy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from anafi_sim import gazebo_types
-from anafi_sim.model_follower import ModelFollower
+from anafi_sim.ros import gazebo_types
+from anafi_sim.experiments.model_follower import ModelFollower
 from anafi_sim.msg import Waypoint
 from anafi_sim.ros.node import run_node
 

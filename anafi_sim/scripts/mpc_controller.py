@@ -33,7 +33,7 @@ from anafi_control.mpc_tracking import (COUNTER_NAMES, DEFAULTS, RECONFIGURABLE,
 from anafi_sim.cfg import MpcConfig
 from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim.ros.node import diagnostic_status, private_params, run_node, start_diagnostics_thread
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.ros.wire_types import piloting_command_class
 
 #: flat MPC parameter names read from ~params (v_max split per axis, as the reconfigure server has them)
 MPC_PARAM_NAMES = tuple(k for k in MPC_DEFAULTS if k != 'v_max') + ('v_max_x', 'v_max_y', 'v_max_z')

@@ -6,7 +6,7 @@ four command loops (anafi_control.pid_wiring.COMMAND_LOOPS: roll <- y_inner
 [deg], pitch <- x_inner [deg], yaw rate <- yaw [deg/s], gaz <- vertical
 [m/s]; std_msgs/Float64 on <~pid_namespace>/<loop>/control_effort) and
 publishes one olympe_bridge/PilotingCommand (wire-identical, see
-anafi_sim.wire_types) on ~command_topic (default drone/rpyt, relative to
+anafi_sim.ros.wire_types) on ~command_topic (default drone/rpyt, relative to
 /<drone>/) every 1/~rate s of ROS time (10 Hz).
 
 Safety (anafi_control.pid_wiring.CommandAssembler): pid disabled
@@ -23,7 +23,7 @@ from std_msgs.msg import Bool, Float64
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler
 from anafi_sim.ros.node import (diagnostic_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.ros.wire_types import piloting_command_class
 
 
 class PidCommandNode(object):

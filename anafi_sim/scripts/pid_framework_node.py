@@ -30,7 +30,7 @@ from anafi_control.pid_wiring import NO_WAYPOINT, InputGate, gate_health
 from anafi_sim.msg import Waypoint
 from anafi_sim.ros.node import (diagnostic_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.ros.wire_types import piloting_command_class
 
 
 class PidFrameworkNode(object):

@@ -15,8 +15,8 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import String
 
 from anafi_control.frames import quaternion_to_euler
-from anafi_sim.step_schedule import StepSchedule
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.sim.step_schedule import StepSchedule
+from anafi_sim.ros.wire_types import piloting_command_class
 
 
 def _pose(msg):

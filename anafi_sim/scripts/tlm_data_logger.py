@@ -3,12 +3,12 @@
 
 RATE is the minimum period in ms between printed samples, on the samples'
 timestamps (0 = every sample). Exit 0 when the simulator closes the
-connection, 1 when it cannot connect. Logic: anafi_sim.telemetry_server.run_logger.
+connection, 1 when it cannot connect. Logic: anafi_sim.telemetry.server.run_logger.
 """
 import os
 import sys
 
-from anafi_sim.telemetry_server import run_logger
+from anafi_sim.telemetry.server import run_logger
 
 
 def main():

@@ -2,7 +2,7 @@
 """Trajectory generator node: a scenario (anafi_sim/config/scenarios/*.yaml) -> the paper's waypoint.
 
 Stage: trajectory -> waypoint (-> PID / MPC). Thin node over
-anafi_sim.trajectory (Scenario, TrajectoryGenerator). Topics relative to the
+anafi_sim.experiments.trajectory (Scenario, TrajectoryGenerator). Topics relative to the
 node's namespace (/<drone>/):
 
 - out ~waypoint_topic (default position_control/waypoint, anafi_sim/Waypoint:
@@ -33,8 +33,8 @@ import yaml
 from std_msgs.msg import Header, String
 
 from anafi_sim.msg import Waypoint
-from anafi_sim.params import ParamReader
-from anafi_sim.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
+from anafi_sim.ros.params import ParamReader
+from anafi_sim.experiments.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
                                   load_scenario)
 
 try:

@@ -123,7 +123,7 @@ class TestExperiment(unittest.TestCase):
         w = summary['window']
         self.assertAlmostEqual(w[1] - w[0], 4.0, delta=0.2)
 
-        from anafi_sim.reference_log import COLUMNS, read_log
+        from anafi_sim.experiments.reference_log import COLUMNS, read_log
         with open(base + '.csv') as f:
             self.assertEqual(f.readline().strip().split(','), list(COLUMNS))
         log = read_log(base + '.csv')

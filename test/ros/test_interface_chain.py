@@ -23,7 +23,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 
 from anafi_control.frames import yaw_from_quaternion
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.ros.wire_types import piloting_command_class
 
 DRONE = 'anafi'
 WINDOW = 20.0          # s of ROS (sim) time counted

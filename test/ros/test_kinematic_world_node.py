@@ -13,7 +13,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Pose, Twist
 from std_msgs.msg import String
 
-from anafi_sim import gazebo_types
+from anafi_sim.ros import gazebo_types
 
 NS = '/gazebo'
 SERVICES = ['spawn_urdf_model', 'spawn_sdf_model', 'delete_model', 'set_model_state', 'get_model_state',

@@ -33,10 +33,11 @@ from geometry_msgs.msg import Pose, Twist
 from nav_msgs.msg import Odometry
 
 from anafi_control import frames
-from anafi_sim import gazebo_types, urdf_model
-from anafi_sim.ground_truth import camera_pose
+from anafi_sim.ros import gazebo_types
+from anafi_sim.gazebo import urdf_model
+from anafi_sim.interface.ground_truth import camera_pose
 from anafi_sim.msg import DroneData
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.ros.wire_types import piloting_command_class
 from rostest_helpers import node_pid, wait_for
 
 DRONE = 'anafi'

@@ -20,7 +20,7 @@ import rostest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rosgraph_msgs.msg import Log
 
-from anafi_sim import gazebo_types
+from anafi_sim.ros import gazebo_types
 from rostest_helpers import node_pid, wait_for
 
 MIRROR = '/anafi/gazebo_mirror'

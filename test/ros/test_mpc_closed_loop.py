@@ -27,7 +27,7 @@ from nav_msgs.msg import Odometry
 
 from anafi_control.frames import wrap_angle, yaw_from_quaternion
 from anafi_sim.msg import MpcStats, Waypoint
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.ros.wire_types import piloting_command_class
 
 NS = '/anafi'
 START = (0.0, 0.0, 1.0)

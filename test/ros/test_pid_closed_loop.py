@@ -28,7 +28,7 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64, String
 
 from anafi_sim.msg import Waypoint
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.ros.wire_types import piloting_command_class
 
 WALL_TIMEOUT = 90.0   # s of wall time for any single wait
 

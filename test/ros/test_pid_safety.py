@@ -24,7 +24,7 @@ from nav_msgs.msg import Odometry
 
 from anafi_control.frames import euler_to_quaternion
 from anafi_sim.msg import Waypoint
-from anafi_sim.wire_types import piloting_command_class
+from anafi_sim.ros.wire_types import piloting_command_class
 
 NAN = float('nan')
 

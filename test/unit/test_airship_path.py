@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from anafi_sim.airship_path import AirshipPath
+from anafi_sim.gazebo.airship_path import AirshipPath
 
 
 @pytest.mark.parametrize('shape', ['figure_eight', 'circle'])

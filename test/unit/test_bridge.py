@@ -1,9 +1,9 @@
-"""anafi_sim.bridge: the anafi_ros PilotingCommand -> PCMD mapping, quantisation and signs."""
+"""anafi_sim.sim.bridge: the anafi_ros PilotingCommand -> PCMD mapping, quantisation and signs."""
 import math
 
 import pytest
 
-from anafi_sim.bridge import MAX_TILT_DEG, PilotingMapping
+from anafi_sim.sim.bridge import MAX_TILT_DEG, PilotingMapping
 
 
 def test_paper_firmware_settings():

@@ -1,4 +1,4 @@
-"""anafi_sim.calibration: each fit recovers known parameters from synthetic data; real-log fit is sane.
+"""anafi_sim.calibration.fit: each fit recovers known parameters from synthetic data; real-log fit is sane.
 
 Synthetic data are produced by small independent simulators written here (explicit Euler at a fine step),
 not by the module's own response functions, so a wrong fit or a wrong response function fails.
@@ -13,8 +13,8 @@ import yaml
 from scipy.signal import lfilter
 
 from anafi_control import frames
-from anafi_sim import calibration as cal
-from anafi_sim.reference_log import COLUMNS, STATE_NAMES, ReferenceLog, read_log
+from anafi_sim.calibration import fit as cal
+from anafi_sim.experiments.reference_log import COLUMNS, STATE_NAMES, ReferenceLog, read_log
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 LOG_DIR = os.path.join(os.path.dirname(REPO), 'shared', 'reference_logs')
@@ -305,7 +305,7 @@ def test_real_log_residuals_within_bounds(real):
 
 def test_yaml_text_has_exactly_the_model_keys_and_validates(real):
     logs, result = real
-    from anafi_sim.drone_model import MODEL_KEYS, validate_model_params
+    from anafi_sim.sim.drone_model import MODEL_KEYS, validate_model_params
     text = cal.format_model_yaml(result, [log.name + '.csv' for log in logs])
     data = yaml.safe_load(text)
     assert set(data) == set(MODEL_KEYS) and list(data) == list(cal.MODEL_KEYS)

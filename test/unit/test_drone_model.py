@@ -1,15 +1,15 @@
-"""anafi_sim.drone_model: the simulated Anafi's dynamics, command mapping, hover brake and flight states."""
+"""anafi_sim.sim.drone_model: the simulated Anafi's dynamics, command mapping, hover brake and flight states."""
 import math
 import os
 
 import pytest
 import yaml
 
-from anafi_sim.bridge import MAX_TILT_DEG, PilotingMapping
-from anafi_sim.drone_model import (DEFAULT_MODEL_FILE, DEFAULT_SETTINGS, FLYING, LANDED, LANDING,
+from anafi_sim.sim.bridge import MAX_TILT_DEG, PilotingMapping
+from anafi_sim.sim.drone_model import (DEFAULT_MODEL_FILE, DEFAULT_SETTINGS, FLYING, LANDED, LANDING,
                                    MODEL_KEYS, TAKING_OFF, AnafiModel, load_model_params,
                                    validate_model_params)
-from anafi_sim.telemetry import FIELDS, TelemetrySample
+from anafi_sim.telemetry.protocol import FIELDS, TelemetrySample
 
 DT = 0.005
 PARAMS = {

@@ -1,10 +1,10 @@
-"""anafi_sim.experiment_report (the batch's Markdown tables) and benchmarks/run_experiments.py options."""
+"""anafi_sim.experiments.report (the batch's Markdown tables) and benchmarks/run_experiments.py options."""
 import importlib.util
 import os
 
 import pytest
 
-from anafi_sim import experiment_report as rep
+from anafi_sim.experiments import report as rep
 
 REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 

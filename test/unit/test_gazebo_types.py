@@ -8,7 +8,7 @@ import genpy
 import pytest
 from geometry_msgs.msg import Pose, Twist
 
-from anafi_sim import gazebo_types
+from anafi_sim.ros import gazebo_types
 
 # md5sums of the real Noetic gazebo_msgs (copied from shared/interfaces/gazebo_msgs.md).
 EXPECTED = {

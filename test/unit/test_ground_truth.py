@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from anafi_control import frames
-from anafi_sim import ground_truth as gt
-from anafi_sim.telemetry import FIELDS, TelemetrySample
+from anafi_sim.interface import ground_truth as gt
+from anafi_sim.telemetry.protocol import FIELDS, TelemetrySample
 
 
 def sample_at(ts, **values):

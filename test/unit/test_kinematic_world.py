@@ -4,8 +4,8 @@ import os
 
 import pytest
 
-from anafi_sim import kinematic_world as kw
-from anafi_sim.kinematic_world import KinematicWorld
+from anafi_sim.gazebo import kinematic_world as kw
+from anafi_sim.gazebo.kinematic_world import KinematicWorld
 
 G = 9.81
 URDF_DIR = os.path.join(os.path.dirname(__file__), '..', '..', 'anafi_sim', 'urdf')

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from anafi_control import frames
-from anafi_sim import ground_truth, mirror
+from anafi_sim.interface import ground_truth
+from anafi_sim.gazebo import mirror
 
 Q_IDENTITY = (0.0, 0.0, 0.0, 1.0)
 

@@ -1,9 +1,9 @@
-"""anafi_sim.params: checked parameter reading (every bad value refused with the name in the message)."""
+"""anafi_sim.ros.params: checked parameter reading (every bad value refused with the name in the message)."""
 import math
 
 import pytest
 
-from anafi_sim.params import ParamError, ParamReader
+from anafi_sim.ros.params import ParamError, ParamReader
 
 
 def reader(**values):

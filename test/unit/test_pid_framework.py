@@ -7,7 +7,7 @@ import yaml
 
 from anafi_control.pid_framework import (DEFAULT_CONFIG, HOVER, LOOP_NAMES, PidFramework,
                                          make_config, relative_state)
-from anafi_sim.bridge import PilotingMapping
+from anafi_sim.sim.bridge import PilotingMapping
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 S = math.sqrt(0.5)

@@ -6,7 +6,7 @@ import pytest
 rospy = pytest.importorskip('rospy')
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 
-from anafi_sim.params import ParamError  # noqa: E402
+from anafi_sim.ros.params import ParamError  # noqa: E402
 from anafi_sim.ros import node  # noqa: E402
 
 

@@ -1,10 +1,10 @@
-"""anafi_sim.state_estimate: delay, smoothing, sample-and-hold and float16 quantisation of the drone's estimate."""
+"""anafi_sim.sim.state_estimate: delay, smoothing, sample-and-hold and float16 quantisation of the drone's estimate."""
 import math
 
 import numpy as np
 import pytest
 
-from anafi_sim.state_estimate import StateEstimate
+from anafi_sim.sim.state_estimate import StateEstimate
 
 DT = 0.005
 

@@ -1,7 +1,7 @@
-"""anafi_sim.step_schedule: piecewise-constant command schedule."""
+"""anafi_sim.sim.step_schedule: piecewise-constant command schedule."""
 import pytest
 
-from anafi_sim.step_schedule import Segment, StepSchedule
+from anafi_sim.sim.step_schedule import Segment, StepSchedule
 
 
 def test_segments_in_order_and_end():

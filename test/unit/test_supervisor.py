@@ -6,7 +6,7 @@ import time
 import psutil
 import pytest
 
-from anafi_sim.supervisor import ProcessSupervisor
+from anafi_sim.interface.supervisor import ProcessSupervisor
 
 PY = '/usr/bin/python3'
 

@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from anafi_sim.telemetry import (COUNTER_NAMES, DEFAULT_PREFIX, FIELDS, TelemetryParser, TelemetrySample,
+from anafi_sim.telemetry.protocol import (COUNTER_NAMES, DEFAULT_PREFIX, FIELDS, TelemetryParser, TelemetrySample,
                                  format_sample, key_map)
 
 

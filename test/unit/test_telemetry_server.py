@@ -1,4 +1,4 @@
-"""anafi_sim.telemetry_server: the Sphinx-like TCP telemetry server and the tlm-data-logger stand-in (loopback)."""
+"""anafi_sim.telemetry.server: the Sphinx-like TCP telemetry server and the tlm-data-logger stand-in (loopback)."""
 import io
 import os
 import socket
@@ -9,8 +9,8 @@ import time
 
 import pytest
 
-from anafi_sim.telemetry import FIELDS, TelemetrySample, format_sample
-from anafi_sim.telemetry_server import (BlockDecimator, TelemetryServer, block_timestamp, parse_endpoint,
+from anafi_sim.telemetry.protocol import FIELDS, TelemetrySample, format_sample
+from anafi_sim.telemetry.server import (BlockDecimator, TelemetryServer, block_timestamp, parse_endpoint,
                                         parse_logger_args, run_logger)
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

@@ -1,4 +1,4 @@
-"""anafi_sim.trajectory: trajectory formulas, periods, per-axis combinations, scenarios and the generator.
+"""anafi_sim.experiments.trajectory: trajectory formulas, periods, per-axis combinations, scenarios and the generator.
 
 Velocities are checked against central finite differences of the positions
 (independent of the closed forms in the code); periods by p(t + T) = p(t);
@@ -9,8 +9,8 @@ import math
 import pytest
 import yaml
 
-from anafi_sim import trajectory as tr
-from anafi_sim.trajectory import (Circle, Constant, PerAxis, Ramp, Sine, StaticWaypoint, StraightLine,
+from anafi_sim.experiments import trajectory as tr
+from anafi_sim.experiments.trajectory import (Circle, Constant, PerAxis, Ramp, Sine, StaticWaypoint, StraightLine,
                                   TrajectoryGenerator, VerticalPeriodic, load_scenario, list_scenarios,
                                   scenario_from_dict, trajectory_from_dict)
 

@@ -3,7 +3,7 @@ import os
 
 import pytest
 
-from anafi_sim import urdf_model
+from anafi_sim.gazebo import urdf_model
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 URDF_DIR = os.path.join(ROOT, 'anafi_sim', 'urdf')

@@ -1,5 +1,5 @@
-"""anafi_sim.wire_types: the stand-in olympe_bridge/PilotingCommand is wire-identical to the real one."""
-from anafi_sim.wire_types import PILOTING_COMMAND_TYPE, piloting_command_class
+"""anafi_sim.ros.wire_types: the stand-in olympe_bridge/PilotingCommand is wire-identical to the real one."""
+from anafi_sim.ros.wire_types import PILOTING_COMMAND_TYPE, piloting_command_class
 
 
 def test_piloting_command_md5_and_type():

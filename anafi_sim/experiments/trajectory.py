@@ -55,11 +55,13 @@ import os
 
 import yaml
 
+from anafi_sim import paths
+
 WaypointSample = collections.namedtuple('WaypointSample', 'x y z vx vy vz yaw')
 WaypointSample.__doc__ = ('The paper\'s waypoint: position [m], velocity [m/s] (ENU world frame), '
                           'yaw [deg].')
 
-SCENARIO_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'config', 'scenarios')
+SCENARIO_DIR = paths.config_path('scenarios')
 """Directory of the shipped scenario files (anafi_sim/config/scenarios)."""
 
 

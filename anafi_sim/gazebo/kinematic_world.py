@@ -4,7 +4,7 @@ Stage: mirror -> **world** (what ``/gazebo/*`` services act on). Holds spawned
 models, their pose and twist, and advances them with ``step(dt)``.
 
 Spawnable descriptions (``describe_model``): a plain URDF (links, gravity,
-static flag and geometry read by ``anafi_sim.urdf_model.parse_urdf``; joint
+static flag and geometry read by ``anafi_sim.gazebo.urdf_model.parse_urdf``; joint
 origins and collision names read here to place each collision in the model
 frame), or a minimal SDF ``<sdf><model>`` with ``<static>``, ``<link>``
 (``<pose>``, ``<gravity>``, ``<inertial><mass>``, ``<collision name>`` with
@@ -48,7 +48,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from anafi_control import frames
-from anafi_sim import urdf_model
+from anafi_sim.gazebo import urdf_model
 
 Result = collections.namedtuple('Result', 'success status_message')
 """Outcome of a service-like call: bool, Gazebo-style message."""

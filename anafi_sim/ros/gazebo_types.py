@@ -25,7 +25,7 @@ import genmsg
 import genmsg.msg_loader
 import genpy.dynamic
 
-from anafi_sim.wire_types import load_message_class
+from anafi_sim.ros.wire_types import load_message_class
 
 PACKAGE = 'gazebo_msgs'
 _SEPARATOR = '=' * 80 + '\n'

@@ -9,7 +9,7 @@ child frame), the gimbal roll/pitch motor angles [rad, relative to the body]
 and the sample's stamp [s, ROS clock]. Outputs are ``ModelStateSpec`` s for
 two models, the drone body and its camera, with the twist rotated into the
 world frame (gazebo_msgs/ModelState's twist is in ``reference_frame``).
-The camera pose is ``anafi_sim.ground_truth.camera_pose``.
+The camera pose is ``anafi_sim.interface.ground_truth.camera_pose``.
 
 ``Mirror`` rejects non-finite, stale (older than ``stale_timeout``),
 future-stamped and duplicate samples with counters, limits the output to
@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from anafi_control import frames
-from anafi_sim.ground_truth import DEFAULT_CAMERA_OFFSET, ERROR, OK, WARN, Health, camera_pose
+from anafi_sim.interface.ground_truth import DEFAULT_CAMERA_OFFSET, ERROR, OK, WARN, Health, camera_pose
 
 ModelStateSpec = collections.namedtuple('ModelStateSpec',
                                         'model_name position orientation linear angular reference_frame')

@@ -1,7 +1,7 @@
 """Sphinx-like ground-truth telemetry over TCP, and the ``tlm-data-logger`` stand-in client (no rospy).
 
 Stage: telemetry (simulator side). ``TelemetryServer`` serves each sample as
-a block of ``KEY : VALUE`` lines (``anafi_sim.telemetry.format_sample``)
+a block of ``KEY : VALUE`` lines (``anafi_sim.telemetry.protocol.format_sample``)
 ended by a blank line to every connected client; ``publish`` never blocks
 the simulator: sockets are non-blocking, a client whose unsent backlog
 exceeds ``max_backlog`` bytes (a slow reader) is closed and counted.
@@ -22,7 +22,7 @@ import select
 import socket
 import threading
 
-from anafi_sim.telemetry import DEFAULT_PREFIX, format_sample
+from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, format_sample
 
 BLOCK_END = b'\n\n'
 

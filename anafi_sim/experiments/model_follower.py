@@ -24,7 +24,7 @@ difference estimate.
 """
 import math
 
-from anafi_sim.trajectory import WaypointSample
+from anafi_sim.experiments.trajectory import WaypointSample
 
 VELOCITY_SOURCES = ('auto', 'twist', 'difference')
 OFFSET_FRAMES = ('heading', 'world')

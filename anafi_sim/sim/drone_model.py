@@ -1,7 +1,7 @@
 """Dynamics of the simulated Anafi (stand-in for Sphinx + firmware), pure Python.
 
 Stage: piloting command -> simulated drone. ``AnafiModel`` takes the PCMD
-percents the anafi_ros bridge would send (``anafi_sim.bridge.PilotingMapping``
+percents the anafi_ros bridge would send (``anafi_sim.sim.bridge.PilotingMapping``
 turns them into firmware setpoints) and integrates:
 
 - roll/pitch: first-order tracking (``attitude_time_constant``) of the
@@ -25,12 +25,12 @@ first-order discretisation of the loops.
 """
 import collections
 import math
-import os
 
 import numpy as np
 
-from anafi_sim.bridge import PilotingMapping
-from anafi_sim.telemetry import TelemetrySample
+from anafi_sim import paths
+from anafi_sim.sim.bridge import PilotingMapping
+from anafi_sim.telemetry.protocol import TelemetrySample
 
 LANDED = 'landed'
 TAKING_OFF = 'taking_off'
@@ -85,8 +85,7 @@ _SETTINGS_POSITIVE = ('takeoff_altitude', 'takeoff_speed', 'landing_speed', 'gus
 _SETTINGS_NONNEGATIVE = ('command_timeout', 'gust_std_horizontal', 'gust_std_vertical',
                          'brake_position_gain', 'brake_integral_gain', 'brake_altitude_gain')
 
-_CONFIG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'config')
-DEFAULT_MODEL_FILE = os.path.join(_CONFIG_DIR, 'anafi_model.yaml')
+DEFAULT_MODEL_FILE = paths.config_path('anafi_model.yaml')
 
 
 def _is_number(value):

@@ -29,9 +29,6 @@ import argparse
 import os
 import platform
 import shutil
-import signal
-import socket
-import subprocess
 import sys
 import tempfile
 import threading
@@ -40,10 +37,9 @@ import time
 import numpy as np
 import psutil
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-if ROOT not in sys.path:
-    sys.path.insert(0, ROOT)
+from anafi_sim.harness import Processes, cpu_seconds, private_master, require
 
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCRIPTS = os.path.join(ROOT, 'anafi_sim', 'scripts')
 RESULTS = os.path.join(ROOT, 'benchmarks', 'results', 'mirror.md')
 STEP = 0.001  # m of x per sample number
@@ -52,57 +48,6 @@ MODES = [
     ('service (new connection per call, paper)', {'use_service': True, 'persistent_service': False}),
     ('service (persistent connection)', {'use_service': True, 'persistent_service': True}),
 ]
-
-
-def free_port():
-    s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    s.bind(('127.0.0.1', 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
-def wait_for(predicate, timeout, what):
-    deadline = time.time() + timeout
-    while time.time() < deadline:
-        if predicate():
-            return
-        time.sleep(0.05)
-    raise SystemExit('timed out waiting for %s' % what)
-
-
-class Processes(object):
-    """The processes this benchmark starts (own sessions); stopped by their process group id."""
-
-    def __init__(self, log_dir):
-        self.log_dir = log_dir
-        self.procs = {}
-
-    def start(self, name, argv, env):
-        with open(os.path.join(self.log_dir, name + '.log'), 'wb') as log:
-            proc = subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                    start_new_session=True)
-        self.procs[name] = proc
-        return proc
-
-    def stop(self, name, grace=5.0):
-        proc = self.procs.pop(name, None)
-        if proc is None or proc.poll() is not None:
-            return
-        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
-            try:
-                os.killpg(proc.pid, sig)
-            except OSError:
-                return
-            try:
-                proc.wait(wait)
-                return
-            except subprocess.TimeoutExpired:
-                continue
-
-    def stop_all(self):
-        for name in list(self.procs)[::-1]:
-            self.stop(name, grace=3.0)
 
 
 class Source(threading.Thread):
@@ -185,14 +130,6 @@ class MirrorDiag(object):
                 self.last = dict((kv.key, kv.value) for kv in status.values)
 
 
-def cpu_seconds(proc):
-    try:
-        t = psutil.Process(proc.pid).cpu_times()
-        return t.user + t.system
-    except psutil.Error:
-        return float('nan')
-
-
 def run_segment(label, params, procs, env, source, watcher, diag, world, duration, warmup, log):
     """One measured segment of a mode: raw numbers (aggregated over rounds by ``aggregate``)."""
     import rospy
@@ -205,16 +142,17 @@ def run_segment(label, params, procs, env, source, watcher, diag, world, duratio
     mirror = procs.start('mirror', [sys.executable, os.path.join(SCRIPTS, 'gazebo_mirror_node.py'),
                                     '__name:=gazebo_mirror', '__ns:=/bench'], env)
     try:
-        wait_for(lambda: {'bench', 'bench_camera'} <= watcher.names, 30, 'the mirrored models')
+        require(lambda: {'bench', 'bench_camera'} <= watcher.names, 30, 'the mirrored models',
+                lambda: procs.log_tail('mirror'))
         time.sleep(warmup)
         diag.last = None
-        c0, w0, t0, k0 = cpu_seconds(mirror), cpu_seconds(world), time.time(), source.k
+        c0, w0, t0, k0 = cpu_seconds(mirror.pid), cpu_seconds(world.pid), time.time(), source.k
         time.sleep(duration)
-        c1, w1, t1, k1 = cpu_seconds(mirror), cpu_seconds(world), time.time(), source.k
-        wait_for(lambda: diag.last is not None, 5, 'mirror diagnostics')
+        c1, w1, t1, k1 = cpu_seconds(mirror.pid), cpu_seconds(world.pid), time.time(), source.k
+        require(lambda: diag.last is not None, 5, 'mirror diagnostics')
         mirror_diag = dict(diag.last)
     finally:
-        procs.stop('mirror')
+        procs.stop('mirror', grace=5.0)
     with watcher.lock:
         seen = dict((k, t) for k, t in watcher.first_seen.items() if k0 < k <= k1)
     return {'lags': [t - source.stamps[k] for k, t in seen.items() if k in source.stamps], 'seen': len(seen),
@@ -276,7 +214,6 @@ def main():
     parser.add_argument('--no-write', action='store_true', help='do not write ' + RESULTS)
     args = parser.parse_args()
     try:
-        import rosgraph
         import rospy
         from anafi_sim.msg import DroneData  # noqa: F401  (generated messages available?)
     except ImportError as exc:
@@ -292,21 +229,8 @@ def main():
     source = None
     results = []
     try:
-        port = free_port()
-        uri = 'http://127.0.0.1:%d' % port
-        env = dict(os.environ, ROS_MASTER_URI=uri, ROS_LOG_DIR=tmp, ROS_HOME=tmp, PYTHONUNBUFFERED='1')
-        env['PATH'] = os.path.dirname(sys.executable) + os.pathsep + env.get('PATH', '')
-        os.environ.update(ROS_MASTER_URI=uri, ROS_LOG_DIR=tmp, ROS_HOME=tmp)
-        log('roscore on port %d (logs in %s)' % (port, tmp))
-        procs.start('roscore', ['roscore', '-p', str(port)], env)
-
-        def master_up():
-            try:
-                rosgraph.Master('/bench_mirror', master_uri=uri).getPid()
-                return True
-            except Exception:
-                return False
-        wait_for(master_up, 30, 'roscore')
+        uri, env = private_master(procs, tmp, join=True)
+        log('roscore at %s (logs in %s)' % (uri, tmp))
         rospy.init_node('bench_mirror', disable_signals=True)
         rospy.set_param('/gazebo/rate', float(args.world_rate))
         rospy.set_param('/gazebo/ground_plane', False)

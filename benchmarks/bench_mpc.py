@@ -13,26 +13,22 @@ load hits both alike:
 Times: ``solve`` = OSQP info.solve_time, ``cycle`` = wall time of CumulativeErrorMpc.solve() (vector
 updates, setup if any, solve, result extraction). Prints a table and writes benchmarks/results/mpc.md.
 
-Run: .venv/bin/python benchmarks/bench_mpc.py [--cycles 2000] [--no-write]
+Run (inside env.bash): python benchmarks/bench_mpc.py [--cycles 2000] [--no-write]
 """
 import argparse
 import math
 import os
 import platform
-import sys
 import time
 
 import numpy as np
+import osqp
 import scipy
 
+from anafi_control.mpc import CumulativeErrorMpc
+from anafi_sim.harness import cpu_model
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-if ROOT not in sys.path:
-    sys.path.insert(0, ROOT)
-
-import osqp  # noqa: E402
-
-from anafi_control.mpc import CumulativeErrorMpc  # noqa: E402
-from bench_common import cpu_model
 
 DT = 0.1
 POS_NOISE = 0.02   # [m] 1-sigma measurement noise

@@ -2,18 +2,19 @@
 """Benchmark: CPU time of a tracking controller's nodes over a straight-line run (paper Sec. V-B).
 
 The paper found its distributed PID framework used 2.59x the CPU time of the MPC. This runs the
-straight-line harness of benchmarks/straight_line.py (simulated Anafi + the controller's launch file on
+straight-line run of benchmarks/straight_line_run.py (simulated Anafi + the controller's launch file on
 a private master; climb to (0, 0, 7), then a target along +x at ``--speed``) and measures, over
 ``--duration`` s of simulated time after ``--settle`` s of tracking, the user + system CPU time
-(psutil) of every process started by the controller's launch file (the node list comes from
-``roslaunch --nodes``; pids from each node's getPid). The simulator and interface are not counted.
+(psutil, anafi_sim.harness.cpu_snapshot) of every process started by the controller's launch file (the
+node list comes from ``roslaunch --nodes``; pids from each node's getPid). The simulator and interface
+are not counted.
 
 Each run writes benchmarks/results/cpu_<label>.json (label: ``--label``, default the controller name)
 and regenerates benchmarks/results/cpu.md with one row per results file, so a new controller is added
 by running this script for it (e.g. ``--controller mpc``); ``--merge-only`` just rebuilds cpu.md.
 
-Run: .venv/bin/python benchmarks/cpu_usage.py --controller pid [--duration 60] [--rtf 1]
-                                             [--launch-arg mode:=single --label pid_single]
+Run (inside env.bash): python benchmarks/cpu_usage.py --controller pid [--duration 60] [--rtf 1]
+                                                    [--launch-arg mode:=single --label pid_single]
 """
 import argparse
 import datetime
@@ -24,11 +25,7 @@ import platform
 import sys
 import tempfile
 
-BENCH = os.path.dirname(os.path.abspath(__file__))
-if BENCH not in sys.path:
-    sys.path.insert(0, BENCH)
-
-import straight_line as sl  # noqa: E402
+import straight_line_run as sl
 
 PAPER_RATIO = 2.59   # CPU time PID framework / MPC, paper Sec. V-B
 

@@ -18,17 +18,16 @@ with the angular velocity (the reference's bug does not change the cost).
 Parameters: ~cli (command printing the telemetry, without its endpoint;
 default ``tlm_data_logger.py -r 0``), ~host (127.0.0.1), ~port (9060),
 ~prefix (omniscient_anafi.), ~rate (100 Hz). Every pipeline runs in its own
-process group, killed on shutdown.
+process group, stopped on shutdown (anafi_sim.harness.stop).
 """
-import os
 import shlex
-import signal
 import subprocess
 import sys
 import threading
 
 import rospy
 
+from anafi_sim import harness
 from anafi_sim.msg import DroneData
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, key_map
 
@@ -96,18 +95,7 @@ class PaperInterface(object):
         if self.timer is not None:
             self.timer.shutdown()
         for proc in self.procs:
-            try:
-                os.killpg(proc.pid, signal.SIGTERM)
-            except OSError:
-                pass
-        for proc in self.procs:
-            try:
-                proc.wait(1.0)
-            except subprocess.TimeoutExpired:
-                try:
-                    os.killpg(proc.pid, signal.SIGKILL)
-                except OSError:
-                    pass
+            harness.stop(proc, grace=1.0)
 
 
 def main():

@@ -22,103 +22,25 @@ import argparse
 import datetime
 import os
 import platform
-import signal
-import socket
-import subprocess
 import sys
 import time
 
 import yaml
 
+from anafi_sim import harness
+from anafi_sim.experiments import report
+from anafi_sim.experiments import step_response
+from anafi_sim.experiments.trajectory import list_scenarios, load_scenario
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-if ROOT not in sys.path:
-    sys.path.insert(0, ROOT)
-
-from anafi_sim.experiments import report  # noqa: E402
-from anafi_sim.experiments import step_response  # noqa: E402
-from anafi_sim.experiments.trajectory import list_scenarios, load_scenario   # noqa: E402
-
-try:
-    import psutil
-except ImportError:     # cleanup falls back to the process group
-    psutil = None
 
 
-def free_port():
-    s = socket.socket()
-    s.bind(('127.0.0.1', 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
-def child_env(ros_home):
-    """Environment of a run: own ROS_HOME; the interpreter's site dir of osqp on PYTHONPATH so nodes
-    started through /usr/bin/python3 relay scripts find it too."""
-    env = dict(os.environ)
-    env['ROS_HOME'] = ros_home
-    env['ROS_HOSTNAME'] = '127.0.0.1'
+def child_env(ros_home, port):
+    """Environment of a run: its master on ``port``, own ROS_HOME; the interpreter's site dir of osqp on
+    PYTHONPATH so nodes started through /usr/bin/python3 relay scripts find it too."""
+    env = dict(os.environ, ROS_MASTER_URI='http://127.0.0.1:%d' % port, ROS_HOME=ros_home, ROS_HOSTNAME='127.0.0.1')
     env.pop('ROS_IP', None)
-    extra = []
-    try:
-        import osqp
-        extra.append(os.path.dirname(os.path.dirname(os.path.abspath(osqp.__file__))))
-    except ImportError:
-        pass
-    paths = [p for p in env.get('PYTHONPATH', '').split(os.pathsep) if p]
-    for p in extra:
-        if p not in paths:
-            paths.append(p)
-    env['PYTHONPATH'] = os.pathsep.join(paths)
-    return env
-
-
-def descendants(pid):
-    if psutil is None:
-        return []
-    try:
-        return psutil.Process(pid).children(recursive=True)
-    except psutil.Error:
-        return []
-
-
-def kill_run(proc, grace=3.0):
-    """Stop a run's roslaunch and every process it started (by id): SIGINT, then SIGKILL after ``grace`` s."""
-    procs = descendants(proc.pid)
-    if proc.poll() is None:
-        try:
-            proc.send_signal(signal.SIGINT)
-        except OSError:
-            pass
-    deadline = time.monotonic() + grace
-    while time.monotonic() < deadline and (proc.poll() is None or any(_alive(p) for p in procs)):
-        procs += [p for p in descendants(proc.pid) if p not in procs]
-        time.sleep(0.1)
-    procs += [p for p in descendants(proc.pid) if p not in procs]
-    killed = []
-    for p in procs:
-        if _alive(p):
-            try:
-                p.kill()
-                killed.append(p)
-            except psutil.Error:
-                pass
-    if proc.poll() is None:
-        proc.kill()
-    proc.wait()
-    if killed and psutil is not None:
-        psutil.wait_procs(killed, timeout=3.0)
-    left = [p.pid for p in procs if _alive(p)]
-    return left
-
-
-def _alive(p):
-    if psutil is None:
-        return False
-    try:
-        return p.is_running() and p.status() != psutil.STATUS_ZOMBIE
-    except psutil.Error:
-        return False
+    return harness.add_module_paths(env, 'osqp')
 
 
 def read_yaml(path):
@@ -143,22 +65,18 @@ class Run(object):
                 os.remove(path)
         self.duration = load_scenario(scenario).duration
         self.args = args
-        self.port = free_port()
+        self.port = harness.free_port()
         self.timeout = args.ready_timeout + 60.0 + 3.0 * self.duration / max(args.rtf, 0.1)
         ros_home = os.path.join(runs_dir, 'ros_home', self.name)
         cmd = ['roslaunch', '-p', str(self.port), 'anafi_sim', 'experiment.launch',
                'controller:=' + controller, 'scenario:=' + scenario, 'rtf:=%g' % args.rtf,
                'mirror:=' + args.mirror, 'record:=' + args.record, 'out_dir:=' + runs_dir,
                'run_name:=' + self.name, 'plot:=false', 'progress_period:=0',
-               'telemetry_port:=%d' % free_port(), 'pid_mode:=' + args.pid_mode,
+               'telemetry_port:=%d' % harness.free_port(), 'pid_mode:=' + args.pid_mode,
                'ready_timeout:=%g' % args.ready_timeout]
-        env = child_env(ros_home)
-        env['ROS_MASTER_URI'] = 'http://127.0.0.1:%d' % self.port
-        self.log = open(self.files['log'], 'w')
         self.t0 = time.monotonic()
         self.epoch0 = time.time()
-        self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT, env=env,
-                                     start_new_session=True)
+        self.proc = harness.start(cmd, env=child_env(ros_home, self.port), log=self.files['log'])
         self.done_at = None
         self.leftovers = []
         self.wall_s = None
@@ -179,8 +97,7 @@ class Run(object):
             finished = True
         if not finished:
             return False
-        self.leftovers = kill_run(self.proc, grace=0.5 if self.done_at is not None else 5.0)
-        self.log.close()
+        self.leftovers = harness.stop(self.proc, grace=0.5 if self.done_at is not None else 5.0, kill_wait=0.5)
         self.wall_s = time.monotonic() - self.t0
         return True
 
@@ -392,7 +309,7 @@ def main(argv=None):
     except KeyboardInterrupt:
         print('interrupted: stopping the active runs')
         for run in active:
-            kill_run(run.proc)
+            harness.stop(run.proc)
         raise
     wall = time.monotonic() - t_start
     cmd = 'benchmarks/run_experiments.py' + (' ' + ' '.join(argv if argv is not None else sys.argv[1:])).rstrip()

@@ -16,9 +16,6 @@ every process of the run is stopped by id afterwards. Then checks the run's file
 import math
 import os
 import shutil
-import signal
-import socket
-import subprocess
 import sys
 import tempfile
 import time
@@ -28,39 +25,11 @@ import rospy
 import rostest
 import yaml
 
+from anafi_sim import harness
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCENARIO = os.path.join(HERE, 'experiment_short.yaml')
 RUN_TIMEOUT = 130.0       # s wall for the whole launch
-
-
-def free_port():
-    s = socket.socket()
-    s.bind(('127.0.0.1', 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
-def stop(proc):
-    """SIGINT the launch, then SIGKILL whatever it started that is still alive (by process id)."""
-    try:
-        import psutil
-        procs = psutil.Process(proc.pid).children(recursive=True)
-    except Exception:
-        procs = []
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=20.0)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    for p in procs:
-        try:
-            if p.is_running():
-                p.kill()
-        except Exception:
-            pass
 
 
 class TestExperiment(unittest.TestCase):
@@ -68,33 +37,25 @@ class TestExperiment(unittest.TestCase):
         controller = rospy.get_param('~controller', 'mpc')
         out = tempfile.mkdtemp(prefix='anafi_experiment_%s_' % controller)
         name = 'short_%s' % controller
-        port = free_port()
-        env = dict(os.environ)
-        env['ROS_MASTER_URI'] = 'http://127.0.0.1:%d' % port
-        env['ROS_HOME'] = os.path.join(out, 'ros_home')
-        try:     # nodes started through /usr/bin/python3 relay scripts must find osqp (the MPC) too
-            import osqp
-            env['PYTHONPATH'] = os.pathsep.join(p for p in (env.get('PYTHONPATH', ''), os.path.dirname(
-                os.path.dirname(os.path.abspath(osqp.__file__)))) if p)
-        except ImportError:
-            pass
+        port = harness.free_port()
+        env = dict(os.environ, ROS_MASTER_URI='http://127.0.0.1:%d' % port, ROS_HOME=os.path.join(out, 'ros_home'))
+        harness.add_module_paths(env, 'osqp')  # nodes started through /usr/bin/python3 relay scripts need it too
         cmd = ['roslaunch', '-p', str(port), 'anafi_sim', 'experiment.launch', 'controller:=' + controller,
                'scenario:=experiment_short', 'scenario_file:=' + SCENARIO, 'rtf:=2.0', 'mirror:=true',
                'record:=true', 'out_dir:=' + out, 'run_name:=' + name, 'plot:=false', 'progress_period:=0',
-               'telemetry_port:=%d' % free_port()]
+               'telemetry_port:=%d' % harness.free_port()]
         log_path = os.path.join(out, 'launch.log')
-        with open(log_path, 'w') as log:
-            proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True)
-            base = os.path.join(out, name)
-            deadline = time.monotonic() + RUN_TIMEOUT
-            try:
-                while time.monotonic() < deadline and proc.poll() is None:
-                    if os.path.exists(base + '.run.yaml') and os.path.exists(base + '.bag'):
-                        break          # results complete; skip the slow rest of roslaunch's shutdown
-                    time.sleep(0.5)
+        proc = harness.start(cmd, env=env, log=log_path)
+        base = os.path.join(out, name)
+        deadline = time.monotonic() + RUN_TIMEOUT
+        try:
+            while time.monotonic() < deadline and proc.poll() is None:
+                if os.path.exists(base + '.run.yaml') and os.path.exists(base + '.bag'):
+                    break          # results complete; skip the slow rest of roslaunch's shutdown
                 time.sleep(0.5)
-            finally:
-                stop(proc)
+            time.sleep(0.5)
+        finally:
+            harness.stop(proc, grace=20.0)
         try:
             self.check(base)
         except AssertionError:

@@ -10,10 +10,11 @@ import unittest
 import rospy
 import rostest
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Pose, Twist
+from geometry_msgs.msg import Twist
 from std_msgs.msg import String
 
-from anafi_sim.ros import gazebo_types
+from anafi_sim.harness import wait_for
+from anafi_sim.ros import conversions, gazebo_types
 
 NS = '/gazebo'
 SERVICES = ['spawn_urdf_model', 'spawn_sdf_model', 'delete_model', 'set_model_state', 'get_model_state',
@@ -33,19 +34,8 @@ SDF = ('<sdf version="1.6"><model name="blimp"><link name="hull"><gravity>0</gra
 
 
 def pose(x, y, z):
-    p = Pose()
-    p.position.x, p.position.y, p.position.z = x, y, z
-    p.orientation.w = 1.0
-    return p
-
-
-def wait_for(predicate, timeout):
-    deadline = time.time() + timeout
-    while time.time() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return predicate()
+    """Level pose at (x, y, z) [m]."""
+    return conversions.pose((x, y, z), (0.0, 0.0, 0.0, 1.0))
 
 
 class TestKinematicWorldNode(unittest.TestCase):

@@ -29,16 +29,16 @@ import rospkg
 import rospy
 import rostest
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Pose, Twist
+from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 
 from anafi_control import frames
-from anafi_sim.ros import gazebo_types
+from anafi_sim.harness import node_pid, stop, wait_for
+from anafi_sim.ros import conversions, gazebo_types
 from anafi_sim.gazebo import urdf_model
 from anafi_sim.interface.ground_truth import camera_pose
 from anafi_sim.msg import DroneData
 from anafi_sim.ros.wire_types import piloting_command_class
-from rostest_helpers import node_pid, wait_for
 
 DRONE = 'anafi'
 MODELS = ('anafi', 'anafi_camera')
@@ -48,10 +48,8 @@ MATCH_WINDOW = 0.03  # s, +- around a world state's receipt time on the ground-t
 
 
 def pose(x, y, z):
-    p = Pose()
-    p.position.x, p.position.y, p.position.z = x, y, z
-    p.orientation.w = 1.0
-    return p
+    """Level pose at (x, y, z) [m]."""
+    return conversions.pose((x, y, z), (0.0, 0.0, 0.0, 1.0))
 
 
 def interpolate(samples, t):
@@ -168,12 +166,8 @@ class TestMirror(unittest.TestCase):
 
     @classmethod
     def tearDownClass(cls):
-        if cls.new_world is not None and cls.new_world.poll() is None:
-            cls.new_world.send_signal(signal.SIGINT)
-            try:
-                cls.new_world.wait(10.0)
-            except subprocess.TimeoutExpired:
-                cls.new_world.kill()
+        if cls.new_world is not None:
+            stop(cls.new_world, grace=10.0)
 
     def command(self, gaz=0.0, yaw_rate_deg=0.0):
         msg = piloting_command_class()()

@@ -20,8 +20,8 @@ import rostest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rosgraph_msgs.msg import Log
 
+from anafi_sim.harness import node_pid, stop, wait_for
 from anafi_sim.ros import gazebo_types
-from rostest_helpers import node_pid, wait_for
 
 MIRROR = '/anafi/gazebo_mirror'
 MODELS = ('anafi', 'anafi_camera')
@@ -43,12 +43,8 @@ class TestMirrorWithoutGazebo(unittest.TestCase):
 
     @classmethod
     def tearDownClass(cls):
-        if cls.world is not None and cls.world.poll() is None:
-            cls.world.send_signal(signal.SIGINT)
-            try:
-                cls.world.wait(10.0)
-            except subprocess.TimeoutExpired:
-                cls.world.kill()
+        if cls.world is not None:
+            stop(cls.world, grace=10.0)
 
     @classmethod
     def on_log(cls, msg):

@@ -11,9 +11,6 @@ three. (The projection of the excursion on the 3-D approach direction is printed
 lateral overshoot that happens while the drone is still below the waypoint projects to a negative number.)
 """
 import math
-import os
-import signal
-import subprocess
 import sys
 import threading
 import time
@@ -26,6 +23,7 @@ from dynamic_reconfigure.client import Client
 from nav_msgs.msg import Odometry
 
 from anafi_control.frames import wrap_angle, yaw_from_quaternion
+from anafi_sim import harness
 from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim.ros.wire_types import piloting_command_class
 
@@ -53,17 +51,10 @@ class Controller(object):
 
     def __init__(self, launch, args=()):
         cmd = ['roslaunch', 'anafi_sim', launch, 'drone_name:=anafi', 'output:=log'] + list(args)
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                     start_new_session=True)
+        self.proc = harness.start(cmd)
 
     def stop(self):
-        if self.proc.poll() is None:
-            os.killpg(self.proc.pid, signal.SIGINT)
-            try:
-                self.proc.wait(15.0)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.proc.pid, signal.SIGKILL)
-                self.proc.wait(5.0)
+        harness.stop(self.proc, grace=15.0)
 
 
 class TestMpcClosedLoop(unittest.TestCase):

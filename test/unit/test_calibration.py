@@ -1,4 +1,5 @@
-"""anafi_sim.calibration.fit: each fit recovers known parameters from synthetic data; real-log fit is sane.
+"""anafi_sim.calibration: each fit recovers known parameters from synthetic data; real-log fit is sane;
+the texts (report) and the figure (plot) are written from it.
 
 Synthetic data are produced by small independent simulators written here (explicit Euler at a fine step),
 not by the module's own response functions, so a wrong fit or a wrong response function fails.
@@ -14,6 +15,7 @@ from scipy.signal import lfilter
 
 from anafi_control import frames
 from anafi_sim.calibration import fit as cal
+from anafi_sim.calibration import plot, report
 from anafi_sim.experiments.reference_log import COLUMNS, STATE_NAMES, ReferenceLog, read_log
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -306,7 +308,7 @@ def test_real_log_residuals_within_bounds(real):
 def test_yaml_text_has_exactly_the_model_keys_and_validates(real):
     logs, result = real
     from anafi_sim.sim.drone_model import MODEL_KEYS, validate_model_params
-    text = cal.format_model_yaml(result, [log.name + '.csv' for log in logs])
+    text = report.format_model_yaml(result, [log.name + '.csv' for log in logs])
     data = yaml.safe_load(text)
     assert set(data) == set(MODEL_KEYS) and list(data) == list(cal.MODEL_KEYS)
     assert validate_model_params(data)['drag_linear'] == pytest.approx(result.params['drag_linear'], rel=1e-5)
@@ -328,8 +330,23 @@ def test_committed_config_is_this_fit(real):
 
 def test_report_contains_table3_and_flags(real):
     logs, result = real
-    text = cal.format_report(result, logs, plot_name='calibration_replay.png')
+    text = report.format_report(result, logs, plot_name='calibration_replay.png')
     assert 'x_straight_2_pid z_anafi: 270 of 270 samples (16-bit wrap: 270)' in text
     assert '| PID | 2 | 2.67 | n/a (all 270 samples excluded) | 2.573 |' in text
     assert '| MPC | 5 | 1.41 | 1.420 | 1.420 | - |' in text
     assert '![model replaying a reference log](calibration_replay.png)' in text
+
+
+def test_replay_figure_is_written(real, tmp_path):
+    pytest.importorskip('matplotlib')
+    logs, result = real
+    path = str(tmp_path / 'replay.png')
+    plot.plot_replay(result, logs, path)
+    with open(path, 'rb') as stream:
+        assert stream.read(8) == b'\x89PNG\r\n\x1a\n'
+
+
+def test_summary_lists_every_model_key(real):
+    _, result = real
+    text = report.format_summary(result)
+    assert all(key in text for key in cal.MODEL_KEYS) and 'Residuals:' in text

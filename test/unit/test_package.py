@@ -38,6 +38,7 @@ ALLOWED_IMPORTS = {
     'anafi_sim': set(),
     _CTL: set(),
     _PATHS: set(),
+    'anafi_sim.harness': set(),
     _TLM: {_PATHS},
     _SIM: {_TLM, _CTL, _PATHS},
     _IF: {_TLM, _CTL, _PATHS},

@@ -1,0 +1,144 @@
+"""The calibration's replay figure (pure Python + matplotlib, no ROS): the fitted model against the logs.
+
+Stage: offline, a ``fit.Calibration`` and its reference logs -> ``docs/calibration_replay.png``. Nine
+panels: the translational model replaying a static-waypoint log (velocity, position), steady-flight tilt
+vs speed, the firmware loops (attitude, vertical speed, yaw rate) fed the reconstructed PID commands,
+the estimate model on the truth against the logged estimate, and Table 3 paper vs recomputed.
+matplotlib is imported when a figure is drawn (Agg backend).
+"""
+import numpy as np
+
+from anafi_sim.calibration import fit
+
+REPLAY_LOG = 'static_waypoint_yaw_0_pid'
+YAW_LOG = 'static_waypoint_yaw_180_pid'
+STEP_AXIS = 'time since waypoint step [s]'
+
+
+def _label(ax, title, xlabel, ylabel):
+    """The panel's title, axis labels and legend in the figure's sizes."""
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.legend(fontsize=7)
+
+
+def _loop_panel(ax, t_cmd, command, t, truth, model, color, command_label, title, unit):
+    """One firmware loop: the replayed command (steps), the truth and the fitted model, -1..8 s."""
+    ax.step(t_cmd, command, where='post', color=color, lw=0.8, alpha=0.6, label=command_label)
+    ax.plot(t, truth, 'k-', lw=1.5, label='truth')
+    ax.plot(t, model, '--', color=color, lw=1.2, label='model')
+    ax.set_xlim(-1.0, 8.0)
+    _label(ax, title, STEP_AXIS, unit)
+
+
+def plot_replay(cal, logs, path):
+    """Figure: model replaying a reference log, loop responses, estimate model, drag curve, Table 3."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    by_name = dict((log.name, log) for log in logs)
+    p = cal.params
+    fig, axes = plt.subplots(3, 3, figsize=(15, 10.5))
+    log = by_name[REPLAY_LOG]
+    trace = fit.reconstruct_pid_commands(log)
+    t0 = log.t[trace.start_index]
+    window = (log.t >= t0 - 1.0) & (log.t <= t0 + 25.0)
+    part = log.select(window)                       # its own time starts at 0
+    shift = log.t[window][0]                        # log time of part.t == 0
+    rel = part.t + shift - t0                       # time since the waypoint step
+    trim = (cal.drag.trim_pitch, cal.drag.trim_roll)
+    replay = fit.replay_translation(part, p, trim=trim, vertical_command=(trace.t - shift, trace.vertical_speed))
+    ax = axes[0, 0]
+    ax.plot(rel, part.vx_sphinx, 'k-', lw=1.5, label='vx truth')
+    ax.plot(rel, replay['vx'], 'C0--', lw=1.2, label='vx model')
+    ax.plot(rel, part.vy_sphinx, color='0.5', lw=1.5, label='vy truth')
+    ax.plot(rel, replay['vy'], 'C1--', lw=1.2, label='vy model')
+    ax.plot(rel, part.vz_sphinx, color='0.75', lw=1.5, label='vz truth')
+    ax.plot(rel, replay['vz'], 'C2--', lw=1.2, label='vz model')
+    ax.set_title('%s: velocity replay from truth attitude' % REPLAY_LOG, fontsize=9)
+    ax.set_xlabel(STEP_AXIS)
+    ax.set_ylabel('m/s')
+    ax.legend(fontsize=7, ncol=2)
+    ax = axes[0, 1]
+    for name, color in (('x', 'C0'), ('y', 'C1'), ('z', 'C2')):
+        ax.plot(rel, part.columns[name + '_sphinx'], 'k-', lw=1.5)
+        ax.plot(rel, replay[name], '--', color=color, lw=1.2, label='%s model' % name)
+    ax.plot([], [], 'k-', label='truth')
+    _label(ax, 'position replay (open-loop integration)', STEP_AXIS, 'm')
+    ax = axes[0, 2]
+    speeds, tilts = [], []
+    for other in logs:
+        if other.name.startswith('x_straight') and fit.is_clean(other):
+            speeds.append(float(np.mean(np.hypot(other.vx_sphinx, other.vy_sphinx))))
+            tilts.append(float(np.mean(other.pitch_sphinx)) + cal.drag.trim_pitch)
+    v = np.linspace(0.0, 5.5, 50)
+    ax.plot(v, [fit.steady_state_pitch(s, p['drag_linear'], p['drag_quadratic']) for s in v], 'C3-',
+            label='fit: atan((%.3f + %.4f v) v / g)' % (p['drag_linear'], p['drag_quadratic']))
+    ax.plot(speeds, tilts, 'ko', ms=4, label='straight-line logs (mean pitch + trim)')
+    _label(ax, 'steady level flight: tilt vs speed', 'speed [m/s]', 'tilt [rad]')
+
+    c = cal.commands
+    rel_log = log.t - t0
+    show = (rel_log >= -1.0) & (rel_log <= 8.0)
+    ax = axes[1, 0]
+    for name, u, color in (('pitch', trace.pitch, 'C0'), ('roll', trace.roll, 'C1')):
+        model = fit.first_order_response(trace.t, u, c.attitude.time_constant, c.attitude.delay, log.t)
+        ax.step(trace.t - t0, u, where='post', color=color, lw=0.8, alpha=0.6, label='%s command (replay)' % name)
+        ax.plot(rel_log[show], log.columns[name + '_sphinx'][show], 'k-', lw=1.5)
+        ax.plot(rel_log[show], model[show], '--', color=color, lw=1.2, label='%s model' % name)
+    ax.plot([], [], 'k-', label='truth')
+    ax.set_xlim(-1.0, 8.0)
+    _label(ax, 'attitude: tau %.3f s, delay %.3f s (rms %.4f rad)'
+           % (c.attitude.time_constant, c.attitude.delay, c.attitude.rms), STEP_AXIS, 'rad')
+    model = fit.first_order_response(trace.t, trace.vertical_speed, c.vertical.time_constant, c.vertical.delay,
+                                     log.t)
+    _loop_panel(axes[1, 1], trace.t - t0, trace.vertical_speed, rel_log[show], log.vz_sphinx[show], model[show],
+                'C2', 'vz command (replay)', 'vertical speed: tau %.3f s, delay %.3f s (rms %.3f m/s)'
+                % (c.vertical.time_constant, c.vertical.delay, c.vertical.rms), 'm/s')
+    if c.yaw is not None and YAW_LOG in by_name:
+        ylog = by_name[YAW_LOG]
+        ytrace = fit.reconstruct_pid_commands(ylog)
+        yt0 = ylog.t[ytrace.start_index]
+        yrel = ylog.t - yt0
+        yshow = (yrel >= -1.0) & (yrel <= 8.0)
+        model = fit.first_order_response(ytrace.t, ytrace.yaw_rate, c.yaw.time_constant, c.yaw.delay, ylog.t)
+        _loop_panel(axes[1, 2], ytrace.t - yt0, ytrace.yaw_rate, yrel[yshow], fit.measured_yaw_rate(ylog)[yshow],
+                    model[yshow], 'C4', 'yaw rate command (replay)',
+                    '%s yaw rate: tau %.3f s (rms %.3f rad/s)' % (YAW_LOG, c.yaw.time_constant, c.yaw.rms), 'rad/s')
+
+    e = cal.estimate
+    for ax, name, unit in ((axes[2, 0], 'vx', 'm/s'), (axes[2, 1], 'pitch', 'rad')):
+        truth = log.columns[name + '_sphinx']
+        est_model = fit.estimate_model_response(log.t, truth, p['estimate_delay'], p['estimate_time_constant'],
+                                                p['estimate_rate'])
+        zoom = (rel_log >= -0.3) & (rel_log <= 2.0)
+        ax.plot(rel_log[zoom], truth[zoom], 'k.-', lw=1.0, ms=3, label='%s truth' % name)
+        ax.plot(rel_log[zoom], log.columns[name + '_anafi'][zoom], 'C3o-', lw=1.0, ms=3,
+                label='%s estimate (logged)' % name)
+        ax.plot(rel_log[zoom], est_model[zoom], 'C0s--', lw=1.0, ms=3, mfc='none', label='estimate model on truth')
+        _label(ax, 'estimate: delay %.3f s + hold at %.0f Hz, tau %.3f s (effective lag %.3f s)'
+               % (p['estimate_delay'], p['estimate_rate'], p['estimate_time_constant'], e.effective_delay),
+               STEP_AXIS, unit)
+    _table3_panel(axes[2, 2], fit.table3(logs))
+    fig.tight_layout()
+    fig.savefig(path, dpi=62)
+    plt.close(fig)
+
+
+def _table3_panel(ax, rows):
+    """Bars: the paper's Table 3 next to the values recomputed from the logs (horizontal where z is garbage)."""
+    for k, controller in enumerate(('mpc', 'pid')):
+        sel = [r for r in rows if r.controller == controller]
+        xs = np.array([r.speed for r in sel], dtype=float)
+        ax.bar(xs - 0.2 + 0.4 * k - 0.09, [r.paper for r in sel], width=0.18, color='C%d' % (k * 2),
+               alpha=0.5, label='%s paper' % controller.upper())
+        vals = [r.mean_e if np.isfinite(r.mean_e) else r.mean_e_h for r in sel]
+        ax.bar(xs - 0.2 + 0.4 * k + 0.09, vals, width=0.18, color='C%d' % (k * 2),
+               label='%s recomputed' % controller.upper())
+        for r, val in zip(sel, vals):
+            if not np.isfinite(r.mean_e):
+                ax.annotate('garbage z:\nhoriz. only', (r.speed - 0.2 + 0.4 * k + 0.09, val), fontsize=6,
+                            ha='center', va='bottom')
+    _label(ax, 'Table 3: mean tracking error e on the estimate', 'target speed [m/s]', 'm')

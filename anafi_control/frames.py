@@ -89,3 +89,94 @@ def is_finite(*values):
         return all(math.isfinite(v) for v in values)
     except TypeError:
         return False
+
+
+def normalize_quaternion(q, min_norm=1e-9):
+    """``q`` = (x, y, z, w) scaled to unit length, as a tuple of floats.
+
+    ValueError when ``q`` is not 4 numbers, is non-finite or its norm is not above ``min_norm`` (not a
+    rotation).
+    """
+    try:
+        x, y, z, w = (float(v) for v in q)
+    except (TypeError, ValueError):
+        raise ValueError('a quaternion must be 4 numbers (x, y, z, w), got %r' % (q,))
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not (math.isfinite(norm) and norm > min_norm):
+        raise ValueError('quaternion of norm %r is not a rotation' % (norm,))
+    return x / norm, y / norm, z / norm, w / norm
+
+
+#: twist frames of ``odometry_to_world``: 'child' = nav_msgs/Odometry's child_frame_id (the body, FLU),
+#: 'world' = already in the world (ENU) frame
+TWIST_FRAMES = ('child', 'world')
+
+
+def odometry_to_world(position, orientation, twist_linear, twist_frame='child', partial=False):
+    """The one Odometry -> numbers conversion: (position, world velocity, (roll, pitch, yaw)), or None.
+
+    ``position`` (x, y, z) [m] world ENU; ``orientation`` quaternion (x, y, z, w) of the body in the world,
+    normalised here (norm below 1e-6 or non-finite: not a rotation); ``twist_linear`` (vx, vy, vz) [m/s] in
+    ``twist_frame`` ('child': the body frame, rotated into the world with R(roll, pitch, yaw); 'world':
+    taken as is). Returns three tuples of floats: position, velocity [m/s] world ENU, Euler angles [rad].
+
+    Unusable input (malformed, non-finite, zero quaternion) gives None; with ``partial`` it gives the
+    three tuples with NaN where a value cannot be computed instead (angles NaN without a rotation, a
+    child-frame velocity NaN then too), for evaluation code that reports bad samples per column.
+    """
+    if twist_frame not in TWIST_FRAMES:
+        raise ValueError('twist_frame must be one of %s, got %r' % (', '.join(TWIST_FRAMES), twist_frame))
+    try:
+        px, py, pz = (float(v) for v in position)
+        bx, by, bz = (float(v) for v in twist_linear)
+    except (TypeError, ValueError):
+        return None
+    if not partial and not is_finite(px, py, pz, bx, by, bz):
+        return None
+    nan = float('nan')
+    try:
+        rpy = quaternion_to_euler(*normalize_quaternion(orientation, 1e-6))
+    except ValueError:
+        if not partial:
+            return None
+        rpy = (nan, nan, nan)
+    if twist_frame == 'world':
+        vel = (bx, by, bz)
+    elif is_finite(*rpy):
+        r = rotation_matrix(*rpy).tolist()
+        vel = tuple(r[i][0] * bx + r[i][1] * by + r[i][2] * bz for i in range(3))
+    else:
+        vel = (nan, nan, nan)
+    return (px, py, pz), vel, rpy
+
+
+def quaternion_matrix(q):
+    """3x3 rotation matrix of a quaternion (x, y, z, w) (body vector -> world vector); ``q`` need not be
+    unit length (it is normalised on the way). ValueError for a zero quaternion."""
+    x, y, z, w = q
+    n = x * x + y * y + z * z + w * w
+    if not n > 0.0:
+        raise ValueError('zero quaternion')
+    s = 2.0 / n
+    return np.array([
+        [1.0 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)],
+        [s * (x * y + z * w), 1.0 - s * (x * x + z * z), s * (y * z - x * w)],
+        [s * (x * z - y * w), s * (y * z + x * w), 1.0 - s * (x * x + y * y)],
+    ])
+
+
+def world_to_body(roll, pitch, yaw, vector):
+    """World (ENU) vector -> body (FLU) vector: R(roll, pitch, yaw)^T v, as a tuple of floats."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    x, y, z = vector
+    return (cy * cp * x + sy * cp * y - sp * z,
+            (cy * sp * sr - sy * cr) * x + (sy * sp * sr + cy * cr) * y + cp * sr * z,
+            (cy * sp * cr + sy * sr) * x + (sy * sp * cr - cy * sr) * y + cp * cr * z)
+
+
+def odometry_twist_frame(frame_id, child_frame_id):
+    """Twist frame of a nav_msgs/Odometry by its frame names: 'child' (REP: the body frame) unless
+    ``child_frame_id`` is empty or equals ``frame_id`` (the header's), then 'world'."""
+    return 'child' if child_frame_id and child_frame_id != frame_id else 'world'

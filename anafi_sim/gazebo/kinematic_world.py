@@ -32,7 +32,10 @@ sphere-vs-sphere, which is exact; a mesh is a sphere of radius
 both have collision geometry are checked after every step (no
 self-collision; two static models are not checked); a contact *event* is
 counted when a pair starts touching. ``report(name)`` sums a model up for
-diagnostics (gravity links, geoms, sag, updates, contact events).
+diagnostics (gravity links, geoms, sag, updates, contact events); ``health``
+gives the node's /diagnostics statuses. ``advance(duration, max_step)`` is a
+node cycle: equal substeps, the contact events of each (``contact_record``:
+their JSON objects).
 
 Units and frames: SI (m, s, rad, m/s, rad/s), world frame ENU ("" or
 "world"), quaternions (x, y, z, w). A model name is also accepted as
@@ -49,6 +52,7 @@ import numpy as np
 
 from anafi_control import frames
 from anafi_sim.gazebo import urdf_model
+from anafi_sim.interface.ground_truth import OK, WARN, Health
 
 Result = collections.namedtuple('Result', 'success status_message')
 """Outcome of a service-like call: bool, Gazebo-style message."""
@@ -66,6 +70,17 @@ Contact = collections.namedtuple('Contact', 'model_a model_b geom_a geom_b depth
 
 ContactEvents = collections.namedtuple('ContactEvents', 'begun ended')
 """Contacts that started and pairs (model_a, model_b) that stopped touching during a step."""
+
+ContactEvent = collections.namedtuple('ContactEvent', 'event time model_a model_b geom_a geom_b depth')
+"""One contact event for ~contacts_topic: event 'begin' | 'end', world time [s], model and geom names
+('' for an end), depth [m] (0 for an end). ``contact_record`` gives its JSON object."""
+
+
+def contact_record(event):
+    """The JSON object (dict) of a ContactEvent on ~contacts_topic (time and depth rounded to 1 um / 1 us)."""
+    return {'event': event.event, 'time': round(event.time, 6), 'model_a': event.model_a,
+            'model_b': event.model_b, 'geom_a': event.geom_a, 'geom_b': event.geom_b,
+            'depth': round(event.depth, 6)}
 
 WORLD_FRAMES = ('', 'world')
 
@@ -267,21 +282,15 @@ def gravity_links(description):
     return [link.name for link in description.links if link.gravity]
 
 
-def _quaternion_to_matrix(q):
-    x, y, z, w = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+IDENTITY = (0.0, 0.0, 0.0, 1.0)
 
 
-def _normalized(q):
+def _unit(q):
     """Unit quaternion; a zero quaternion becomes the identity (as Gazebo's Normalize does)."""
-    norm = math.sqrt(sum(v * v for v in q))
-    if norm < 1e-12:
-        return (0.0, 0.0, 0.0, 1.0)
-    return tuple(float(v) / norm for v in q)
+    try:
+        return frames.normalize_quaternion(q, 1e-12)
+    except ValueError:
+        return IDENTITY
 
 
 def _conjugate(q):
@@ -295,6 +304,18 @@ def _rotation_vector_quaternion(v):
         return (0.0, 0.0, 0.0, 1.0)
     s = math.sin(0.5 * angle) / angle
     return (v[0] * s, v[1] * s, v[2] * s, math.cos(0.5 * angle))
+
+
+def _texts(values):
+    """(key, value) pairs with the values as diagnostics text (floats %.6g, lists comma-separated)."""
+    out = []
+    for key, value in values:
+        if isinstance(value, float):
+            value = '%.6g' % value
+        elif isinstance(value, (list, tuple)):
+            value = ','.join(str(v) for v in value)
+        out.append((key, str(value)))
+    return out
 
 
 class _Model(object):
@@ -330,7 +351,7 @@ def _gravity_fraction(description):
 def _geom_box(model, geom):
     """(kind, center, half extents or radius) of a collision geometry in the world."""
     geometry, offset, rotation = geom
-    r_model = _quaternion_to_matrix(model.orientation)
+    r_model = frames.quaternion_matrix(model.orientation)
     center = model.position + r_model.dot(offset)
     if geometry.kind == 'sphere':
         return 'sphere', center, geometry.size[0]
@@ -431,7 +452,7 @@ class KinematicWorld(object):
         if model.description.is_static:
             model.linear, model.angular = np.zeros(3), np.zeros(3)
         else:
-            rotation = _quaternion_to_matrix(frame[1])
+            rotation = frames.quaternion_matrix(frame[1])
             model.linear = rotation.dot(np.asarray(linear, dtype=float))
             model.angular = rotation.dot(np.asarray(angular, dtype=float))
         model.since_set = 0.0
@@ -450,9 +471,9 @@ class KinematicWorld(object):
             return self._reject('GetModelState: reference relative_entity_name not found, did you forget to '
                                 'scope the body by model name?'), None
         f_position, f_orientation, f_linear, f_angular = frame
-        r_frame_t = _quaternion_to_matrix(f_orientation).T
+        r_frame_t = frames.quaternion_matrix(f_orientation).T
         position = r_frame_t.dot(model.position - f_position)
-        orientation = _normalized(frames.quaternion_multiply(_conjugate(f_orientation), model.orientation))
+        orientation = _unit(frames.quaternion_multiply(_conjugate(f_orientation), model.orientation))
         linear = r_frame_t.dot(model.linear - f_linear)
         angular = r_frame_t.dot(model.angular - f_angular)
         state = State(tuple(float(v) for v in position), orientation,
@@ -492,6 +513,27 @@ class KinematicWorld(object):
             ('contact_events', model.contact_events),
         ])
 
+    def health(self, loop_values=(), overruns=0):
+        """[(status name, Health)] for /diagnostics: 'world' (models, contacts, counters and the node's
+        ``loop_values`` (key, value) pairs; WARN when ``overruns`` > 0: running slower than rtf), then
+        'model NAME' for every model (its ``report``). Values are formatted as text."""
+        names = self.names()
+        contacts = len(self._contacts)
+        events = self.counters['contact_events']
+        message = '%d models, %d contacts now, %d contact events%s' % (
+            len(names), contacts, events, ', %d overruns (running slower than rtf)' % overruns if overruns else '')
+        values = [('time', self.time)] + list(loop_values) + [('current_contacts', contacts), ('models', names)] \
+            + sorted(self.counters.items())
+        out = [('world', Health(WARN if overruns else OK, message, _texts(values)))]
+        for name in names:
+            report = self.report(name)
+            message = '%s, %s%s' % (
+                'gravity ON (%s)' % ','.join(report['gravity_links']) if report['gravity_links'] else 'gravity off',
+                'collision geoms %s' % ','.join(report['geom_names']) if report['geom_names']
+                else 'no collision geometry', ', static' if report['is_static'] else '')
+            out.append(('model %s' % name, Health(OK, message, _texts(report.items()))))
+        return out
+
     # ------------------------------------------------------------------ time
     def step(self, dt):
         """Advance every model by ``dt`` [s] (> 0, finite) and update contacts; returns ContactEvents."""
@@ -505,12 +547,24 @@ class KinematicWorld(object):
             model.linear = model.linear + gravity * dt
             if np.any(model.angular):
                 dq = _rotation_vector_quaternion(model.angular * dt)
-                model.orientation = _normalized(frames.quaternion_multiply(dq, model.orientation))
+                model.orientation = _unit(frames.quaternion_multiply(dq, model.orientation))
             model.since_set += dt
             model.sag = 0.5 * model.acceleration * model.since_set ** 2
             model.max_sag = max(model.max_sag, model.sag)
         self.time += dt
         return self._update_contacts()
+
+    def advance(self, duration, max_step):
+        """Advance by ``duration`` [s] in equal substeps of at most ``max_step`` [s]; returns the
+        ContactEvents of every substep, in order, stamped with the time at the end of the advance."""
+        substeps = max(1, int(math.ceil(duration / max_step - 1e-9)))
+        events = []
+        for _ in range(substeps):
+            begun, ended = self.step(duration / substeps)
+            events.extend(('begin', c.model_a, c.model_b, c.geom_a, c.geom_b, c.depth) for c in begun)
+            events.extend(('end', a, b, '', '', 0.0) for a, b in ended)
+        return [ContactEvent(kind, self.time, a, b, geom_a, geom_b, depth)
+                for kind, a, b, geom_a, geom_b, depth in events]
 
     # ------------------------------------------------------------------ contacts
     def contacts(self):
@@ -564,6 +618,6 @@ class KinematicWorld(object):
     @staticmethod
     def _to_world_pose(frame, position, orientation):
         f_position, f_orientation = frame[0], frame[1]
-        world_position = f_position + _quaternion_to_matrix(f_orientation).dot(np.asarray(position, dtype=float))
-        world_orientation = _normalized(frames.quaternion_multiply(f_orientation, _normalized(orientation)))
+        world_position = f_position + frames.quaternion_matrix(f_orientation).dot(np.asarray(position, dtype=float))
+        world_orientation = _unit(frames.quaternion_multiply(f_orientation, _unit(orientation)))
         return world_position, world_orientation

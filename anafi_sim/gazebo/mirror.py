@@ -15,9 +15,9 @@ The camera pose is ``anafi_sim.interface.ground_truth.camera_pose``.
 future-stamped and duplicate samples with counters, limits the output to
 ``rate``, keeps lag statistics (ground-truth stamp -> sent), and, once the
 input goes stale, emits one "hold" state (zero twist) so that a world that
-integrates the twist does not drift away. ``SpawnTracker`` does the spawn
-bookkeeping: which models are in the world, when to (re)spawn, world
-restarts (service endpoint changed, models missing from /gazebo/model_states).
+integrates the twist does not drift away. Its ``spawn`` attribute is the
+``anafi_sim.gazebo.spawn.SpawnTracker`` of the two models (spawn bookkeeping).
+Rotations: ``anafi_control.frames``.
 """
 import collections
 import math
@@ -25,7 +25,10 @@ import math
 import numpy as np
 
 from anafi_control import frames
-from anafi_sim.interface.ground_truth import DEFAULT_CAMERA_OFFSET, ERROR, OK, WARN, Health, camera_pose
+from anafi_sim.gazebo import urdf_model
+from anafi_sim.gazebo.spawn import SpawnTracker
+from anafi_sim.interface.ground_truth import (DEFAULT_CAMERA_OFFSET, ERROR, OK, WARN, Health, NewCounts, RateWindow,
+                                             StampDecimator, camera_pose)
 
 ModelStateSpec = collections.namedtuple('ModelStateSpec',
                                         'model_name position orientation linear angular reference_frame')
@@ -42,31 +45,9 @@ def model_names(drone_name, drone_model_name='', camera_model_name=''):
     return (drone_model_name or base), (camera_model_name or base + '_camera')
 
 
-def quaternion_matrix(q):
-    """3x3 rotation matrix of a unit quaternion (x, y, z, w) (body vector -> world vector)."""
-    x, y, z, w = q
-    n = x * x + y * y + z * z + w * w
-    if not n > 0.0:
-        raise ValueError('zero quaternion')
-    s = 2.0 / n
-    return np.array([
-        [1.0 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)],
-        [s * (x * y + z * w), 1.0 - s * (x * x + z * z), s * (y * z - x * w)],
-        [s * (x * z - y * w), s * (y * z + x * w), 1.0 - s * (x * x + y * y)],
-    ])
-
-
-def normalized_quaternion(q):
-    """``q`` scaled to unit length (ValueError when it is (near) zero)."""
-    n = math.sqrt(sum(v * v for v in q))
-    if not n > 1e-9:
-        raise ValueError('quaternion of norm %r' % n)
-    return tuple(float(v) / n for v in q)
-
-
 def body_twist_to_world(orientation, linear_body, angular_body):
     """Rotate a body-frame twist into the world frame: (linear [m/s], angular [rad/s]) tuples."""
-    rot = quaternion_matrix(orientation)
+    rot = frames.quaternion_matrix(orientation)
     lin = rot.dot(np.asarray(linear_body, dtype=float))
     ang = rot.dot(np.asarray(angular_body, dtype=float))
     return tuple(float(v) for v in lin), tuple(float(v) for v in ang)
@@ -74,7 +55,7 @@ def body_twist_to_world(orientation, linear_body, angular_body):
 
 def drone_model_state(name, position, orientation, linear_body, angular_body, reference_frame='world'):
     """ModelStateSpec of the drone body from its world pose and body-frame twist."""
-    q = normalized_quaternion(orientation)
+    q = frames.normalize_quaternion(orientation)
     lin, ang = body_twist_to_world(q, linear_body, angular_body)
     return ModelStateSpec(name, tuple(float(v) for v in position), q, lin, ang, reference_frame)
 
@@ -84,11 +65,11 @@ def camera_model_state(name, position, orientation, linear_body, angular_body, g
     """ModelStateSpec of the camera: pose from ``camera_pose`` (drone pose + gimbal angles [rad] + body-frame
     ``offset`` [m]); twist of the rigidly attached point: v + w x (R offset), angular w (world frame;
     gimbal motor rates are not in the telemetry and are ignored)."""
-    q = normalized_quaternion(orientation)
+    q = frames.normalize_quaternion(orientation)
     roll, pitch, yaw = frames.quaternion_to_euler(*q)
     cam_position, cam_q = camera_pose(position, roll, pitch, yaw, gimbal_roll, gimbal_pitch, offset)
     lin, ang = body_twist_to_world(q, linear_body, angular_body)
-    lever = quaternion_matrix(q).dot(np.asarray(offset, dtype=float))
+    lever = frames.quaternion_matrix(q).dot(np.asarray(offset, dtype=float))
     lin = np.asarray(lin) + np.cross(np.asarray(ang), lever)
     return ModelStateSpec(name, cam_position, tuple(float(v) for v in cam_q),
                           tuple(float(v) for v in lin), ang, reference_frame)
@@ -104,119 +85,6 @@ def _finite(values):
         if not isinstance(v, (int, float)) or v - v != 0.0:
             return False
     return True
-
-
-class SpawnTracker(object):
-    """Spawn bookkeeping of the mirrored models against one world (Gazebo or the stand-in).
-
-    States per model: 'absent' (to spawn), 'delete' (exists from an earlier run: delete, then spawn),
-    'spawned'. ``retry_period`` [s] between attempts per model; ``missing_grace`` [s] after a spawn before
-    a model missing from /gazebo/model_states counts as gone. Times in seconds on any monotonic clock.
-    """
-
-    def __init__(self, names, retry_period=1.0, missing_grace=1.0):
-        if not retry_period > 0 or not missing_grace >= 0:
-            raise ValueError('retry_period must be > 0 and missing_grace >= 0')
-        self.names = tuple(names)
-        self.retry_period = float(retry_period)
-        self.missing_grace = float(missing_grace)
-        self.state = dict((n, 'absent') for n in self.names)
-        self._next_attempt = dict((n, None) for n in self.names)
-        self._spawned_at = dict((n, None) for n in self.names)
-        self.world_available = False
-        self.world_id = None
-        self.world_seen = False      # a world was available at least once
-        self.spawns = 0              # successful spawns (first ones and respawns)
-        self.respawns = 0            # successful spawns after the first one of a model
-        self.spawn_failures = 0
-        self.world_losses = 0        # world went away while models were spawned
-        self.world_restarts = 0      # world endpoint changed
-        self.models_missing = 0      # spawned models found missing in model_states
-        self.last_error = ''
-        self._ever_spawned = set()
-
-    def _forget(self, now):
-        for n in self.names:
-            if self.state[n] == 'spawned':
-                self.state[n] = 'absent'
-            self._next_attempt[n] = now
-
-    def on_world(self, available, world_id, now):
-        """Report the world's spawn service: ``available`` bool, ``world_id`` (e.g. the service URI)."""
-        if not available:
-            if self.world_available and any(s == 'spawned' for s in self.state.values()):
-                self.world_losses += 1
-            if self.world_available:
-                self._forget(now)
-            self.world_available = False
-            return
-        if self.world_id is not None and world_id != self.world_id:
-            self.world_restarts += 1
-            self._forget(now)
-        self.world_id = world_id
-        self.world_available = True
-        self.world_seen = True
-
-    def on_model_states(self, names, now):
-        """Names listed by /gazebo/model_states; spawned models missing past the grace period -> respawn."""
-        present = set(names)
-        for n in self.names:
-            if self.state[n] != 'spawned':
-                continue
-            if n not in present and now - self._spawned_at[n] >= self.missing_grace:
-                self.state[n] = 'absent'
-                self._next_attempt[n] = now
-                self.models_missing += 1
-
-    def due_actions(self, now):
-        """[(action, name)] to do now: action 'spawn' or 'delete' (only while the world is available)."""
-        if not self.world_available:
-            return []
-        actions = []
-        for n in self.names:
-            due = self._next_attempt[n]
-            if due is not None and now < due:
-                continue
-            if self.state[n] == 'absent':
-                actions.append(('spawn', n))
-            elif self.state[n] == 'delete':
-                actions.append(('delete', n))
-        return actions
-
-    def on_spawn_result(self, name, success, message, now):
-        """Result of a spawn call (``message``: the world's status message or the exception text)."""
-        if success:
-            self.state[name] = 'spawned'
-            self._spawned_at[name] = now
-            self.spawns += 1
-            if name in self._ever_spawned:
-                self.respawns += 1
-            self._ever_spawned.add(name)
-            return
-        self.spawn_failures += 1
-        self.last_error = '%s: %s' % (name, message)
-        if 'exist' in str(message).lower():  # left over from an earlier run: replace it with ours
-            self.state[name] = 'delete'
-            self._next_attempt[name] = now
-        else:
-            self._next_attempt[name] = now + self.retry_period
-
-    def on_delete_result(self, name, success, message, now):
-        """Result of a delete call made for a 'delete' model (absent afterwards either way; spawn next)."""
-        if not success:
-            self.last_error = '%s: delete failed: %s' % (name, message)
-        self.state[name] = 'absent'
-        self._next_attempt[name] = now if success else now + self.retry_period
-
-    def is_spawned(self, name):
-        return self.state.get(name) == 'spawned'
-
-    @property
-    def all_spawned(self):
-        return all(s == 'spawned' for s in self.state.values())
-
-    def spawned_names(self):
-        return [n for n in self.names if self.state[n] == 'spawned']
 
 
 class Mirror(object):
@@ -279,10 +147,10 @@ class Mirror(object):
         self.last_receipt = None       # 'now' of the last accepted sample
         self.last_states = []
         self._held = False
-        self._next_due = None
+        self._decimator = StampDecimator(self.period)
         self._lags = collections.deque(maxlen=int(lag_window))
-        self._sent_times = collections.deque()
-        self._seen = {}
+        self._sent = RateWindow(self.rate_window)
+        self._new = NewCounts()
 
     # --- inputs -------------------------------------------------------------------------------
 
@@ -308,7 +176,7 @@ class Mirror(object):
             self.rejected_nonfinite += 1
             return []
         try:
-            q = normalized_quaternion(orientation)
+            q = frames.normalize_quaternion(orientation)
         except ValueError:
             self.rejected_nonfinite += 1
             return []
@@ -326,18 +194,13 @@ class Mirror(object):
                 return []
             if stamp < last:
                 self.stamp_resets += 1
-                self._next_due = None
+                self._decimator.reset()
         self.last_stamp = stamp
         self.last_receipt = now
         self.accepted += 1
-        due = self._next_due
-        if due is not None and stamp < due - self._early:
+        if not self._decimator.accept(stamp, self._early):
             self.decimated += 1
             return []
-        due = stamp + self.period if due is None else due + self.period
-        if due <= stamp:  # input slower than the rate: re-anchor on it
-            due = stamp + self.period
-        self._next_due = due
 
         states = [drone_model_state(self.drone_model, position, q, linear_body, angular_body,
                                     self.reference_frame)]
@@ -362,23 +225,24 @@ class Mirror(object):
         self.holds += 1
         return [hold_state(s) for s in self.last_states if self.spawn.is_spawned(s.model_name)]
 
+    def spawn_pose(self, name):
+        """(position, orientation) to spawn model ``name`` at: its latest state, else the world origin."""
+        for state in self.last_states:
+            if state.model_name == name:
+                return state.position, state.orientation
+        return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)
+
     def record_sent(self, stamp, sent_time):
         """The states of the sample stamped ``stamp`` went out at ``sent_time`` (ROS clock [s])."""
         self.sent += 1
         self._lags.append(sent_time - stamp)
-        times = self._sent_times
-        times.append(sent_time)
-        while times and times[0] < sent_time - self.rate_window:
-            times.popleft()
+        self._sent.add(sent_time)
 
     # --- statistics and health ----------------------------------------------------------------
 
     def sent_rate(self, now):
         """Send cycles per second over the last ``rate_window`` seconds."""
-        times = self._sent_times
-        while times and times[0] < now - self.rate_window:
-            times.popleft()
-        return len(times) / self.rate_window
+        return self._sent.rate(now)
 
     def lag_stats(self):
         """LagStats [s] of ground-truth stamp -> sent over the last ``lag_window`` cycles."""
@@ -434,8 +298,7 @@ class Mirror(object):
                    'future-stamped samples': self.rejected_future, 'gimbal rejects': self.gimbal_rejected,
                    'spawn failures': sp.spawn_failures, 'world restarts': sp.world_restarts + sp.world_losses,
                    'missing models': sp.models_missing}
-        news = ['%d new %s' % (c - self._seen.get(k, 0), k) for k, c in current.items() if c > self._seen.get(k, 0)]
-        self._seen = current
+        news = self._new.news(current)
 
         if not sp.world_available:
             level = ERROR
@@ -462,6 +325,23 @@ class Mirror(object):
         if news and level == ERROR:
             message += ' (' + ', '.join(news) + ')'
         return Health(level, message, values)
+
+
+def model_warnings(xml):
+    """What is wrong with a URDF to mirror (ValueError when it is unreadable): links with gravity ON sag
+    between updates, collision geometry cannot act on Sphinx (the paper switches both off)."""
+    try:
+        model = urdf_model.parse_urdf(xml)
+    except urdf_model.UrdfError as error:
+        raise ValueError(str(error))
+    warnings = []
+    if model.has_gravity:
+        warnings.append('gravity ON for links %s: it will sag between updates (the paper switches gravity off)'
+                        % ', '.join(model.gravity_links))
+    if model.has_collisions:
+        warnings.append('collision geometry on links %s: contacts in Gazebo cannot act on Sphinx (the paper '
+                        'switches collisions off)' % ', '.join(model.collision_links))
+    return warnings
 
 
 def namespaced_model_xml(xml, drone_name, default_name='anafi'):

@@ -6,7 +6,10 @@ Stage: telemetry -> **interface** -> (mirror | controllers).
 published (decimation to ``publish_rate`` on the samples' simulation
 timestamps, rejection of non-finite samples and duplicates, detection of a
 simulator restart), tracks staleness on the receipt (wall) clock and sums the
-health up for ``/diagnostics``.
+health up for ``/diagnostics``. Its pieces, shared with the Gazebo mirror:
+``StampDecimator`` (at most one sample per period of stamp time),
+``RateWindow`` (events per second over a window) and ``NewCounts`` (which
+counters grew since the previous health report).
 
 The conversion helpers turn a sample into poses, all in SI units:
 positions [m] in the world ENU frame, quaternions (x, y, z, w), angles [rad]
@@ -47,6 +50,68 @@ def _finite_sample(sample):
     return True
 
 
+class StampDecimator(object):
+    """At most one sample per ``period`` [s] of its stamps, on a grid kept from the first accepted stamp; a
+    sample up to ``early`` s before the grid point passes (jitter). A source slower than the period passes
+    every sample (the grid re-anchors on it)."""
+
+    def __init__(self, period):
+        self.period = float(period)
+        self._next_due = None
+
+    def reset(self):
+        """Forget the grid (the next sample passes and anchors it)."""
+        self._next_due = None
+
+    def accept(self, stamp, early=0.0):
+        """True when the sample stamped ``stamp`` passes (then the grid moves one period)."""
+        due = self._next_due
+        if due is not None and stamp < due - early:
+            return False
+        due = stamp + self.period if due is None else due + self.period
+        if due <= stamp:  # the source is slower than the period: re-anchor on it
+            due = stamp + self.period
+        self._next_due = due
+        return True
+
+
+class RateWindow(object):
+    """Events per second over the last ``window`` seconds (event and query times on one clock)."""
+
+    def __init__(self, window):
+        self.window = float(window)
+        self._times = collections.deque()
+
+    def _trim(self, now):
+        times = self._times
+        while times and times[0] < now - self.window:
+            times.popleft()
+
+    def add(self, t):
+        """An event at ``t`` [s]."""
+        self._times.append(t)
+        self._trim(t)
+
+    def rate(self, now):
+        """Events per second in (now - window, now]."""
+        self._trim(now)
+        return len(self._times) / self.window
+
+
+class NewCounts(object):
+    """Which counters grew since the previous call: for health messages ('3 new stale samples')."""
+
+    def __init__(self):
+        self._seen = {}
+
+    def news(self, current):
+        """['N new NAME', ...] of the counters in ``current`` ({name: count}) that grew since the previous call."""
+        seen = self._seen
+        self._seen = dict(current)
+        return ['%d new %s' % (count - seen.get(name, 0), name) for name, count in current.items()
+                if count > seen.get(name, 0)]
+
+
 class GroundTruthInterface(object):
     """Accepts telemetry samples with their receipt time and returns the ones to publish.
 
@@ -83,14 +148,15 @@ class GroundTruthInterface(object):
         self.restarted = False     # the last on_sample call detected a simulator restart
         self.last_timestamp = None     # sim time of the last accepted sample [s]
         self.last_receipt = None       # receipt time of the last accepted sample [s]
-        self._next_due = None
-        self._published_times = collections.deque()
-        self._seen = {}  # counter values at the previous health() call
+        self._decimator = StampDecimator(self.period)
+        self._published = RateWindow(self.rate_window)
+        self._new = NewCounts()   # counters that grew since the previous health() call
+        self._outage_noticed = None  # receipt-clock time the current outage was last reported
 
     def reset(self):
         """Forget decimation state and the last timestamp (counters are kept)."""
         self.last_timestamp = None
-        self._next_due = None
+        self._decimator.reset()
 
     def on_sample(self, sample, receipt_wall_time):
         """Return ``sample`` if it is to be published now, else None. ``receipt_wall_time`` [s]."""
@@ -105,27 +171,19 @@ class GroundTruthInterface(object):
             if ts < last:
                 self.sim_restarts += 1
                 self.restarted = True
-                self._next_due = None
+                self._decimator.reset()
             elif ts == last:
                 self.duplicates += 1
                 return None
         self.last_timestamp = ts
         self.last_receipt = receipt_wall_time
-        due = self._next_due
         # a sample may be early by the tolerance, but by less than half a source period
         early = self._early if last is None or ts <= last else min(self._early, 0.5 * (ts - last))
-        if due is not None and ts < due - early:
+        if not self._decimator.accept(ts, early):
             self.decimated += 1
             return None
-        due = ts + self.period if due is None else due + self.period
-        if due <= ts:  # the source is slower than publish_rate: re-anchor on it
-            due = ts + self.period
-        self._next_due = due
         self.published += 1
-        times = self._published_times
-        times.append(receipt_wall_time)
-        while times and times[0] < receipt_wall_time - self.rate_window:
-            times.popleft()
+        self._published.add(receipt_wall_time)
         return sample
 
     def sample_age(self, now_wall):
@@ -139,12 +197,23 @@ class GroundTruthInterface(object):
         age = self.sample_age(now_wall)
         return age is None or age > self.stale_timeout
 
+    def outage_notice(self, now_wall, repeat=10.0):
+        """What to tell the operator at ``now_wall`` about an outage: 'stale' when the input went stale (and
+        again every ``repeat`` s while it stays stale), 'flowing' once when it flows again, else None."""
+        if self.is_stale(now_wall):
+            last = self._outage_noticed
+            if last is None or not 0.0 <= now_wall - last < repeat:
+                self._outage_noticed = now_wall
+                return 'stale'
+            return None
+        if self._outage_noticed is not None:
+            self._outage_noticed = None
+            return 'flowing'
+        return None
+
     def published_rate(self, now_wall):
         """Published samples per second over the last ``rate_window`` seconds of receipt time."""
-        times = self._published_times
-        while times and times[0] < now_wall - self.rate_window:
-            times.popleft()
-        return len(times) / self.rate_window
+        return self._published.rate(now_wall)
 
     def health(self, now_wall, parser_counters=None, process=None):
         """Diagnostics summary (``Health``) at ``now_wall``.
@@ -181,17 +250,12 @@ class GroundTruthInterface(object):
             if name in process:
                 values.append(('process ' + name.replace('_', ' '), str(process[name])))
 
-        news = []
-        current = {
-            'sim restarts': self.sim_restarts,
-            'process restarts': process.get('restarts', 0),
-            'partial samples': parser_counters.get('partial_samples', 0),
-            'non-finite values': parser_counters.get('nonfinite', 0) + self.rejected_nonfinite,
-        }
-        for name, count in current.items():
-            if count > self._seen.get(name, 0):
-                news.append('%d new %s' % (count - self._seen.get(name, 0), name))
-        self._seen = current
+        news = self._new.news(collections.OrderedDict([
+            ('sim restarts', self.sim_restarts),
+            ('process restarts', process.get('restarts', 0)),
+            ('partial samples', parser_counters.get('partial_samples', 0)),
+            ('non-finite values', parser_counters.get('nonfinite', 0) + self.rejected_nonfinite),
+        ]))
 
         if age is None:
             level, message = ERROR, 'no telemetry received yet'

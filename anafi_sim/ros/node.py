@@ -1,8 +1,19 @@
-"""Node boilerplate: ~params, the 1 Hz /diagnostics thread, start-up with fatal bad parameters.
+"""The node glue every node uses: ~params, /diagnostics, start-up with fatal bad parameters.
 
-Stage: ROS wiring only. Diagnostics run on WALL time, so a node still reports
-when /clock stops.
+Stage: ROS wiring only. A node reads its parameters with ``private_params()`` (a checked
+``ParamReader``), builds its core, wires topics and timers, and starts with ``run_node``: a bad
+parameter (``ParamError``, a ValueError) is one ``rospy.logfatal`` line and a non-zero exit.
+
+Diagnostics: ``diagnostic_status`` builds one DiagnosticStatus (values stored as strings),
+``health_status`` one from a core's ``Health`` (level, message, values) through the one level table
+``LEVELS``; ``start_diagnostics_thread`` publishes them every period of WALL time (1 s in most nodes),
+so a node still reports when /clock stops.
+
+Also: ``log_lines`` (a core's (level, text) log lines), ``wait_for_clock`` (until /clock runs under
+/use_sim_time), ``run_until_interrupted`` (the run() of nodes that clean up through ROS on SIGINT /
+SIGTERM). Default topic names: ``anafi_sim.ros.topics``.
 """
+import signal
 import sys
 import threading
 import time
@@ -10,7 +21,17 @@ import time
 import rospy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
+from anafi_sim.interface import ground_truth
+from anafi_sim.ros import topics
 from anafi_sim.ros.params import ParamReader
+
+OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
+
+#: the one level table: core health levels (anafi_sim.interface.ground_truth OK / WARN / ERROR, what
+#: every core's ``health()`` reports) -> diagnostic_msgs/DiagnosticStatus levels
+LEVELS = {ground_truth.OK: OK, ground_truth.WARN: WARN, ground_truth.ERROR: ERROR}
+
+_LOG = {'info': 'loginfo', 'warn': 'logwarn', 'error': 'logerr'}
 
 
 def private_params():
@@ -23,41 +44,114 @@ def namespace_id():
     return rospy.get_namespace().strip('/') or 'anafi'
 
 
+def wait_for_clock(poll=0.05):
+    """Under /use_sim_time, wait (wall time) until /clock has started (ROS time > 0) or ROS shuts down."""
+    if rospy.get_param('/use_sim_time', False):
+        while not rospy.is_shutdown() and rospy.get_time() == 0.0:
+            time.sleep(poll)
+
+
+def log_lines(lines):
+    """Log ``[(level, text)]`` lines of a core (levels 'info', 'warn', 'error')."""
+    for level, text in lines:
+        getattr(rospy, _LOG[level])(text)
+
+
+# ------------------------------------------------------------------ diagnostics
 def diagnostic_status(name, level, message, values, hardware_id=''):
     """A DiagnosticStatus; ``values`` are (key, value) pairs, both stored as strings."""
     return DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id,
                             values=[KeyValue(str(k), str(v)) for k, v in values])
 
 
-def publish_diagnostics(pub, statuses):
-    """Publish ``statuses`` in one DiagnosticArray stamped now; False once ROS is shut down (pub closed)."""
+def health_status(name, health, hardware_id='', extra_values=()):
+    """A DiagnosticStatus of a core's ``Health`` (level via ``LEVELS``, message, values + ``extra_values``)."""
+    return diagnostic_status(name, LEVELS[health.level], health.message,
+                             list(health.values) + list(extra_values), hardware_id)
+
+
+def diagnostics_publisher(queue_size=10):
+    """The /diagnostics publisher."""
+    return rospy.Publisher(topics.DIAGNOSTICS, DiagnosticArray, queue_size=queue_size)
+
+
+def publish_diagnostics(pub, statuses, stamp=None):
+    """Publish ``statuses`` in one DiagnosticArray stamped ``stamp`` (default now); False once ROS is shut
+    down (pub closed)."""
     array = DiagnosticArray(status=list(statuses))
     try:
-        array.header.stamp = rospy.Time.now()
+        array.header.stamp = rospy.Time.now() if stamp is None else stamp
         pub.publish(array)
     except rospy.ROSException:
         return False
     return True
 
 
-def start_diagnostics_thread(period, make_statuses, pub):
-    """Daemon thread publishing ``make_statuses()`` on ``pub`` every ``period`` s of wall time until shutdown."""
+def start_diagnostics_thread(period, make_statuses, pub, stamp=None, first=None):
+    """Daemon thread publishing ``make_statuses()`` on ``pub`` every ``period`` s of wall time until shutdown.
+
+    The first array goes out after ``first`` s (default: one period). ``stamp``: a function giving the
+    arrays' stamp (default rospy.Time.now()). An exception in ``make_statuses`` is logged (throttled) and
+    the thread goes on.
+    """
     def loop():
+        delay = period if first is None else first
         while True:
-            time.sleep(period)
-            if rospy.is_shutdown() or not publish_diagnostics(pub, make_statuses()):
+            time.sleep(delay)
+            delay = period
+            if rospy.is_shutdown():
+                return
+            try:
+                statuses = make_statuses()
+            except Exception as error:  # never let diagnostics kill the node, nor stop reporting
+                if rospy.is_shutdown():
+                    return
+                rospy.logerr_throttle(10.0, '%s: diagnostics failed: %s: %s'
+                                      % (rospy.get_name(), type(error).__name__, error))
+                continue
+            if not publish_diagnostics(pub, statuses, None if stamp is None else stamp()):
                 return
     thread = threading.Thread(target=loop, name='diagnostics', daemon=True)
     thread.start()
     return thread
 
 
-def run_node(name, factory, fatal_exit_code=1):
-    """init_node(name), then ``factory().run()``; a ValueError from factory (bad parameters) is fatal."""
-    rospy.init_node(name)
+# ------------------------------------------------------------------ start-up
+def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), **init_args):
+    """init_node(name, **init_args), then ``factory().run()``.
+
+    An exception of ``fatal_errors`` from ``factory`` (a bad parameter: ParamError is a ValueError) is
+    logged with rospy.logfatal and ends the process with ``fatal_exit_code``. What ``run()`` returns is
+    the exit status: None (default) or True -> 0, False -> 1, an int -> that code.
+    """
+    rospy.init_node(name, **init_args)
     try:
         node = factory()
-    except ValueError as error:
+    except fatal_errors as error:
         rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
+        if init_args.get('disable_signals'):
+            rospy.signal_shutdown('bad parameters')
         sys.exit(fatal_exit_code)
-    node.run()
+    result = node.run()
+    if result is None or result is True:
+        return
+    sys.exit(1 if result is False else int(result))
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt('signal %d' % signum)
+
+
+def run_until_interrupted(spin, cleanup, reason):
+    """The ``run()`` of a node started with ``disable_signals=True`` that must clean up through ROS (delete
+    its Gazebo models): SIGINT or SIGTERM ends ``spin()``, ``cleanup()`` runs while ROS still works, then
+    rospy shuts down with ``reason``."""
+    signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        spin()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if not rospy.is_shutdown():
+            cleanup()
+        rospy.signal_shutdown(reason)

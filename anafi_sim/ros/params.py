@@ -10,6 +10,9 @@ parameter, what it must be and what it got; nodes turn it into a fatal log
 line and a non-zero exit at start-up.
 """
 import math
+import re
+
+_BASE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 
 
 class ParamError(ValueError):
@@ -76,12 +79,64 @@ class ParamReader(object):
             raise ParamError('~%s must be a %sstring, got %r' % (name, '' if allow_empty else 'non-empty ', value))
         return value.strip()
 
+    def text(self, name, default=''):
+        """Free text (a label): a string, or a number taken as its text (roslaunch types value="7" as an int);
+        an unset (None) value is ''."""
+        value = self._get(name, default)
+        if value is None:
+            return ''
+        if not isinstance(value, str) and not _is_number(value):
+            raise ParamError('~%s must be a text, got %r' % (name, value))
+        return str(value).strip()
+
     def ros_name(self, name, default):
         """A non-empty ROS name without white space (a trailing '/' is dropped)."""
         value = self._get(name, default)
         if not isinstance(value, str) or not value.strip() or any(c.isspace() for c in value):
             raise ParamError('~%s must be a non-empty ROS name, got %r' % (name, value))
         return value.rstrip('/') or '/'
+
+    def base_name(self, name, default):
+        """A ROS base name: a letter, then letters, digits and '_' (e.g. a drone name)."""
+        value = self._get(name, default)
+        if not isinstance(value, str) or not _BASE_NAME.match(value):
+            raise ParamError('~%s must be a ROS base name (a letter, then letters, digits, _), got %r'
+                             % (name, value))
+        return value
+
+    def word(self, name, default, forbidden=''):
+        """A string without white space and without the characters of ``forbidden`` (may be empty)."""
+        value = self._get(name, default)
+        if not isinstance(value, str) or any(c.isspace() or c in forbidden for c in value):
+            raise ParamError('~%s must be a string without spaces%s, got %r'
+                             % (name, ''.join(' or %r' % c for c in forbidden), value))
+        return value
+
+    def names(self, name, default):
+        """A list of names (strings); a string is split at commas and white space."""
+        value = self._get(name, default)
+        if isinstance(value, str):
+            value = [v for v in value.replace(',', ' ').split() if v]
+        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+            raise ParamError('~%s must be a list of names, got %r' % (name, value))
+        return list(value)
+
+    def command(self, name, default):
+        """A command line: a non-empty string, or a non-empty list of arguments (strings or numbers)."""
+        value = self._get(name, default)
+        if isinstance(value, str) and value.strip():
+            return value
+        if isinstance(value, list) and value and all(
+                isinstance(a, str) or _is_number(a) for a in value):
+            return value
+        raise ParamError('~%s must be a non-empty command string or list of arguments, got %r' % (name, value))
+
+    def mapping(self, name, default=None):
+        """A dict (a YAML mapping loaded into ~name), or ``default`` (None) when unset."""
+        value = self._get(name, default)
+        if value is not default and not isinstance(value, dict):
+            raise ParamError('~%s must be a mapping (YAML dict), got %r' % (name, value))
+        return value
 
     def vector(self, name, default, length):
         """A list of ``length`` finite numbers, as a tuple of floats."""

@@ -30,15 +30,15 @@ import threading
 
 import rospy
 import yaml
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
 from anafi_sim.experiments.evaluation import LiveEvaluator, stamp_ns
 from anafi_sim.msg import Waypoint
-from anafi_sim.ros.params import ParamReader
 from anafi_sim.experiments.reference_log import write_log
-from anafi_sim.ros.node import run_node
+from anafi_sim.ros import topics
+from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params,
+                                publish_diagnostics, run_node)
 
 
 def markdown(summary):
@@ -64,38 +64,35 @@ def markdown(summary):
 
 class EvaluatorNode(object):
     def __init__(self):
-        p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+        p = private_params()
         self.publish_period = p.positive('publish_period', 1.0)
         self.finalize_timeout = p.positive('finalize_timeout', 2.0)
         self.min_altitude = p.number('min_altitude', -1.0)
         self.use_header_stamp = p.flag('use_header_stamp', True)
         self.exit_when_done = p.flag('exit_when_done', False)
-        self.summary_file = str(rospy.get_param('~summary_file', '') or '')
-        self.csv_file = str(rospy.get_param('~csv_file', '') or '')
+        self.summary_file = p.string('summary_file', '')
+        self.csv_file = p.string('csv_file', '')
         self.csv_window = p.choice('csv_window', 'measured', ('measured', 'all'))
-        self.name = str(rospy.get_param('~name', '') or '')
+        self.name = p.text('name')
         self.core = LiveEvaluator(name=self.name, min_altitude=self.min_altitude,
                                   max_samples=int(p.positive('max_samples', 500000)))
         self.lock = threading.Lock()
         self.end_seen_at = None
         self.finished = False
         self.errors = 0
-        self.pub = rospy.Publisher('evaluation/summary', String, queue_size=2, latch=True)
-        self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
-        topics = dict((k, str(rospy.get_param('~%s_topic' % k, d) or '')) for k, d in (
-            ('waypoint', 'position_control/waypoint'), ('estimate', 'drone/odom'),
-            ('truth', 'ground_truth/odom'), ('begin', 'trajectory/begin'), ('end', 'trajectory/end')))
-        for k in ('waypoint', 'estimate', 'begin', 'end'):
-            if not topics[k]:
-                raise ValueError('~%s_topic must not be empty' % k)
-        rospy.Subscriber(topics['waypoint'], Waypoint, self._on_waypoint, queue_size=50)
-        rospy.Subscriber(topics['estimate'], Odometry, self._on_estimate, queue_size=100)
-        if topics['truth']:
-            rospy.Subscriber(topics['truth'], Odometry, self._on_truth, queue_size=100)
-        rospy.Subscriber(topics['begin'], Header, self._on_begin, queue_size=5)
-        rospy.Subscriber(topics['end'], Header, self._on_end, queue_size=5)
+        self.pub = rospy.Publisher(topics.EVALUATION_SUMMARY, String, queue_size=2, latch=True)
+        self.pub_diag = diagnostics_publisher(queue_size=5)
+        inputs = dict((k, p.string('%s_topic' % k, d, allow_empty=(k == 'truth'))) for k, d in (
+            ('waypoint', topics.WAYPOINT), ('estimate', topics.ESTIMATE), ('truth', topics.GROUND_TRUTH),
+            ('begin', topics.TRAJECTORY_BEGIN), ('end', topics.TRAJECTORY_END)))
+        rospy.Subscriber(inputs['waypoint'], Waypoint, self._on_waypoint, queue_size=50)
+        rospy.Subscriber(inputs['estimate'], Odometry, self._on_estimate, queue_size=100)
+        if inputs['truth']:
+            rospy.Subscriber(inputs['truth'], Odometry, self._on_truth, queue_size=100)
+        rospy.Subscriber(inputs['begin'], Header, self._on_begin, queue_size=5)
+        rospy.Subscriber(inputs['end'], Header, self._on_end, queue_size=5)
         rospy.loginfo('%s: waypoint %s, estimate %s, truth %s, window %s .. %s', rospy.get_name(),
-                      *[rospy.resolve_name(topics[k]) if topics[k] else '(none)'
+                      *[rospy.resolve_name(inputs[k]) if inputs[k] else '(none)'
                         for k in ('waypoint', 'estimate', 'truth', 'begin', 'end')])
 
     def _t(self, msg):
@@ -150,22 +147,18 @@ class EvaluatorNode(object):
 
     def _publish(self, result, d):
         self.pub.publish(String(data=yaml.safe_dump(dict(d), default_flow_style=False, sort_keys=False)))
-        status = DiagnosticStatus(name='%s: tracking error' % rospy.get_name(), hardware_id=d.get('name') or '')
-        status.level = DiagnosticStatus.OK
-        status.message = d.get('state', '')
+        level, message, values = OK, d.get('state', ''), []
         if result is not None:
             if result.garbage or result.warnings:
-                status.level = DiagnosticStatus.WARN
-                status.message += ': ' + '; '.join(result.garbage.summary() + result.warnings)
+                level = WARN
+                message += ': ' + '; '.join(result.garbage.summary() + result.warnings)
             for key in ('estimate', 'truth'):
                 r = d.get(key)
                 if r:
-                    status.values += [KeyValue('%s_%s' % (key, k), str(r[k])) for k in ('e_max', 'e_mu', 'e_sigma')]
-            status.values.append(KeyValue('samples', str(d.get('samples'))))
-        arr = DiagnosticArray()
-        arr.header.stamp = rospy.Time.now()
-        arr.status = [status]
-        self.pub_diag.publish(arr)
+                    values += [('%s_%s' % (key, k), r[k]) for k in ('e_max', 'e_mu', 'e_sigma')]
+            values.append(('samples', d.get('samples')))
+        publish_diagnostics(self.pub_diag, [diagnostic_status('%s: tracking error' % rospy.get_name(), level, message,
+                                                              values, hardware_id=d.get('name') or '')])
 
     def finalize(self, state):
         result, d = self.summary(state)

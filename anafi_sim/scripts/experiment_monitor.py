@@ -30,7 +30,6 @@ the end). ~scenario / ~scenario_file / ~scenario_dir as the generator (for the s
 ~label: the run's name in the output.
 """
 import fnmatch
-import math
 import os
 import sys
 import threading
@@ -44,8 +43,10 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
 from anafi_sim.experiments.monitor import FAILED, FINAL, ExperimentMonitor, summary_lines
-from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim.experiments.trajectory import SCENARIO_DIR, load_scenario
+from anafi_sim.msg import MpcStats, Waypoint
+from anafi_sim.ros import topics
+from anafi_sim.ros.node import private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
 
 try:
@@ -59,20 +60,12 @@ except ImportError:   # CPU figures are optional
     psutil = None
 
 
-def _number(name, default, minimum=0.0):
-    value = rospy.get_param('~' + name, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < minimum:
-        raise ValueError('~%s must be a finite number >= %g, got %r' % (name, minimum, value))
-    return float(value)
-
-
-def _names(name, default):
-    value = rospy.get_param('~' + name, default)
-    if isinstance(value, str):
-        value = [v for v in value.replace(',', ' ').split() if v]
-    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
-        raise ValueError('~%s must be a list of names, got %r' % (name, value))
-    return list(value)
+def _yaml(msg):
+    """The YAML data of a std_msgs/String, None when unreadable."""
+    try:
+        return yaml.safe_load(msg.data)
+    except yaml.YAMLError:
+        return None
 
 
 def _write_yaml(path, data):
@@ -85,46 +78,42 @@ def _write_yaml(path, data):
 
 class ExperimentMonitorNode(object):
     def __init__(self):
-        scenario_dir = str(rospy.get_param('~scenario_dir', '') or SCENARIO_DIR)
-        scenario_file = str(rospy.get_param('~scenario_file', '') or '')
-        self.scenario = load_scenario(scenario_file or str(rospy.get_param('~scenario', 'circle_r2_v1')),
-                                      scenario_dir)
-        self.label = str(rospy.get_param('~label', '') or self.scenario.name)
-        min_commands = rospy.get_param('~min_commands', 5)
-        self.core = ExperimentMonitor(self.scenario.duration, min_commands=min_commands,
-                                      ready_timeout=_number('ready_timeout', 90.0),
-                                      end_margin=_number('end_margin', 30.0),
-                                      final_timeout=_number('final_timeout', 30.0))
-        self.progress_period = _number('progress_period', 1.0)
-        self.evaluator_exit_timeout = _number('evaluator_exit_timeout', 15.0)
-        self.wait_subscribers = [rospy.resolve_name(n) for n in _names('wait_subscribers', [])]
-        self.controller_patterns = _names('controller_nodes', [])
-        self.evaluator_node = rospy.resolve_name(str(rospy.get_param('~evaluator_node', 'evaluator')))
-        self.files = dict((k, str(rospy.get_param('~%s_file' % k, '') or '')) for k in
-                          ('summary', 'csv', 'plot', 'info', 'bag'))
-        self.waypoint_topic = rospy.resolve_name('position_control/waypoint')
+        p = private_params()
+        scenario_dir = p.string('scenario_dir', '') or SCENARIO_DIR
+        scenario_file = p.string('scenario_file', '')
+        self.scenario = load_scenario(scenario_file or p.string('scenario', 'circle_r2_v1'), scenario_dir)
+        self.label = p.text('label') or self.scenario.name
+        self.core = ExperimentMonitor(self.scenario.duration, min_commands=p.integer('min_commands', 5, minimum=0),
+                                      ready_timeout=p.number('ready_timeout', 90.0, minimum=0.0),
+                                      end_margin=p.number('end_margin', 30.0, minimum=0.0),
+                                      final_timeout=p.number('final_timeout', 30.0, minimum=0.0))
+        self.progress_period = p.number('progress_period', 1.0, minimum=0.0)
+        self.evaluator_exit_timeout = p.number('evaluator_exit_timeout', 15.0, minimum=0.0)
+        self.wait_subscribers = [rospy.resolve_name(n) for n in p.names('wait_subscribers', [])]
+        self.controller_patterns = p.names('controller_nodes', [])
+        self.evaluator_node = rospy.resolve_name(p.string('evaluator_node', 'evaluator'))
+        self.files = dict((k, p.string('%s_file' % k, '')) for k in ('summary', 'csv', 'plot', 'info', 'bag'))
+        self.hold = p.flag('hold', True)
+        self.waypoint_topic = rospy.resolve_name(topics.WAYPOINT)
         self.lock = threading.Lock()
         self.master = rosgraph.Master(rospy.get_name())
         self.controller_pids = []
         self.evaluator_pid = None
-        self.pub_start = rospy.Publisher(str(rospy.get_param('~start_topic', 'trajectory_generator/command')),
-                                         String, queue_size=1, latch=True)
-        rospy.Subscriber('drone/state', String, self._on_state, queue_size=5)
-        self.hold = rospy.get_param('~hold', True)
-        if not isinstance(self.hold, bool):
-            raise ValueError('~hold must be true or false, got %r' % (self.hold,))
+        self.pub_start = rospy.Publisher(p.string('start_topic', topics.TRAJECTORY_COMMAND), String, queue_size=1,
+                                         latch=True)
+        rospy.Subscriber(topics.DRONE_STATE, String, self._on_state, queue_size=5)
         self.hold_point = self.scenario.waypoint(0.0)
-        self.pub_waypoint = rospy.Publisher('position_control/waypoint', Waypoint, queue_size=5)
+        self.pub_waypoint = rospy.Publisher(topics.WAYPOINT, Waypoint, queue_size=5)
         self.last_hold = None
-        rospy.Subscriber('drone/rpyt', piloting_command_class(), self._on_command, queue_size=5)
-        rospy.Subscriber('position_control/waypoint', Waypoint, self._on_waypoint, queue_size=1)
-        rospy.Subscriber('drone/odom', Odometry, self._on_estimate, queue_size=1)
-        rospy.Subscriber('trajectory/status', String, self._on_status, queue_size=5)
-        rospy.Subscriber('trajectory/begin', Header, self._on_begin, queue_size=5)
-        rospy.Subscriber('trajectory/end', Header, self._on_end, queue_size=5)
-        rospy.Subscriber('evaluation/summary', String, self._on_summary, queue_size=5)
-        rospy.Subscriber('mpc/stats', MpcStats, self._on_mpc_stats, queue_size=20)
-        rospy.Subscriber('/diagnostics', DiagnosticArray, self._on_diagnostics, queue_size=20)
+        rospy.Subscriber(topics.COMMAND, piloting_command_class(), self._on_command, queue_size=5)
+        rospy.Subscriber(topics.WAYPOINT, Waypoint, self._on_waypoint, queue_size=1)
+        rospy.Subscriber(topics.ESTIMATE, Odometry, self._on_estimate, queue_size=1)
+        rospy.Subscriber(topics.TRAJECTORY_STATUS, String, self._on_status, queue_size=5)
+        rospy.Subscriber(topics.TRAJECTORY_BEGIN, Header, self._on_begin, queue_size=5)
+        rospy.Subscriber(topics.TRAJECTORY_END, Header, self._on_end, queue_size=5)
+        rospy.Subscriber(topics.EVALUATION_SUMMARY, String, self._on_summary, queue_size=5)
+        rospy.Subscriber(topics.MPC_STATS, MpcStats, self._on_mpc_stats, queue_size=20)
+        rospy.Subscriber(topics.DIAGNOSTICS, DiagnosticArray, self._on_diagnostics, queue_size=20)
         self.sim_status_prefix = 'anafi_sim: simulated Anafi'
         self._say('%s: scenario %s (%.1f s of simulation time); waiting for the drone, the controller and %s'
                   % (self.label, self.scenario.name, self.scenario.duration,
@@ -150,10 +139,7 @@ class ExperimentMonitorNode(object):
             self.core.on_estimate((p.x, p.y, p.z))
 
     def _on_status(self, msg):
-        try:
-            d = yaml.safe_load(msg.data)
-        except yaml.YAMLError:
-            return
+        d = _yaml(msg)
         if isinstance(d, dict):
             with self.lock:
                 self.core.on_status(d.get('phase', ''), d.get('state', ''))
@@ -167,10 +153,7 @@ class ExperimentMonitorNode(object):
             self.core.on_end(msg.stamp.to_sec(), time.monotonic())
 
     def _on_summary(self, msg):
-        try:
-            d = yaml.safe_load(msg.data)
-        except yaml.YAMLError:
-            return
+        d = _yaml(msg)     # the core ignores anything but a dict
         with self.lock:
             self.core.on_summary(d, time.monotonic())
 
@@ -357,20 +340,9 @@ class ExperimentMonitorNode(object):
         if rospy.is_shutdown() and self.core.state not in (FINAL, FAILED):
             self.core.reason = 'shut down before the end (state %s)' % self.core.state
         self._finish(ok)
+        rospy.signal_shutdown('experiment finished')
         return ok
 
 
-def main():
-    rospy.init_node('experiment_monitor')
-    try:
-        node = ExperimentMonitorNode()
-    except ValueError as e:
-        rospy.logfatal(str(e))
-        raise SystemExit(1)
-    ok = node.run()
-    rospy.signal_shutdown('experiment finished')
-    raise SystemExit(0 if ok else 1)
-
-
 if __name__ == '__main__':
-    main()
+    run_node('experiment_monitor', ExperimentMonitorNode)

@@ -21,60 +21,43 @@ Namespace /<drone> (default drone name: the namespace's last part; in the
 root namespace the topics go under /<~drone_name>/). Parameters: see
 anafi_sim/config/interface.yaml. Bad parameters: logfatal and exit code 2.
 """
-import re
-import sys
 import threading
 import time
 
 import rospy
 import tf2_ros
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
 
 from anafi_sim.interface import ground_truth as gt
-from anafi_sim.msg import DroneData
-from anafi_sim.ros.params import ParamReader
 from anafi_sim.interface.supervisor import ProcessSupervisor
+from anafi_sim.msg import DroneData
+from anafi_sim.ros import conversions, topics
+from anafi_sim.ros.node import diagnostics_publisher, health_status, private_params, run_node, \
+    start_diagnostics_thread
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, TelemetryParser
 
 DEFAULT_COMMAND = 'tlm-data-logger -r 0 inet:127.0.0.1:9060'
 STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
-_LEVELS = {gt.OK: DiagnosticStatus.OK, gt.WARN: DiagnosticStatus.WARN, gt.ERROR: DiagnosticStatus.ERROR}
 
 
 def read_params():
     """All ~params, validated; raises ValueError with a clear message."""
-    reader = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
-    p = {}
-    command = rospy.get_param('~telemetry_command', DEFAULT_COMMAND)
-    if isinstance(command, str):
-        if not command.strip():
-            raise ValueError('~telemetry_command is empty')
-    elif isinstance(command, list):
-        if not command or not all(isinstance(a, (str, int, float)) for a in command):
-            raise ValueError('~telemetry_command list must be non-empty strings, got %r' % (command,))
-    else:
-        raise ValueError('~telemetry_command must be a string or a list, got %r' % (command,))
-    p['telemetry_command'] = command
-    prefix = rospy.get_param('~prefix', DEFAULT_PREFIX)
-    if not isinstance(prefix, str) or any(c.isspace() or c == ':' for c in prefix):
-        raise ValueError('~prefix must be a string without spaces or colons, got %r' % (prefix,))
-    p['prefix'] = prefix
+    reader = private_params()
+    p = {'telemetry_command': reader.command('telemetry_command', DEFAULT_COMMAND),
+         'prefix': reader.word('prefix', DEFAULT_PREFIX, forbidden=':')}
     for name, default in (('rate', 100.0), ('stale_timeout', 0.5), ('restart_timeout', 2.0),
                           ('backoff_initial', 0.2), ('backoff_max', 5.0)):
         p[name] = reader.positive(name, default)
     if p['backoff_max'] < p['backoff_initial']:
-        raise ValueError('~backoff_max (%g) must be >= ~backoff_initial (%g)' % (p['backoff_max'], p['backoff_initial']))
+        raise ValueError('~backoff_max (%g) must be >= ~backoff_initial (%g)'
+                         % (p['backoff_max'], p['backoff_initial']))
     p['camera_offset'] = reader.vector('camera_offset', [0.1, 0.0, 0.0], 3)   # [m]
     p['frame_id'] = reader.ros_name('frame_id', 'world')
     namespace = rospy.get_namespace().strip('/')
-    drone_name = rospy.get_param('~drone_name', namespace.split('/')[-1] if namespace else 'anafi')
-    if not isinstance(drone_name, str) or not re.match(r'^[A-Za-z][A-Za-z0-9_]*$', drone_name):
-        raise ValueError('~drone_name must be a ROS name (letters, digits, _), got %r' % (drone_name,))
-    p['drone_name'] = drone_name
+    p['drone_name'] = reader.base_name('drone_name', namespace.split('/')[-1] if namespace else 'anafi')
     p['stamp_with_sample_time'] = reader.flag('stamp_with_sample_time', False)
-    p['topic_base'] = '' if namespace else drone_name + '/'
+    p['topic_base'] = '' if namespace else p['drone_name'] + '/'
     return p
 
 
@@ -90,8 +73,8 @@ def _transform(stamp, parent, child, translation, rotation):
 
 
 class InterfaceNode(object):
-    def __init__(self, params):
-        self.p = params
+    def __init__(self):
+        self.p = params = read_params()
         drone = params['drone_name']
         self.frame_id = params['frame_id']
         self.base_link = drone + '/base_link'
@@ -103,29 +86,26 @@ class InterfaceNode(object):
         self.publish_errors = 0
         self.last_publish_error = ''
         base = params['topic_base']
-        self.pub_data = rospy.Publisher(base + 'sphinx/drone_data', DroneData, queue_size=50)
-        self.pub_odom = rospy.Publisher(base + 'ground_truth/odom', Odometry, queue_size=50)
-        self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=10)
+        self.pub_data = rospy.Publisher(base + topics.DRONE_DATA, DroneData, queue_size=50)
+        self.pub_odom = rospy.Publisher(base + topics.GROUND_TRUTH, Odometry, queue_size=50)
+        self.pub_diag = diagnostics_publisher()
         self.tf = tf2_ros.TransformBroadcaster()
         self.static_tf = tf2_ros.StaticTransformBroadcaster()
         self.static_tf.sendTransform(_transform(rospy.Time(0), self.camera, drone + '/camera_optical',
                                                 (0.0, 0.0, 0.0), gt.CAMERA_OPTICAL_ROTATION))
         self.diag_name = '%s: ground truth interface' % rospy.get_name()
-        self.supervisor = ProcessSupervisor(
+        self.supervisor = ProcessSupervisor(   # ValueError for a command string shlex cannot split
             params['telemetry_command'], self.on_line, restart_timeout=params['restart_timeout'],
             backoff_initial=params['backoff_initial'], backoff_max=params['backoff_max'],
             on_event=self.on_event)
-        self._stop = threading.Event()
-        self._diag_thread = threading.Thread(target=self._diagnostics_loop, name='diagnostics', daemon=True)
 
-    def start(self):
+    def run(self):
         rospy.loginfo('interface: running %r, publishing %s at %.0f Hz', self.supervisor.argv,
-                      self.p['topic_base'] + 'ground_truth/odom', self.p['rate'])
+                      self.p['topic_base'] + topics.GROUND_TRUTH, self.p['rate'])
+        rospy.on_shutdown(self.supervisor.stop)
         self.supervisor.start()
-        self._diag_thread.start()
-
-    def shutdown(self):
-        self._stop.set()
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
+        rospy.spin()
         self.supervisor.stop()
 
     # -- supervisor callbacks (supervisor threads) ---------------------------------------
@@ -190,12 +170,8 @@ class InterfaceNode(object):
         o.header.stamp = stamp
         o.header.frame_id = self.frame_id
         o.child_frame_id = self.base_link
-        pose, twist = o.pose.pose, o.twist.twist
-        pose.position.x, pose.position.y, pose.position.z = odo.position
-        q = pose.orientation
-        q.x, q.y, q.z, q.w = odo.orientation
-        twist.linear.x, twist.linear.y, twist.linear.z = odo.linear
-        twist.angular.x, twist.angular.y, twist.angular.z = odo.angular
+        o.pose.pose = conversions.pose(odo.position, odo.orientation)
+        o.twist.twist = conversions.twist(odo.linear, odo.angular)
 
         t_sa, q_sa = gt.stability_axes_pose(s.x, s.y, s.z, s.yaw)
         t_bl, q_bl = gt.base_link_in_stability_axes(s.roll, s.pitch)
@@ -208,66 +184,23 @@ class InterfaceNode(object):
         self.pub_data.publish(d)
         self.tf.sendTransform(transforms)
 
-    # -- diagnostics (own thread, wall clock) ---------------------------------------------
-    def _diagnostics_loop(self):
-        stale_since_log = None
-        while not self._stop.wait(1.0) and not rospy.is_shutdown():
-            try:
-                now = time.time()
-                with self.lock:
-                    health = self.core.health(now, self.parser.counters, self.supervisor.snapshot())
-                    stale = self.core.is_stale(now)
-                    age = self.core.sample_age(now)
-                if stale:
-                    mono = time.monotonic()
-                    if stale_since_log is None or mono - stale_since_log >= STALE_LOG_PERIOD:
-                        stale_since_log = mono
-                        rospy.logerr('interface: %s (telemetry process %s): publishing paused',
-                                     'no ground truth received yet' if age is None
-                                     else 'no ground truth for %.1f s' % age,
-                                     'running' if self.supervisor.running else 'not running')
-                elif stale_since_log is not None:
-                    stale_since_log = None
-                    rospy.loginfo('interface: ground truth flowing again')
-                self.publish_diagnostics(health)
-            except Exception as exc:  # never let diagnostics kill the node
-                if not rospy.is_shutdown():
-                    rospy.logerr_throttle(10.0, 'interface: diagnostics failed: %s: %s' % (type(exc).__name__, exc))
-
-    def publish_diagnostics(self, health):
-        status = DiagnosticStatus()
-        status.level = _LEVELS[health.level]
-        status.name = self.diag_name
-        status.message = health.message
-        status.hardware_id = self.p['drone_name']
-        values = list(health.values)
-        values.append(('publish errors', str(self.publish_errors)))
-        values.append(('telemetry command', ' '.join(self.supervisor.argv)))
-        status.values = [KeyValue(k, v) for k, v in values]
-        array = DiagnosticArray()
-        array.header.stamp = rospy.Time.now()
-        array.status = [status]
-        self.pub_diag.publish(array)
-
-
-def main():
-    rospy.init_node('interface')
-    try:
-        params = read_params()
-    except ValueError as exc:
-        rospy.logfatal('interface: bad parameter: %s', exc)
-        return 2
-    try:
-        node = InterfaceNode(params)
-    except ValueError as exc:  # e.g. a command string shlex cannot split
-        rospy.logfatal('interface: bad parameter: %s', exc)
-        return 2
-    rospy.on_shutdown(node.shutdown)
-    node.start()
-    rospy.spin()
-    node.shutdown()
-    return 0
+    # -- diagnostics (the glue's thread, wall clock) -------------------------------------
+    def diagnostic_statuses(self):
+        now = time.time()
+        with self.lock:
+            health = self.core.health(now, self.parser.counters, self.supervisor.snapshot())
+            notice = self.core.outage_notice(now, STALE_LOG_PERIOD)
+            age = self.core.sample_age(now)
+        if notice == 'stale':
+            rospy.logerr('interface: %s (telemetry process %s): publishing paused',
+                         'no ground truth received yet' if age is None else 'no ground truth for %.1f s' % age,
+                         'running' if self.supervisor.running else 'not running')
+        elif notice == 'flowing':
+            rospy.loginfo('interface: ground truth flowing again')
+        return [health_status(self.diag_name, health, self.p['drone_name'],
+                              [('publish errors', str(self.publish_errors)),
+                               ('telemetry command', ' '.join(self.supervisor.argv))])]
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    run_node('interface', InterfaceNode, fatal_exit_code=2)

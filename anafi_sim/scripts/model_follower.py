@@ -14,43 +14,30 @@ Waypoint = target position + ~offset [m] ([-6, 0, -2]: behind and below) in ~off
 world), yaw by ~yaw_mode (heading | face | fixed) + ~yaw_offset [deg], velocity from ~velocity_source
 (auto | twist | difference; ~smoothing [s] of the difference filter). Bad parameters: logfatal, exit 1.
 """
-import math
 import threading
-import time
 
 import rospy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from anafi_sim.ros import gazebo_types
-from anafi_sim.experiments.model_follower import ModelFollower
+from anafi_sim.experiments.model_follower import OFFSET_FRAMES, VELOCITY_SOURCES, YAW_MODES, ModelFollower
 from anafi_sim.msg import Waypoint
-from anafi_sim.ros.node import run_node
-
-
-def _number(name, default, minimum=None):
-    value = rospy.get_param('~' + name, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or (minimum is not None and value <= minimum):
-        raise ValueError('~%s must be a finite number%s, got %r' % (
-            name, '' if minimum is None else ' > %g' % minimum, value))
-    return float(value)
+from anafi_sim.ros import gazebo_types, topics
+from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
+                                start_diagnostics_thread, wait_for_clock)
 
 
 class ModelFollowerNode(object):
     def __init__(self):
-        self.model_name = str(rospy.get_param('~model_name', 'airship'))
-        if not self.model_name:
-            raise ValueError('~model_name must not be empty')
-        self.rate = _number('rate', 10.0, 0.0)
-        self.stale_timeout = _number('stale_timeout', 1.0, 0.0)
-        self.frame_id = str(rospy.get_param('~frame_id', 'world'))
-        offset = rospy.get_param('~offset', [-6.0, 0.0, -2.0])
-        self.core = ModelFollower(offset=offset,
-                                  offset_frame=rospy.get_param('~offset_frame', 'heading'),
-                                  yaw_mode=rospy.get_param('~yaw_mode', 'heading'),
-                                  yaw_offset=_number('yaw_offset', 0.0),
-                                  velocity_source=rospy.get_param('~velocity_source', 'auto'),
-                                  smoothing=_number('smoothing', 0.3, -1e-12))
+        p = private_params()
+        self.model_name = p.string('model_name', 'airship', allow_empty=False)
+        self.rate = p.positive('rate', 10.0)
+        self.stale_timeout = p.positive('stale_timeout', 1.0)
+        self.frame_id = p.string('frame_id', 'world')
+        self.core = ModelFollower(offset=p.vector('offset', [-6.0, 0.0, -2.0], 3),
+                                  offset_frame=p.choice('offset_frame', 'heading', OFFSET_FRAMES),
+                                  yaw_mode=p.choice('yaw_mode', 'heading', YAW_MODES),
+                                  yaw_offset=p.number('yaw_offset', 0.0),
+                                  velocity_source=p.choice('velocity_source', 'auto', VELOCITY_SOURCES),
+                                  smoothing=p.number('smoothing', 0.3, minimum=0.0))
         self.lock = threading.Lock()
         self.latest = None          # (t, position, orientation, linear, angular_z)
         self.consumed = None
@@ -58,10 +45,9 @@ class ModelFollowerNode(object):
         self.missing = 0
         self.published = 0
         self.state_msgs = 0
-        self.pub = rospy.Publisher(str(rospy.get_param('~waypoint_topic', 'position_control/waypoint')),
-                                   Waypoint, queue_size=10)
-        self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
-        topic = str(rospy.get_param('~model_states_topic', '/gazebo/model_states'))
+        self.pub = rospy.Publisher(p.string('waypoint_topic', topics.WAYPOINT), Waypoint, queue_size=10)
+        self.pub_diag = diagnostics_publisher(queue_size=5)
+        topic = p.string('model_states_topic', topics.gazebo(topics.MODEL_STATES))
         rospy.Subscriber(topic, gazebo_types.model_states_class(), self._on_model_states, queue_size=1)
         rospy.loginfo('%s: following model %s from %s -> %s at %g Hz, offset %s (%s frame), yaw %s',
                       rospy.get_name(), self.model_name, rospy.resolve_name(topic),
@@ -104,40 +90,26 @@ class ModelFollowerNode(object):
         self.pub.publish(msg)
         self.published += 1
 
-    def diagnostics(self):
-        status = DiagnosticStatus(name='%s: following %s' % (rospy.get_name(), self.model_name),
-                                  hardware_id=self.model_name)
+    def diagnostic_statuses(self):
         with self.lock:
             latest = self.latest
         age = rospy.get_time() - latest[0] if latest is not None else None
         if latest is None or age > self.stale_timeout:
-            status.level = DiagnosticStatus.WARN
-            status.message = 'target never seen' if latest is None else 'target stale (%.1f s)' % age
+            level, message = WARN, 'target never seen' if latest is None else 'target stale (%.1f s)' % age
         else:
-            status.level = DiagnosticStatus.OK
-            status.message = 'following'
-        status.values = [KeyValue(k, str(v)) for k, v in (
+            level, message = OK, 'following'
+        return [diagnostic_status('%s: following %s' % (rospy.get_name(), self.model_name), level, message, (
             ('waypoints published', self.published), ('model_states received', self.state_msgs),
             ('model_states without the model', self.missing), ('refused samples', self.core.rejected),
             ('velocity from', 'twist' if self.core.used_twist else 'finite difference'),
-            ('target age [s]', '-' if age is None else '%.2f' % age))]
-        arr = DiagnosticArray()
-        arr.header.stamp = rospy.Time.now()
-        arr.status = [status]
-        self.pub_diag.publish(arr)
+            ('target age [s]', '-' if age is None else '%.2f' % age)), hardware_id=self.model_name)]
 
     def run(self):
-        period = 1.0 / self.rate
-        next_diag = time.monotonic()
-        use_sim_time = rospy.get_param('/use_sim_time', False)
-        while use_sim_time and not rospy.is_shutdown() and rospy.get_time() == 0.0:
-            time.sleep(0.05)
-        rate = rospy.Rate(1.0 / period)
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag, first=0.0)
+        wait_for_clock()
+        rate = rospy.Rate(self.rate)
         while not rospy.is_shutdown():
             self.tick()
-            if time.monotonic() >= next_diag:
-                next_diag = time.monotonic() + 1.0
-                self.diagnostics()
             try:
                 rate.sleep()
             except rospy.ROSTimeMovedBackwardsException:

@@ -15,8 +15,10 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import String
 
 from anafi_control.frames import quaternion_to_euler
-from anafi_sim.sim.step_schedule import StepSchedule
+from anafi_sim.ros import topics
+from anafi_sim.ros.node import private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
+from anafi_sim.sim.step_schedule import StepSchedule
 
 
 def _pose(msg):
@@ -27,21 +29,20 @@ def _pose(msg):
 
 class StepDemo(object):
     def __init__(self):
-        self.rate = float(rospy.get_param('~rate', 10.0))
-        self.print_period = float(rospy.get_param('~print_period', 0.5))
-        self.timeout = float(rospy.get_param('~start_timeout', 30.0))
-        if not (self.rate > 0 and self.print_period > 0 and self.timeout > 0):
-            raise ValueError('~rate, ~print_period and ~start_timeout must be positive')
+        p = private_params()
+        self.rate = p.positive('rate', 10.0)
+        self.print_period = p.positive('print_period', 0.5)
+        self.timeout = p.positive('start_timeout', 30.0)
         self.schedule = StepSchedule()
         self.cmd_cls = piloting_command_class()
-        self.pub = rospy.Publisher('drone/rpyt', self.cmd_cls, queue_size=1)
+        self.pub = rospy.Publisher(topics.COMMAND, self.cmd_cls, queue_size=1)
         self.truth = self.estimate = None
         self.truth_count = self.estimate_count = 0
         self.state = ''
         self.max_error_estimate = 0.0
-        rospy.Subscriber('ground_truth/odom', Odometry, self._on_truth, queue_size=10)
-        rospy.Subscriber('drone/odom', Odometry, self._on_estimate, queue_size=10)
-        rospy.Subscriber('drone/state', String, self._on_state, queue_size=1)
+        rospy.Subscriber(topics.GROUND_TRUTH, Odometry, self._on_truth, queue_size=10)
+        rospy.Subscriber(topics.ESTIMATE, Odometry, self._on_estimate, queue_size=10)
+        rospy.Subscriber(topics.DRONE_STATE, String, self._on_state, queue_size=1)
 
     def _on_truth(self, msg):
         self.truth = msg
@@ -57,6 +58,11 @@ class StepDemo(object):
         self.state = msg.data
 
     def run(self):
+        ok = self.demo()
+        rospy.signal_shutdown('demo finished')
+        return ok
+
+    def demo(self):
         t0 = rospy.get_time()
         rate = rospy.Rate(self.rate)
         while not rospy.is_shutdown() and not (self.state == 'flying' and self.truth is not None):
@@ -100,16 +106,5 @@ class StepDemo(object):
         return True
 
 
-def main():
-    rospy.init_node('step_demo')
-    try:
-        ok = StepDemo().run()
-    except ValueError as e:
-        rospy.logfatal(str(e))
-        ok = False
-    rospy.signal_shutdown('demo finished')
-    raise SystemExit(0 if ok else 1)
-
-
 if __name__ == '__main__':
-    main()
+    run_node('step_demo', StepDemo)

@@ -26,16 +26,16 @@ exit code 0; 1 when the drone never flew within ~start_timeout), ~frame_id
 (world). A bad scenario or parameter: logfatal and exit 1.
 """
 import threading
-import time
 
 import rospy
 import yaml
 from std_msgs.msg import Header, String
 
-from anafi_sim.msg import Waypoint
-from anafi_sim.ros.params import ParamReader
 from anafi_sim.experiments.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
-                                  load_scenario)
+                                              load_scenario)
+from anafi_sim.msg import Waypoint
+from anafi_sim.ros import topics
+from anafi_sim.ros.node import private_params, run_node, wait_for_clock
 
 try:
     from std_srvs.srv import Trigger, TriggerResponse
@@ -45,7 +45,7 @@ except ImportError:   # std_srvs missing: the ~command topic still works
 
 class TrajectoryGeneratorNode(object):
     def __init__(self):
-        p = ParamReader(lambda name, default: rospy.get_param('~' + name, default))
+        p = private_params()
         self.rate = p.positive('rate', 10.0)
         self.autostart = p.flag('autostart', True)
         self.wait_for_flying = p.flag('wait_for_flying', True)
@@ -53,11 +53,15 @@ class TrajectoryGeneratorNode(object):
         self.exit_when_done = p.flag('exit_when_done', False)
         self.start_timeout = p.number('start_timeout', 0.0, minimum=0.0)
         self.exit_delay = p.number('exit_delay', 1.0, minimum=0.0)
-        self.frame_id = str(rospy.get_param('~frame_id', 'world'))
-        self.scenario_dir = str(rospy.get_param('~scenario_dir', '') or SCENARIO_DIR)
-        scenario_file = str(rospy.get_param('~scenario_file', '') or '')
-        scenario = load_scenario(scenario_file or str(rospy.get_param('~scenario', 'circle_r2_v1')),
-                                 self.scenario_dir)           # ValueError with the file and field
+        self.frame_id = p.string('frame_id', 'world')
+        self.scenario_dir = p.string('scenario_dir', '') or SCENARIO_DIR
+        scenario_file = p.string('scenario_file', '')
+        try:
+            scenario = load_scenario(scenario_file or p.string('scenario', 'circle_r2_v1'),
+                                     self.scenario_dir)           # ValueError with the file and field
+        except ValueError as e:
+            raise ValueError('%s (scenarios in %s: %s)'
+                             % (e, self.scenario_dir, ', '.join(list_scenarios(self.scenario_dir))))
         self.gen = TrajectoryGenerator(scenario, hold_when_idle=self.hold_when_idle)
         self.lock = threading.Lock()
         self.drone_state = ''
@@ -65,12 +69,11 @@ class TrajectoryGeneratorNode(object):
         self.done_time = None
         self.failed = False
         self.published = 0
-        self.pub = rospy.Publisher(str(rospy.get_param('~waypoint_topic', 'position_control/waypoint')),
-                                   Waypoint, queue_size=10)
-        self.pub_begin = rospy.Publisher('trajectory/begin', Header, queue_size=2, latch=True)
-        self.pub_end = rospy.Publisher('trajectory/end', Header, queue_size=2, latch=True)
-        self.pub_status = rospy.Publisher('trajectory/status', String, queue_size=5, latch=True)
-        rospy.Subscriber('drone/state', String, self._on_state, queue_size=5)
+        self.pub = rospy.Publisher(p.string('waypoint_topic', topics.WAYPOINT), Waypoint, queue_size=10)
+        self.pub_begin = rospy.Publisher(topics.TRAJECTORY_BEGIN, Header, queue_size=2, latch=True)
+        self.pub_end = rospy.Publisher(topics.TRAJECTORY_END, Header, queue_size=2, latch=True)
+        self.pub_status = rospy.Publisher(topics.TRAJECTORY_STATUS, String, queue_size=5, latch=True)
+        rospy.Subscriber(topics.DRONE_STATE, String, self._on_state, queue_size=5)
         rospy.Subscriber('~command', String, self._on_command, queue_size=10)
         if Trigger is not None:
             rospy.Service('~start', Trigger, lambda _: self._service('start'))
@@ -170,9 +173,7 @@ class TrajectoryGeneratorNode(object):
             self.published += 1
 
     def run(self):
-        use_sim_time = rospy.get_param('/use_sim_time', False)
-        while use_sim_time and not rospy.is_shutdown() and rospy.get_time() == 0.0:
-            time.sleep(0.05)                  # wall time: the simulation clock has not started yet
+        wait_for_clock()
         t_start = rospy.get_time()
         warned = False
         rate = rospy.Rate(self.rate)
@@ -205,16 +206,5 @@ class TrajectoryGeneratorNode(object):
         return not self.failed
 
 
-def main():
-    rospy.init_node('trajectory_generator')
-    try:
-        node = TrajectoryGeneratorNode()
-    except ValueError as e:
-        rospy.logfatal('%s (scenarios in %s: %s)', e, SCENARIO_DIR, ', '.join(list_scenarios()))
-        raise SystemExit(1)
-    ok = node.run()
-    raise SystemExit(0 if ok else 1)
-
-
 if __name__ == '__main__':
-    main()
+    run_node('trajectory_generator', TrajectoryGeneratorNode)

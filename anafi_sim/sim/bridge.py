@@ -9,8 +9,21 @@ Signs: PCMD roll +100 = tilt right (the drone flies right, -y in FLU/ENU),
 pitch +100 = nose down (flies forward), yaw + = clockwise from above (the
 bridge negates the ROS yaw rate, so a positive ROS yaw rate turns
 counter-clockwise), gaz + = climb.
+
+``bridge_estimate``: the numbers of the bridge's estimate topics (drone/odom, drone/rpy, camera/attitude,
+...) from the drone's own estimate.
 """
+import collections
 import math
+
+from anafi_control import frames
+
+BridgeEstimate = collections.namedtuple('BridgeEstimate', 'position orientation body_velocity velocity rpy_deg '
+                                                         'camera_orientation')
+"""What the bridge publishes of the drone's estimate: position (x, y, z) [m] and velocity [m/s] world ENU,
+orientation quaternion (x, y, z, w), body_velocity [m/s] FLU (drone/odom's twist), rpy_deg (roll, pitch,
+yaw) [deg] (drone/rpy), camera_orientation: quaternion of the camera (gimbal pitch command, the drone's
+yaw; camera/attitude)."""
 
 # Firmware settings used by the paper (Table 1).
 MAX_TILT_DEG = math.degrees(math.asin(5.0 / 9.81))   # 30.64 deg
@@ -65,3 +78,13 @@ class PilotingMapping(object):
     def command_to_setpoints(self, roll_deg, pitch_deg, yaw_rate_deg, gaz):
         """ROS command -> quantised firmware setpoints (the composition of the two steps)."""
         return self.pcmd_to_setpoints(*self.to_pcmd(roll_deg, pitch_deg, yaw_rate_deg, gaz))
+
+
+def bridge_estimate(values, gimbal_pitch):
+    """BridgeEstimate of the estimate's ``values`` (x, y, z, vx, vy, vz, roll, pitch, yaw) and the gimbal
+    pitch command [rad]."""
+    x, y, z, vx, vy, vz, roll, pitch, yaw = values
+    return BridgeEstimate((x, y, z), frames.euler_to_quaternion(roll, pitch, yaw),
+                          frames.world_to_body(roll, pitch, yaw, (vx, vy, vz)), (vx, vy, vz),
+                          (math.degrees(roll), math.degrees(pitch), math.degrees(yaw)),
+                          frames.euler_to_quaternion(0.0, gimbal_pitch, yaw))

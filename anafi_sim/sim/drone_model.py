@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 
+from anafi_control import frames
 from anafi_sim import paths
 from anafi_sim.sim.bridge import PilotingMapping
 from anafi_sim.telemetry.protocol import TelemetrySample
@@ -447,13 +448,7 @@ class AnafiModel(object):
 
     def _to_body(self, v):
         """World vector -> body (FLU) vector: R^T v."""
-        cr, sr = math.cos(self.roll), math.sin(self.roll)
-        cp, sp = math.cos(self.pitch), math.sin(self.pitch)
-        cy, sy = math.cos(self.yaw), math.sin(self.yaw)
-        x, y, z = v
-        return (cy * cp * x + sy * cp * y - sp * z,
-                (cy * sp * sr - sy * cr) * x + (sy * sp * sr + cy * cr) * y + cp * sr * z,
-                (cy * sp * cr + sy * sr) * x + (sy * sp * cr - cy * sr) * y + cp * cr * z)
+        return frames.world_to_body(self.roll, self.pitch, self.yaw, v)
 
     def body_velocity(self):
         """Velocity in the body frame (FLU) [m/s]."""

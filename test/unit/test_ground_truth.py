@@ -107,6 +107,17 @@ def test_stale_before_first_sample_and_after_timeout():
     assert not core.is_stale(10.7)
 
 
+def test_outage_notices_once_then_every_repeat_and_once_when_flowing_again():
+    core = gt.GroundTruthInterface(stale_timeout=0.5)
+    assert core.outage_notice(0.0, repeat=10.0) == 'stale'         # nothing received yet
+    assert [core.outage_notice(t, repeat=10.0) for t in (1.0, 9.9)] == [None, None]
+    assert core.outage_notice(10.0, repeat=10.0) == 'stale'
+    core.on_sample(sample_at(3.0), 11.0)
+    assert core.outage_notice(11.1, repeat=10.0) == 'flowing'
+    assert core.outage_notice(11.2, repeat=10.0) is None
+    assert core.outage_notice(12.0, repeat=10.0) == 'stale'        # stale again: told at once
+
+
 def test_decimated_samples_still_keep_it_fresh():
     core = gt.GroundTruthInterface(publish_rate=1.0, stale_timeout=0.5)
     run(core, 100.0, 3.0, wall0=0.0)
@@ -266,3 +277,27 @@ def test_camera_optical_frame_looks_along_the_camera_x_axis():
     R = frames.rotation_matrix(*frames.quaternion_to_euler(*gt.CAMERA_OPTICAL_ROTATION))
     # optical z (view) = camera x, optical x (image right) = camera -y, optical y (image down) = camera -z
     assert np.allclose(R[:, 2], [1, 0, 0]) and np.allclose(R[:, 0], [0, -1, 0]) and np.allclose(R[:, 1], [0, 0, -1])
+
+
+# --- shared pieces (also the mirror's) ---------------------------------------------------------
+
+def test_stamp_decimator_grid_jitter_and_reanchor():
+    d = gt.StampDecimator(0.01)
+    passed = [k for k in range(40) if d.accept(k * 0.004)]           # 250 Hz -> 100 Hz on the grid
+    assert len(passed) == 16 and passed[:4] == [0, 3, 5, 8]                    # 0.16 s: 16 grid points
+    d = gt.StampDecimator(0.01)
+    assert d.accept(0.0) and not d.accept(0.0089) and d.accept(0.0091, early=0.001)   # jitter tolerance
+    assert d.accept(0.5) and not d.accept(0.505) and d.accept(0.51)              # slower source: re-anchored
+    d.reset()
+    assert d.accept(0.2)
+
+
+def test_rate_window_and_new_counts():
+    w = gt.RateWindow(1.0)
+    for i in range(50):
+        w.add(10.0 + i * 0.02)
+    assert w.rate(10.99) == 50.0 and w.rate(11.5) == 25.0 and w.rate(20.0) == 0.0
+    n = gt.NewCounts()
+    assert n.news({'stale samples': 0, 'restarts': 2}) == ['2 new restarts']
+    assert n.news({'stale samples': 3, 'restarts': 2}) == ['3 new stale samples']
+    assert n.news({'stale samples': 3, 'restarts': 2}) == []

@@ -295,3 +295,38 @@ def test_reference_frames_for_set_and_get():
     assert relative.linear == pytest.approx((1.0, 0.0, 0.0))
     assert world.get_state('m', 'world')[1].position == pytest.approx((9.0, 0.0, 2.0))
     assert not world.get_state('m', 'nowhere')[0].success
+
+
+def test_advance_substeps_and_returns_contact_events_of_every_substep():
+    world = KinematicWorld()
+    world.spawn('a', box_robot('a', gravity='0'), position=(0.0, 0.0, 1.0))
+    world.spawn('b', box_robot('b', gravity='0'), position=(1.0, 0.0, 1.0))
+    world.set_state('a', (0.0, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0), linear=(20.0, 0.0, 0.0))
+    events = world.advance(0.1, 0.01)                          # 10 substeps of 0.2 m: a passes through b
+    assert world.time == pytest.approx(0.1)
+    assert [e.event for e in events] == ['begin', 'end']
+    assert all(e.time == pytest.approx(0.1) for e in events)   # stamped at the end of the advance
+    assert (events[0].model_a, events[0].model_b) == ('a', 'b') and events[0].depth > 0.0
+    record = kw.contact_record(events[1])
+    assert record == {'event': 'end', 'time': 0.1, 'model_a': 'a', 'model_b': 'b', 'geom_a': '', 'geom_b': '',
+                      'depth': 0.0}
+    world.advance(0.025, 0.01)                                 # 3 equal substeps of 8.3 ms
+    assert world.time == pytest.approx(0.125)
+
+
+def test_health_of_the_world_and_each_model():
+    from anafi_sim.interface.ground_truth import OK, WARN
+    world = KinematicWorld(ground_plane=True)
+    world.spawn('anafi', box_robot('anafi', gravity='0', collision=False))
+    health = dict(world.health([('rate', 100.0), ('cycles', 3)], overruns=0))
+    assert list(health) == ['world', 'model ground_plane', 'model anafi']
+    assert health['world'].level == OK and health['world'].message == '2 models, 0 contacts now, 0 contact events'
+    values = dict(health['world'].values)
+    assert values['rate'] == '100' and values['cycles'] == '3' and values['models'] == 'ground_plane,anafi'
+    assert values['spawned'] == '2' and values['time'] == '0'
+    anafi = health['model anafi']
+    assert anafi.level == OK and anafi.message == 'gravity off, no collision geometry'
+    assert dict(anafi.values)['gravity_links'] == '' and dict(anafi.values)['is_static'] == 'False'
+    assert health['model ground_plane'].message == 'gravity ON (link), collision geoms collision, static'
+    world_status = dict(world.health(overruns=2))['world']
+    assert world_status.level == WARN and world_status.message.endswith(', 2 overruns (running slower than rtf)')

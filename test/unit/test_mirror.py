@@ -44,17 +44,7 @@ def test_model_names_derive_from_the_drone_name():
         mirror.Mirror(drone_model_name='x', camera_model_name='x')
 
 
-# --- rotation helpers -----------------------------------------------------------------------
-
-@pytest.mark.parametrize('q, expected', [
-    (Q_IDENTITY, np.eye(3)),
-    (q_yaw(math.pi / 2), np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]])),
-    (q_yaw(math.pi), np.array([[-1, 0, 0], [0, -1, 0], [0, 0, 1]])),
-    ((math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4)), np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]])),
-])
-def test_quaternion_matrix_hand_checked(q, expected):
-    assert np.allclose(mirror.quaternion_matrix(q), expected, atol=1e-12)
-
+# --- twist rotation -------------------------------------------------------------------------
 
 def test_twist_rotation_body_to_world():
     # yaw 90 deg: body forward = world +y, body left = world -x
@@ -255,7 +245,7 @@ def test_hold_state_once_when_input_goes_stale():
     assert m.check_stale(2.5)  # a new stale episode holds again
 
 
-# --- spawn bookkeeping ----------------------------------------------------------------------
+# --- spawn bookkeeping (the tracker itself: test_spawn.py) -----------------------------------
 
 def test_nothing_is_sent_or_spawned_while_there_is_no_world():
     m = mirror.Mirror()
@@ -265,26 +255,6 @@ def test_nothing_is_sent_or_spawned_while_there_is_no_world():
     assert m.not_spawned == 1
     health = m.health(1.0)
     assert health.level == ground_truth.ERROR and 'Gazebo not available' in health.message
-
-
-def test_spawn_failure_retries_after_the_retry_period():
-    t = mirror.SpawnTracker(('a', 'b'), retry_period=1.0)
-    t.on_world(True, 'w1', 0.0)
-    assert t.due_actions(0.0) == [('spawn', 'a'), ('spawn', 'b')]
-    t.on_spawn_result('a', False, 'timeout', 0.0)
-    t.on_spawn_result('b', True, 'ok', 0.0)
-    assert t.due_actions(0.5) == []
-    assert t.due_actions(1.0) == [('spawn', 'a')]
-    assert t.spawn_failures == 1 and 'timeout' in t.last_error
-
-
-def test_existing_model_is_deleted_then_spawned():
-    t = mirror.SpawnTracker(('a',))
-    t.on_world(True, 'w1', 0.0)
-    t.on_spawn_result('a', False, 'SpawnModel: Failure - entity already exists.', 0.0)
-    assert t.due_actions(0.0) == [('delete', 'a')]
-    t.on_delete_result('a', True, 'ok', 0.1)
-    assert t.due_actions(0.1) == [('spawn', 'a')]
 
 
 def test_world_restart_by_endpoint_change_triggers_respawn():
@@ -300,32 +270,6 @@ def test_world_restart_by_endpoint_change_triggers_respawn():
         m.spawn.on_spawn_result(name, True, '', 2.1)
     assert m.spawn.world_restarts == 1 and m.spawn.respawns == 2
     assert feed(m, 2.2)
-
-
-def test_world_gone_then_back_triggers_respawn():
-    t = mirror.SpawnTracker(('a',))
-    t.on_world(True, 'w1', 0.0)
-    t.on_spawn_result('a', True, '', 0.0)
-    t.on_world(False, None, 1.0)
-    assert not t.is_spawned('a') and t.world_losses == 1
-    assert t.due_actions(1.5) == []
-    t.on_world(True, 'w2', 2.0)
-    assert t.due_actions(2.0) == [('spawn', 'a')]
-
-
-def test_model_missing_from_model_states_after_grace_triggers_respawn():
-    t = mirror.SpawnTracker(('a', 'b'), missing_grace=1.0)
-    t.on_world(True, 'w1', 0.0)
-    t.on_spawn_result('a', True, '', 0.0)
-    t.on_spawn_result('b', True, '', 0.0)
-    t.on_model_states(['b'], 0.5)  # too early to tell: model_states may lag the spawn
-    assert t.is_spawned('a')
-    t.on_model_states(['a', 'b', 'other'], 1.5)
-    assert t.all_spawned
-    t.on_model_states(['b'], 2.0)
-    assert not t.is_spawned('a') and t.is_spawned('b')
-    assert t.models_missing == 1
-    assert t.due_actions(2.0) == [('spawn', 'a')]
 
 
 def test_health_ok_when_mirroring_at_rate():
@@ -354,3 +298,16 @@ def test_frame_names_of_sensor_plugins_follow_the_drone_name():
     assert mirror.namespaced_model_xml(xml, '/anafi') == xml
     assert mirror.namespaced_model_xml(xml, 'drone2') == ('<frameName>drone2/camera_optical</frameName>'
                                                           '<cameraName>gazebo_camera</cameraName>')
+
+
+def test_model_warnings_name_gravity_and_collision_links():
+    from anafi_sim import paths
+    with open(paths.data_path('urdf', 'anafi.urdf')) as f:
+        assert mirror.model_warnings(f.read()) == []
+    xml = ('<robot name="r"><link name="body"><inertial><mass value="0.3"/></inertial>'
+           '<collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link></robot>')
+    warnings = mirror.model_warnings(xml)
+    assert len(warnings) == 2 and warnings[0].startswith('gravity ON for links body')
+    assert warnings[1].startswith('collision geometry on links body')
+    with pytest.raises(ValueError):
+        mirror.model_warnings('<robot')

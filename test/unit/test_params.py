@@ -59,3 +59,42 @@ def test_integer_range_inclusive():
         reader(port=65536).integer('port', 9060, minimum=0, maximum=65535)
     with pytest.raises(ParamError, match='<= 10'):
         reader(n=11).integer('n', 0, maximum=10)
+
+
+def test_names_lists_and_separated_strings():
+    assert reader(n=['a', 'b']).names('n', []) == ['a', 'b']
+    assert reader(n='evaluator recorder,  x').names('n', []) == ['evaluator', 'recorder', 'x']
+    assert reader().names('n', []) == []
+    for bad in ([1, 'a'], 3, None):
+        with pytest.raises(ParamError, match='~n must be a list of names'):
+            reader(n=bad).names('n', [])
+
+
+def test_command_string_or_argument_list():
+    assert reader(c='tlm-data-logger -r 0').command('c', 'x') == 'tlm-data-logger -r 0'
+    assert reader(c=['tlm', '-r', 0]).command('c', 'x') == ['tlm', '-r', 0]
+    for bad in ('  ', [], ['a', None], ['a', True], 7):
+        with pytest.raises(ParamError, match='~c must be a non-empty command'):
+            reader(c=bad).command('c', 'x')
+
+
+def test_base_name_word_and_text():
+    assert reader(d='anafi_2').base_name('d', 'anafi') == 'anafi_2'
+    for bad in ('2anafi', 'a/b', 'a b', '', 3):
+        with pytest.raises(ParamError, match='~d must be a ROS base name'):
+            reader(d=bad).base_name('d', 'anafi')
+    assert reader(w='').word('w', 'x', forbidden=':') == ''
+    assert reader(w='sphinx.').word('w', 'x', forbidden=':') == 'sphinx.'
+    for bad in ('a b', 'a:b', 3):
+        with pytest.raises(ParamError, match="~w must be a string without spaces or ':'"):
+            reader(w=bad).word('w', 'x', forbidden=':')
+    assert reader(t=7).text('t') == '7' and reader(t=None).text('t') == '' and reader().text('t', ' x ') == 'x'
+    with pytest.raises(ParamError, match='~t must be a text'):
+        reader(t=[1]).text('t')
+
+
+def test_mapping():
+    assert reader(m={'gravity': 9.81}).mapping('m') == {'gravity': 9.81}
+    assert reader().mapping('m') is None
+    with pytest.raises(ParamError, match='~m must be a mapping'):
+        reader(m=[1]).mapping('m')

@@ -133,3 +133,92 @@ def test_run_node_runs_the_node(monkeypatch):
 def test_namespace_id(monkeypatch, namespace, expected):
     monkeypatch.setattr(rospy, 'get_namespace', lambda: namespace)
     assert node.namespace_id() == expected
+
+
+# --- the level table, health statuses, the thread's options --------------------------------------
+
+def test_level_table_maps_every_core_level():
+    from anafi_sim.interface import ground_truth
+    assert node.LEVELS == {ground_truth.OK: DiagnosticStatus.OK, ground_truth.WARN: DiagnosticStatus.WARN,
+                           ground_truth.ERROR: DiagnosticStatus.ERROR}
+    health = ground_truth.Health(ground_truth.ERROR, 'stale', [('sample age [s]', '1.000')])
+    st = node.health_status('interface', health, 'anafi', [('publish errors', 0)])
+    assert (st.level, st.message, st.hardware_id) == (DiagnosticStatus.ERROR, 'stale', 'anafi')
+    assert [(kv.key, kv.value) for kv in st.values] == [('sample age [s]', '1.000'), ('publish errors', '0')]
+
+
+def test_publish_diagnostics_with_a_given_stamp(ros_time):
+    pub = FakePublisher()
+    assert node.publish_diagnostics(pub, [], stamp=rospy.Time(3, 0))
+    assert pub.sent[0].header.stamp == rospy.Time(3, 0)
+
+
+def test_diagnostics_thread_first_at_once_own_stamp_and_survives_errors(ros_time, monkeypatch):
+    errors = []
+    monkeypatch.setattr(rospy, 'logerr_throttle', lambda period, text: errors.append(text))
+    monkeypatch.setattr(rospy, 'get_name', lambda: '/anafi/x')
+    calls = []
+
+    def make_statuses():
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyError('boom')
+        return []
+
+    pub = FakePublisher(fail_at=3)
+    thread = node.start_diagnostics_thread(60.0, make_statuses, pub, stamp=lambda: rospy.Time(7, 0), first=0.0)
+    thread.join(0.5)
+    assert thread.is_alive() and len(pub.sent) == 1     # the first one at once, the next after 60 s
+    assert pub.sent[0].header.stamp == rospy.Time(7, 0)
+    pub2 = FakePublisher(fail_at=3)
+    calls[:] = []
+    thread = node.start_diagnostics_thread(0.0, make_statuses, pub2)
+    thread.join(10.0)
+    assert not thread.is_alive() and len(pub2.sent) == 2 and len(calls) == 4   # call 2 failed, logged, went on
+    assert errors == ["/anafi/x: diagnostics failed: KeyError: 'boom'"]
+
+
+@pytest.mark.parametrize('result, code', [(False, 1), (3, 3)])
+def test_run_node_exit_status_from_run(monkeypatch, result, code):
+    _stub_start_up(monkeypatch)
+
+    class Node(object):
+        def run(self):
+            return result
+
+    with pytest.raises(SystemExit) as exit_info:
+        node.run_node('x', Node)
+    assert exit_info.value.code == code
+    assert node.run_node('x', type('Ok', (), {'run': lambda self: True})) is None
+
+
+def test_run_node_passes_init_options_and_shuts_down_without_signals(monkeypatch):
+    log = []
+    monkeypatch.setattr(rospy, 'init_node', lambda name, **kw: log.append(('init', name, kw)))
+    monkeypatch.setattr(rospy, 'get_name', lambda: '/m')
+    monkeypatch.setattr(rospy, 'logfatal', lambda fmt, *args: log.append(('fatal', fmt % args)))
+    monkeypatch.setattr(rospy, 'signal_shutdown', lambda reason: log.append(('shutdown', reason)))
+
+    def factory():
+        raise ValueError('~urdf_file: no such file: x')
+
+    with pytest.raises(SystemExit) as exit_info:
+        node.run_node('m', factory, fatal_exit_code=2, disable_signals=True)
+    assert exit_info.value.code == 2
+    assert log == [('init', 'm', {'disable_signals': True}), ('fatal', '/m: bad parameters: ~urdf_file: no such '
+                                                                         'file: x'), ('shutdown', 'bad parameters')]
+
+
+def test_log_lines_and_wait_for_clock(monkeypatch):
+    log = []
+    for level in ('loginfo', 'logwarn', 'logerr'):
+        monkeypatch.setattr(rospy, level, lambda text, level=level: log.append((level, text)))
+    node.log_lines([('info', 'a'), ('warn', 'b'), ('error', 'c')])
+    assert log == [('loginfo', 'a'), ('logwarn', 'b'), ('logerr', 'c')]
+    times = iter([0.0, 0.0, 1.5])
+    monkeypatch.setattr(rospy, 'get_param', lambda name, default=None: True)
+    monkeypatch.setattr(rospy, 'is_shutdown', lambda: False)
+    monkeypatch.setattr(rospy, 'get_time', lambda: next(times))
+    node.wait_for_clock(poll=0.0)
+    with pytest.raises(StopIteration):
+        next(times)

@@ -1,0 +1,53 @@
+"""Default topic and service names, in one place for every node (ROS glue, no rospy needed).
+
+Names without a leading '/' are relative to the node's namespace, the drone's (/<drone>/, default
+/anafi/); nodes take most of them as ~params with these defaults. Gazebo's names are relative to its
+namespace (~gazebo_namespace, default /gazebo): ``gazebo(name, namespace)``.
+"""
+
+# --- the anafi_ros bridge (simulated by anafi_sim_node.py; on a real drone, anafi_ros) ----------------
+COMMAND = 'drone/rpyt'                  # olympe_bridge/PilotingCommand, in
+TAKEOFF = 'drone/takeoff'               # std_msgs/Empty, in
+LAND = 'drone/land'                     # std_msgs/Empty, in
+ESTIMATE = 'drone/odom'                 # nav_msgs/Odometry: the drone's own estimate
+POSE_ENU = 'drone/pose_enu'             # geometry_msgs/PoseStamped
+ATTITUDE = 'drone/attitude'             # geometry_msgs/QuaternionStamped
+SPEED = 'drone/speed'                   # geometry_msgs/Vector3Stamped, world ENU
+ALTITUDE = 'drone/altitude'             # std_msgs/Float32
+RPY = 'drone/rpy'                       # geometry_msgs/Vector3Stamped [deg]
+CAMERA_ATTITUDE = 'camera/attitude'     # geometry_msgs/QuaternionStamped
+DRONE_STATE = 'drone/state'             # std_msgs/String (latched): landed | taking_off | flying | landing
+SIM_TRUTH = 'sim/truth'                 # nav_msgs/Odometry: the simulator's ground truth (anafi_sim only)
+
+# --- the paper's Interface (interface_node.py) ----------------------------------------------------------
+GROUND_TRUTH = 'ground_truth/odom'      # nav_msgs/Odometry, twist in the body frame
+DRONE_DATA = 'sphinx/drone_data'        # anafi_sim/DroneData: every telemetry value
+
+# --- control and experiments ----------------------------------------------------------------------------
+WAYPOINT = 'position_control/waypoint'  # anafi_sim/Waypoint: the controllers' input
+TRAJECTORY_BEGIN = 'trajectory/begin'   # std_msgs/Header (latched): start of the measured segment
+TRAJECTORY_END = 'trajectory/end'       # std_msgs/Header (latched): its end
+TRAJECTORY_STATUS = 'trajectory/status'  # std_msgs/String (latched YAML)
+TRAJECTORY_COMMAND = 'trajectory_generator/command'  # std_msgs/String: start | stop | restart | switch NAME
+EVALUATION_SUMMARY = 'evaluation/summary'  # std_msgs/String (latched YAML)
+MPC_STATS = 'mpc/stats'                 # anafi_sim/MpcStats
+
+# --- global ---------------------------------------------------------------------------------------------
+CLOCK = '/clock'
+DIAGNOSTICS = '/diagnostics'
+
+# --- Gazebo's ROS API (gazebo_ros, or the kinematic world), relative to GAZEBO_NAMESPACE ----------------
+GAZEBO_NAMESPACE = '/gazebo'
+SPAWN_URDF_MODEL = 'spawn_urdf_model'   # service gazebo_msgs/SpawnModel
+SPAWN_SDF_MODEL = 'spawn_sdf_model'     # service gazebo_msgs/SpawnModel
+DELETE_MODEL = 'delete_model'           # service gazebo_msgs/DeleteModel
+SET_MODEL_STATE = 'set_model_state'     # service gazebo_msgs/SetModelState and topic gazebo_msgs/ModelState
+GET_MODEL_STATE = 'get_model_state'     # service gazebo_msgs/GetModelState
+GET_MODEL_PROPERTIES = 'get_model_properties'  # service gazebo_msgs/GetModelProperties
+MODEL_STATES = 'model_states'           # topic gazebo_msgs/ModelStates
+CONTACTS = 'contacts'                   # topic std_msgs/String (JSON contact events; the kinematic world)
+
+
+def gazebo(name, namespace=GAZEBO_NAMESPACE):
+    """``name`` (one of the Gazebo names above) under ``namespace``, e.g. '/gazebo/spawn_urdf_model'."""
+    return '%s/%s' % (namespace.rstrip('/'), name)

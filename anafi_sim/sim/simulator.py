@@ -1,0 +1,146 @@
+"""The simulated Anafi as the node runs it: model + estimate + command inbox + telemetry, on a SimClock
+(pure, no ROS).
+
+Stage: piloting command -> **simulated drone** -> (telemetry server, bridge-like estimate topics).
+
+``SimulatedAnafi`` takes piloting commands and take-off / landing requests from any thread
+(``on_command``, ``on_event``), applies them before the next physics step, steps the model
+(``anafi_sim.sim.drone_model``) and the drone's own estimate (``anafi_sim.sim.state_estimate``) on a
+``anafi_sim.sim.clock.SimClock``, sends the decimated ground truth to the telemetry server, and says
+what the node publishes after each step (``Step``). ``health(wall)`` sums it up for /diagnostics.
+"""
+import collections
+import math
+
+from anafi_sim.sim.bridge import bridge_estimate
+from anafi_sim.sim.clock import report_values
+from anafi_sim.sim.drone_model import FLYING
+
+Step = collections.namedtuple('Step', 't events sample estimate state clock')
+"""After one physics step: simulation time t [s]; events applied before it [(event, accepted, flight state
+after)]; sample: the ground-truth TelemetrySample to publish (None: decimated); estimate: the
+BridgeEstimate to publish (None: decimated or not ready); state: the new flight state (None: unchanged);
+clock: publish /clock at t."""
+
+Status = collections.namedtuple('Status', 'warning message values')
+"""Health for /diagnostics: warning (bool: WARN, else OK), message, (key, text) values."""
+
+WANTED_RATE_FRACTION = 0.95
+"""Physics achieved below this fraction of rate x rtf is a warning."""
+
+
+class SimulatedAnafi(object):
+    """Steps an ``AnafiModel`` and its ``StateEstimate`` on a ``SimClock``.
+
+    Piloting commands are mapped to PCMD percents with the model's ``PilotingMapping`` (the bridge's);
+    server: the ``TelemetryServer`` the ground truth goes to (None: none); auto_takeoff: take off at 0 s.
+    """
+
+    def __init__(self, model, estimate, clock, server=None, auto_takeoff=True, max_commands=1000):
+        self.model, self.estimate, self.clock = model, estimate, clock
+        self.server = server
+        self.auto_takeoff = auto_takeoff
+        self.commands = collections.deque(maxlen=max_commands)   # PCMD tuples from the callback thread
+        self.events = collections.deque(maxlen=100)              # 'takeoff' / 'land'
+        self.commands_received = 0
+        self.bad_commands = 0
+        self._bad_reported = 0
+        self._last_state = None
+
+    # ------------------------------------------------------------ inputs (any thread)
+    def on_command(self, roll_deg, pitch_deg, yaw_rate_deg, gaz):
+        """A piloting command (ROS units); False when refused (non-finite), counted."""
+        values = (roll_deg, pitch_deg, yaw_rate_deg, gaz)
+        if not all(math.isfinite(v) for v in values):
+            self.bad_commands += 1
+            return False
+        self.commands_received += 1
+        self.commands.append(self.model.mapping.to_pcmd(*values))
+        return True
+
+    def on_event(self, event):
+        """'takeoff' or 'land', applied before the next step."""
+        if event not in ('takeoff', 'land'):
+            raise ValueError("event must be 'takeoff' or 'land', got %r" % (event,))
+        self.events.append(event)
+
+    # ------------------------------------------------------------ loop
+    def start(self, wall):
+        """Time 0 at wall time ``wall`` [s] (takes off with ``auto_takeoff``)."""
+        if self.auto_takeoff:
+            self.model.takeoff(0.0)
+        self.clock.start(wall)
+
+    def step(self):
+        """Apply the pending inputs, one physics step, the estimate; returns the ``Step``."""
+        model, t = self.model, self.clock.t
+        applied = []
+        events = self.events
+        while events:
+            event = events.popleft()
+            accepted = model.takeoff(t) if event == 'takeoff' else model.land(t)
+            applied.append((event, accepted, model.state))
+        commands = self.commands
+        while commands:
+            pcmd = commands.popleft()
+            model.set_command(pcmd[0], pcmd[1], pcmd[2], pcmd[3], t)
+        model.step(self.clock.dt, t)
+        tick = self.clock.tick()
+        t = tick.t
+        self.estimate.update(t, model.x, model.y, model.z, model.vx, model.vy, model.vz,
+                             model.roll, model.pitch, model.yaw)
+        sample = None
+        if tick.telemetry:
+            sample = model.truth_sample(t)
+            if self.server is not None:
+                self.server.publish(sample)
+        estimate = None
+        if tick.estimate:
+            values = self.estimate.values()
+            if values is not None:
+                estimate = bridge_estimate(values, model.gimbal_pitch_command)
+        state = None
+        if model.state != self._last_state:
+            state = self._last_state = model.state
+        return Step(t, applied, sample, estimate, state, tick.clock)
+
+    def pace(self, wall):
+        """Seconds to sleep after a step at wall time ``wall`` (real-time pacing)."""
+        return self.clock.pace(wall)
+
+    # ------------------------------------------------------------ health
+    def health(self, wall):
+        """``Status`` since the previous call: achieved rates, flight state, commands, telemetry clients."""
+        report = self.clock.report(wall)
+        model = self.model
+        problems = []
+        if report.achieved_rate < WANTED_RATE_FRACTION * report.wanted_rate:
+            problems.append('physics %.0f Hz of wall time, wanted %.0f' % (report.achieved_rate, report.wanted_rate))
+        bad = self.bad_commands
+        if bad > self._bad_reported:
+            problems.append('%d non-finite commands ignored' % (bad - self._bad_reported))
+        self._bad_reported = bad
+        state = model.state
+        if problems:
+            message = '; '.join(problems)
+        elif state == FLYING and not model.commanding:
+            message = 'flying, hovering (no piloting command)'
+        else:
+            message = state
+        age = model.command_age(report.sim_time)
+        values = report_values(report) + [
+            ('flight state', state),
+            ('commanding', str(model.commanding)),
+            ('command age [s sim]', 'none' if math.isinf(age) else '%.3f' % age),
+            ('commands received', str(self.commands_received)),
+            ('bad commands (non-finite, ignored)', str(bad)),
+        ]
+        server = self.server
+        if server is not None:
+            values += [
+                ('telemetry clients', str(server.client_count)),
+                ('telemetry clients dropped (slow)', str(server.clients_dropped_slow)),
+                ('telemetry clients disconnected', str(server.clients_disconnected)),
+                ('telemetry port', str(server.port)),
+            ]
+        return Status(bool(problems), message, values)

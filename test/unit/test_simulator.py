@@ -1,0 +1,114 @@
+"""anafi_sim.sim.simulator: the simulated Anafi's step (inputs, decimated outputs, flight states) and health."""
+import math
+
+import pytest
+
+from anafi_control import frames
+from anafi_sim.experiments import monitor
+from anafi_sim.sim.bridge import BridgeEstimate, PilotingMapping, bridge_estimate
+from anafi_sim.sim.clock import SimClock
+from anafi_sim.sim.drone_model import FLYING, LANDED, TAKING_OFF, AnafiModel, load_model_params
+from anafi_sim.sim.simulator import SimulatedAnafi
+from anafi_sim.sim.state_estimate import StateEstimate
+
+
+class FakeServer(object):
+    port = 9060
+    client_count = 1
+    clients_dropped_slow = 0
+    clients_disconnected = 2
+
+    def __init__(self):
+        self.samples = []
+
+    def publish(self, sample):
+        self.samples.append(sample)
+
+
+def simulator(auto_takeoff=True, server=None, rtf=1.0):
+    mapping = PilotingMapping()
+    model = AnafiModel(load_model_params(), mapping=mapping, seed=0)
+    sim = SimulatedAnafi(model, StateEstimate(model.params),
+                         SimClock(200.0, rtf, telemetry_rate=100.0, estimate_rate=30.0, publish_clock=True),
+                         server=server, auto_takeoff=auto_takeoff)
+    sim.start(0.0)
+    return sim
+
+
+def steps(sim, n):
+    return [sim.step() for _ in range(n)]
+
+
+def test_steps_take_off_and_decimate_the_outputs():
+    server = FakeServer()
+    sim = simulator(server=server)
+    out = steps(sim, 400)                                      # 2 s
+    assert out[-1].t == pytest.approx(2.0) and all(s.clock for s in out)
+    assert out[0].state == TAKING_OFF and FLYING in [s.state for s in out if s.state]
+    samples = [s.sample for s in out if s.sample is not None]
+    assert len(samples) == 201 and server.samples == samples  # 100 Hz, also to the telemetry server
+    assert samples[-1].timestamp == pytest.approx(2.0)
+    estimates = [s.estimate for s in out if s.estimate is not None]
+    assert 50 <= len(estimates) <= 61 and isinstance(estimates[-1], BridgeEstimate)
+
+
+def test_commands_apply_at_the_next_step_and_non_finite_ones_are_refused():
+    sim = simulator(auto_takeoff=False)
+    sim.model.reset(0.0, 0.0, 5.0, 0.0, flying=True)
+    assert sim.on_command(float('nan'), 0.0, 0.0, 0.0) is False
+    assert sim.bad_commands == 1 and not sim.commands
+    assert sim.on_command(0.0, 10.0, 0.0, 0.5) is True
+    assert list(sim.commands) == [sim.model.mapping.to_pcmd(0.0, 10.0, 0.0, 0.5)]
+    sim.step()
+    assert not sim.commands and sim.model.last_pcmd == sim.model.mapping.to_pcmd(0.0, 10.0, 0.0, 0.5)
+    assert sim.commands_received == 1 and sim.model.command_age(sim.clock.t) == pytest.approx(0.005)
+    for _ in range(200):                                        # a command stream (the hover brake needs one)
+        sim.on_command(0.0, 10.0, 0.0, 0.5)
+        sim.step()
+    assert sim.model.commanding and sim.model.vx > 0.1          # pitch down: flies forward
+
+
+def test_take_off_and_landing_requests_are_applied_and_reported():
+    sim = simulator(auto_takeoff=False)
+    assert sim.step().state == LANDED
+    sim.on_event('takeoff')
+    step = sim.step()
+    assert step.events == [('takeoff', True, TAKING_OFF)] and step.state == TAKING_OFF
+    while sim.model.state != FLYING:
+        sim.step()
+    sim.on_event('takeoff')
+    assert sim.step().events == [('takeoff', False, FLYING)]   # already flying: ignored
+    with pytest.raises(ValueError):
+        sim.on_event('flip')
+
+
+def test_bridge_estimate_numbers():
+    values = (1.0, 2.0, 3.0, 1.0, 0.0, 0.5, 0.1, -0.2, math.pi / 2)
+    e = bridge_estimate(values, gimbal_pitch=-0.3)
+    assert e.position == (1.0, 2.0, 3.0) and e.velocity == (1.0, 0.0, 0.5)
+    assert e.orientation == frames.euler_to_quaternion(0.1, -0.2, math.pi / 2)
+    assert e.body_velocity == pytest.approx(frames.world_to_body(0.1, -0.2, math.pi / 2, (1.0, 0.0, 0.5)))
+    assert e.rpy_deg == pytest.approx((math.degrees(0.1), math.degrees(-0.2), 90.0))
+    assert e.camera_orientation == frames.euler_to_quaternion(0.0, -0.3, math.pi / 2)
+
+
+def test_health_values_and_warnings():
+    server = FakeServer()
+    sim = simulator(server=server)
+    steps(sim, 200)
+    health = sim.health(1.0)                                    # 200 steps in 1 s of wall: on rate
+    values = dict(health.values)
+    assert not health.warning
+    assert values[monitor.SIM_RTF_KEY] == '1.000' and values[monitor.SIM_OVERRUNS_KEY] == '0'
+    assert values['physics rate achieved [Hz wall]'] == '200.0' and values['flight state'] == sim.model.state
+    assert values['telemetry clients'] == '1' and values['telemetry clients disconnected'] == '2'
+    assert values['command age [s sim]'] == 'none'
+    sim.on_command(float('inf'), 0.0, 0.0, 0.0)
+    steps(sim, 100)
+    health = sim.health(2.0)                                    # 100 steps in 1 s: half the rate
+    assert health.warning
+    assert health.message == 'physics 100 Hz of wall time, wanted 200; 1 non-finite commands ignored'
+    steps(sim, 200)
+    health = sim.health(3.0)
+    assert not health.warning and health.message in (FLYING, 'flying, hovering (no piloting command)')
+    assert 'telemetry port' not in dict(simulator().health(1.0).values)   # no server: no telemetry values

@@ -51,17 +51,18 @@ Safety: non-finite input -> the cycle is not fed to any loop, all loops are
 reset (no garbage in filters/integrals; the next good cycle is a first
 computation) and ``command()`` returns hover (0, 0, 0, 0) until a good cycle
 produced new efforts. Before the first good cycle ``command()`` is hover.
-Timeouts (stale state / waypoint) are the node's business: it calls
-``hover()`` or simply publishes ``HOVER``.
+Timeouts (stale state / waypoint) are the input gate's business:
+``PidTracking`` is the framework behind the controller contract
+(``anafi_control.contract``: the one input gate, ``cycle`` at 30 Hz, the
+command sent at 10 Hz), as the single-process ``pid_framework`` node runs it.
 """
 import collections
 import copy
 import math
 
+from anafi_control.contract import BAD_STATE, HOVER, OK, Controller, CycleOutput, hover_output
 from anafi_control.frames import is_finite, world_to_stability
 from anafi_control.pid import PidController
-
-HOVER = (0.0, 0.0, 0.0, 0.0)
 
 LOOP_NAMES = ('x_outer', 'x_inner', 'y_outer', 'y_inner', 'vertical', 'yaw')
 
@@ -210,3 +211,39 @@ class PidFramework(object):
         self.enabled = bool(enabled)
         for loop in self.loops.values():
             loop.set_enabled(enabled)
+
+
+#: defaults of the single-process framework node (pid.launch sets the same values)
+DEFAULTS = {
+    'rate': 30.0,               # [Hz] relative-state cycle (every loop stepped once)
+    'command_rate': 10.0,       # [Hz] PilotingCommand output
+    'state_timeout': 0.5,       # [s] state older than this -> hover
+    'waypoint_timeout': 1.0,    # [s] waypoint older than this -> hover; 0 = never stale
+}
+
+
+class PidTracking(Controller):
+    """The paper's PID framework behind the controller contract (the single-process ``pid_framework`` node).
+
+    ``cycle(t)`` at ``RATE`` (30 Hz) is one relative-state cycle: the input gate, then every loop once
+    (``PidFramework.update``); its command is ``PidFramework.command()`` (hover until the loops produced
+    efforts, e.g. on the first cycle after a reset); the node sends ``last.command`` at ``COMMAND_RATE``
+    (10 Hz). A hover cycle resets the loops (``PidFramework.hover``). ``result`` is the RelativeState.
+    ``config``: {loop: {pid param: value}} overriding DEFAULT_CONFIG; bad values raise ValueError.
+    """
+    NAME = 'pid'
+    RATE = DEFAULTS['rate']
+    COMMAND_RATE = DEFAULTS['command_rate']
+
+    def __init__(self, config=None, state_timeout=DEFAULTS['state_timeout'],
+                 waypoint_timeout=DEFAULTS['waypoint_timeout']):
+        self.framework = PidFramework(config)
+        Controller.__init__(self, state_timeout, waypoint_timeout, 'child')
+
+    def _compute(self, t, inputs):
+        if not self.framework.update(t, inputs.pos, inputs.vel, inputs.yaw, inputs.waypoint):
+            return hover_output(BAD_STATE, ' (refused by the framework)')     # not after the gate's checks
+        return CycleOutput(self.framework.command(), True, OK, OK, self.framework.state)
+
+    def _hover(self, out):
+        self.framework.hover()

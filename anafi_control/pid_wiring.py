@@ -11,24 +11,19 @@ node (10 Hz). This module holds what those nodes decide, so they stay thin:
   package user wires a cascade); ``COMMAND_LOOPS``: which loop's effort is
   which PilotingCommand field. ``loop_topics(loop)`` gives the four topic
   names of a loop relative to the PID namespace (``<drone>/pid``).
-* ``odometry_state``: nav_msgs/Odometry numbers (pose in the world frame,
-  twist in the child = body frame) -> world position [m], world velocity
-  [m/s], heading [rad].
-* ``InputGate``: last state / waypoint with receive times; ``step(t)`` says
-  whether a relative-state cycle may run or why the framework must hover
-  (no input yet, stale, non-finite).
+* The relative-state node gates its inputs with the controller contract's
+  ``anafi_control.contract.InputGate`` (the same rules as every controller).
 * ``CommandAssembler``: last effort of each command loop with its time;
   ``command(t)`` = PilotingCommand tuple (roll, pitch [deg], yaw rate
   [deg/s], gaz [m/s]) or hover (zeros) with the reason.
 
-Times are seconds on the caller's clock (ROS time in the nodes). A clock
-that goes backwards (simulation restarted) drops all held inputs.
+Times are seconds on the caller's clock (ROS time in the nodes).
 """
 import collections
-import math
 
-from anafi_control.frames import is_finite, rotation_matrix, quaternion_to_euler
-from anafi_control.pid_framework import HOVER, LOOP_NAMES
+from anafi_control.contract import HOVER, check_timeout
+from anafi_control.frames import is_finite
+from anafi_control.pid_framework import LOOP_NAMES
 
 #: (loop, 'setpoint' | 'state', RelativeState field or None for the constant 0)
 #: published by the relative-state node, outer loops first. Position loops get
@@ -91,149 +86,6 @@ def loop_inputs(rel):
         value = 0.0 if field is None else float(getattr(rel, field))
         out.append(('%s/%s' % (loop, kind), value))
     return out
-
-
-def odometry_state(position, orientation, body_velocity):
-    """(pos, vel_world, yaw) from Odometry numbers, or None if non-finite / not a rotation.
-
-    position (x, y, z) [m] world; orientation quaternion (x, y, z, w) of the
-    body in the world (normalised here; norm 0 refused); body_velocity
-    (vx, vy, vz) [m/s] in the child (body) frame, rotated to the world here.
-    """
-    try:
-        px, py, pz = (float(v) for v in position)
-        qx, qy, qz, qw = (float(v) for v in orientation)
-        bx, by, bz = (float(v) for v in body_velocity)
-    except (TypeError, ValueError):
-        return None
-    if not is_finite(px, py, pz, qx, qy, qz, qw, bx, by, bz):
-        return None
-    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-    if norm < 1e-6:
-        return None
-    roll, pitch, yaw = quaternion_to_euler(qx / norm, qy / norm, qz / norm, qw / norm)
-    r = rotation_matrix(roll, pitch, yaw)
-    vel = tuple(float(r[i, 0] * bx + r[i, 1] * by + r[i, 2] * bz) for i in range(3))
-    return (px, py, pz), vel, yaw
-
-
-# -- relative-state input gate ------------------------------------------------------------
-#: reasons for hovering (also the diagnostic messages)
-NO_STATE = 'no state received yet'
-NO_WAYPOINT = 'no waypoint received yet'
-STALE_STATE = 'stale state'
-STALE_WAYPOINT = 'stale waypoint'
-BAD_STATE = 'non-finite state'
-BAD_WAYPOINT = 'non-finite waypoint'
-
-
-def gate_health(reason):
-    """(is_warning, message) of an input gate's last hover reason (None = tracking).
-
-    Waiting for the first waypoint is normal (not a warning); any other hover reason is.
-    """
-    if reason is None:
-        return False, 'tracking'
-    return reason != NO_WAYPOINT, 'hovering: %s' % reason
-
-
-Inputs = collections.namedtuple('Inputs', ['pos', 'vel', 'yaw', 'waypoint'])
-Inputs.__doc__ = 'Drone position [m], world velocity [m/s], heading [rad], waypoint (x,y,z,vx,vy,vz,yaw_deg).'
-
-
-def check_timeout(name, value, allow_zero=False):
-    """A timeout parameter [s]: finite and > 0 (or == 0 with allow_zero: 'never stale'); ValueError else."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or value < 0.0 or (value == 0.0 and not allow_zero):
-        raise ValueError('%s must be a finite number %s 0 [s], got %r'
-                         % (name, '>=' if allow_zero else '>', value))
-    return float(value)
-
-
-class InputGate(object):
-    """Holds the latest state and waypoint; decides per cycle: run (Inputs) or hover (reason).
-
-    ``state_timeout`` [s] > 0; ``waypoint_timeout`` [s] >= 0, 0 = a waypoint
-    never goes stale (a single static waypoint is held). A non-finite sample
-    replaces the held one as 'bad' (hover until a good one arrives; garbage
-    is never forwarded) and is counted.
-    """
-
-    def __init__(self, state_timeout=0.5, waypoint_timeout=1.0):
-        self.state_timeout = check_timeout('state_timeout', state_timeout)
-        self.waypoint_timeout = check_timeout('waypoint_timeout', waypoint_timeout, allow_zero=True)
-        self.state = None          # (pos, vel, yaw) or False for a bad sample
-        self.state_time = None
-        self.waypoint = None       # 7-tuple or False
-        self.waypoint_time = None
-        self.bad_states = 0
-        self.bad_waypoints = 0
-        self.clock_jumps = 0
-        self.cycles = 0
-        self.hover_cycles = 0
-        self.last_reason = NO_WAYPOINT
-
-    def on_state(self, t, position, orientation, body_velocity):
-        """A state sample (Odometry numbers) received at t; False if refused (non-finite)."""
-        self._check_clock(t)
-        state = odometry_state(position, orientation, body_velocity)
-        self.state_time = t
-        if state is None:
-            self.bad_states += 1
-            self.state = False
-            return False
-        self.state = state
-        return True
-
-    def on_waypoint(self, t, waypoint):
-        """A waypoint (x, y, z, vx, vy, vz, yaw_deg) received at t; False if refused."""
-        self._check_clock(t)
-        self.waypoint_time = t
-        try:
-            wp = tuple(float(v) for v in waypoint)
-        except (TypeError, ValueError):
-            wp = ()
-        if len(wp) != 7 or not is_finite(*wp):
-            self.bad_waypoints += 1
-            self.waypoint = False
-            return False
-        self.waypoint = wp
-        return True
-
-    def _check_clock(self, t):
-        for held in (self.state_time, self.waypoint_time):
-            if held is not None and t < held:
-                self.clock_jumps += 1
-                self.state = self.waypoint = None
-                self.state_time = self.waypoint_time = None
-                return
-
-    def step(self, t):
-        """(Inputs, None) when a cycle may run at time t, else (None, reason) -> hover."""
-        self._check_clock(t)
-        self.cycles += 1
-        reason = self._reason(t)
-        self.last_reason = reason
-        if reason is not None:
-            self.hover_cycles += 1
-            return None, reason
-        pos, vel, yaw = self.state
-        return Inputs(pos, vel, yaw, self.waypoint), None
-
-    def _reason(self, t):
-        if self.state is None:
-            return NO_STATE
-        if self.state is False:
-            return BAD_STATE
-        if t - self.state_time > self.state_timeout:
-            return STALE_STATE
-        if self.waypoint is None:
-            return NO_WAYPOINT
-        if self.waypoint is False:
-            return BAD_WAYPOINT
-        if self.waypoint_timeout > 0.0 and t - self.waypoint_time > self.waypoint_timeout:
-            return STALE_WAYPOINT
-        return None
 
 
 # -- command assembly ---------------------------------------------------------------------

@@ -44,7 +44,7 @@ import math
 
 import numpy as np
 
-from anafi_control.frames import quaternion_to_euler, rotation_matrix
+from anafi_control.frames import odometry_to_world, odometry_twist_frame
 from anafi_sim.experiments import reference_log
 from anafi_sim.experiments.reference_log import (COLUMNS, STATE_NAMES, WAYPOINT_COLUMNS, GarbageReport, ReferenceLog,
                                      detect_garbage, error_stats, read_log)
@@ -93,27 +93,16 @@ def waypoint_from_msg(msg):
 def state_from_odometry(msg):
     """(x, y, z, vx, vy, vz, roll, pitch, yaw) of a nav_msgs/Odometry: ENU world, SI, rad.
 
-    The twist is in ``child_frame_id`` (REP: the body frame, rotated into the
-    world by the pose's orientation); when child_frame_id is empty or equals
-    header.frame_id it is taken as already in the world frame.
+    ``anafi_control.frames.odometry_to_world`` with the twist frame picked from the message's frame names
+    (``odometry_twist_frame``: the twist is in ``child_frame_id`` unless that is empty or equals
+    header.frame_id), keeping the values it cannot compute as NaN (reported per column as garbage).
     """
-    p = msg.pose.pose.position
-    q = msg.pose.pose.orientation
-    v = msg.twist.twist.linear
-    qn = math.sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w)
-    if qn > 0.0 and math.isfinite(qn):
-        roll, pitch, yaw = quaternion_to_euler(q.x / qn, q.y / qn, q.z / qn, q.w / qn)
-    else:
-        roll = pitch = yaw = float('nan')
-    vel = (float(v.x), float(v.y), float(v.z))
-    child = getattr(msg, 'child_frame_id', '') or ''
+    p, q, v = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist.linear
     parent = getattr(getattr(msg, 'header', None), 'frame_id', '') or ''
-    if child and child != parent:
-        if math.isfinite(roll + pitch + yaw):
-            vel = tuple(float(c) for c in rotation_matrix(roll, pitch, yaw).dot(vel))
-        else:
-            vel = (float('nan'),) * 3
-    return (float(p.x), float(p.y), float(p.z)) + vel + (roll, pitch, yaw)
+    twist_frame = odometry_twist_frame(parent, getattr(msg, 'child_frame_id', '') or '')
+    pos, vel, rpy = odometry_to_world((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), (v.x, v.y, v.z), twist_frame,
+                                      partial=True)
+    return pos + vel + rpy
 
 
 # ---------------------------------------------------------------- alignment

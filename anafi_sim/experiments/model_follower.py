@@ -24,6 +24,7 @@ difference estimate.
 """
 import math
 
+from anafi_control.frames import normalize_quaternion, yaw_from_quaternion
 from anafi_sim.experiments.trajectory import WaypointSample
 
 VELOCITY_SOURCES = ('auto', 'twist', 'difference')
@@ -32,9 +33,8 @@ YAW_MODES = ('heading', 'face', 'fixed')
 MOVING_SPEED = 0.05   # m/s: a target moving faster than this with an all-zero twist has no twist
 
 
-def yaw_of_quaternion(x, y, z, w):
-    """Yaw [rad] (rotation about world z) of a quaternion (x, y, z, w)."""
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+#: yaw [rad] (rotation about world z) of a quaternion (x, y, z, w)
+yaw_of_quaternion = yaw_from_quaternion
 
 
 def _finite(values):
@@ -103,12 +103,11 @@ class ModelFollower(object):
         if len(position) != 3 or len(orientation) != 4 or not _finite((t,) + position + orientation):
             self.rejected += 1
             return None
-        norm = math.sqrt(sum(q * q for q in orientation))
-        if norm < 1e-9:
+        try:
+            yaw = yaw_from_quaternion(*normalize_quaternion(orientation))
+        except ValueError:
             self.rejected += 1
             return None
-        qx, qy, qz, qw = (q / norm for q in orientation)
-        yaw = yaw_of_quaternion(qx, qy, qz, qw)
         dx, dy, dz = self.world_offset(yaw)
         wp = (position[0] + dx, position[1] + dy, position[2] + dz)
 

@@ -1,5 +1,12 @@
-"""geometry_msgs builders shared by the nodes (ROS glue)."""
+"""Message conversions shared by the nodes (ROS glue): geometry_msgs builders, the one nav_msgs/Odometry ->
+numbers conversion (``anafi_control.frames.odometry_to_world`` on the message's fields), and the controllers'
+inputs (Odometry + Waypoint -> ``on_state`` / ``on_waypoint`` of a controller or an input gate)."""
+import rospy
 from geometry_msgs.msg import Pose, Twist
+from nav_msgs.msg import Odometry
+
+from anafi_control import frames
+from anafi_sim.msg import Waypoint
 
 
 def pose(position, orientation):
@@ -16,3 +23,47 @@ def twist(linear, angular):
     t.linear.x, t.linear.y, t.linear.z = linear
     t.angular.x, t.angular.y, t.angular.z = angular
     return t
+
+
+def odometry_numbers(msg):
+    """(position (x, y, z), orientation (x, y, z, w), linear twist (x, y, z)) of a nav_msgs/Odometry, as
+    stored (pose in header.frame_id, twist in child_frame_id): what ``Controller.on_state`` takes."""
+    p, q, v = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist.linear
+    return (p.x, p.y, p.z), (q.x, q.y, q.z, q.w), (v.x, v.y, v.z)
+
+
+def odometry_state(msg, twist_frame=None):
+    """(position, world velocity, (roll, pitch, yaw)) of a nav_msgs/Odometry, or None when unusable.
+
+    ``twist_frame`` 'child' or 'world'; None = from the message's frame names
+    (``anafi_control.frames.odometry_twist_frame``)."""
+    if twist_frame is None:
+        twist_frame = frames.odometry_twist_frame(msg.header.frame_id, msg.child_frame_id)
+    return frames.odometry_to_world(*odometry_numbers(msg), twist_frame=twist_frame)
+
+
+def waypoint_numbers(msg):
+    """(x, y, z [m], vx, vy, vz [m/s], yaw [deg]) of an anafi_sim/Waypoint: what ``on_waypoint`` takes."""
+    return (msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz, msg.yaw)
+
+
+def subscribe_inputs(target, lock, state_topic, waypoint_topic):
+    """Feed ``target.on_state`` / ``target.on_waypoint`` (an ``anafi_control.contract`` Controller or
+    InputGate) from nav_msgs/Odometry on ``state_topic`` and anafi_sim/Waypoint on ``waypoint_topic``, with
+    the ROS time of receipt, under ``lock``. A refused sample is logged (throttled, with the count of
+    ``target.counters``). Returns the resolved (state topic, waypoint topic)."""
+    resolved = rospy.resolve_name(state_topic), rospy.resolve_name(waypoint_topic)
+
+    def feed(kind, numbers, topic):
+        with lock:
+            ok = getattr(target, 'on_' + kind)(rospy.get_time(), *numbers)
+            refused = target.counters['rejected_%ss' % kind]
+        if not ok:
+            rospy.logwarn_throttle(5.0, '%s: unusable %s on %s refused (%d so far): hovering'
+                                   % (rospy.get_name(), kind, topic, refused))
+
+    rospy.Subscriber(state_topic, Odometry, lambda m: feed('state', odometry_numbers(m), resolved[0]),
+                     queue_size=5, tcp_nodelay=True)
+    rospy.Subscriber(waypoint_topic, Waypoint, lambda m: feed('waypoint', (waypoint_numbers(m),), resolved[1]),
+                     queue_size=5, tcp_nodelay=True)
+    return resolved

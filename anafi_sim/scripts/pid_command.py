@@ -17,11 +17,12 @@ reported on /diagnostics (1 Hz wall). Bad parameters: logfatal, exit code 1.
 import threading
 
 import rospy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler
-from anafi_sim.ros.node import (diagnostic_status, namespace_id, private_params, run_node,
+from anafi_sim.ros import topics
+from anafi_sim.ros.node import (diagnostic_status, diagnostics_publisher, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
 from anafi_sim.ros.wire_types import piloting_command_class
 
@@ -32,13 +33,13 @@ class PidCommandNode(object):
         self.rate = p.positive('rate', 10.0)
         self.assembler = CommandAssembler(p.positive('effort_timeout', 0.5))
         pid_ns = p.ros_name('pid_namespace', 'pid')
-        command_topic = p.ros_name('command_topic', 'drone/rpyt')
+        command_topic = p.ros_name('command_topic', topics.COMMAND)
         self.frame_id = p.string('frame_id', '')
         self.lock = threading.Lock()
         self.last_hovers = 0       # hover commands at the previous diagnostic
         self.cls = piloting_command_class()
         self.pub = rospy.Publisher(command_topic, self.cls, queue_size=10)
-        self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
+        self.pub_diag = diagnostics_publisher()
         for field, loop in COMMAND_LOOPS.items():
             rospy.Subscriber('%s/%s/control_effort' % (pid_ns, loop), Float64,
                              self._on_effort, callback_args=field, queue_size=10)

@@ -29,13 +29,14 @@ import threading
 import time
 
 import rospy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from dynamic_reconfigure.server import Server
 from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid import PidController, join_gain, split_gain
 from anafi_sim.cfg import PidConfig
-from anafi_sim.ros.node import diagnostic_status, private_params, run_node, start_diagnostics_thread
+from anafi_sim.ros.node import (diagnostic_status, diagnostics_publisher, private_params, run_node,
+                                start_diagnostics_thread)
 
 COALESCE_WINDOW = 0.001     # s of wall time: the pid package's loop sleep
 NUMBER_PARAMS = (('Kp', 1.0), ('Ki', 0.0), ('Kd', 0.0), ('upper_limit', 1000.0),
@@ -78,7 +79,7 @@ class PidControllerNode(object):
         self.rate_count = 0
         self.rate_count_seen = False
         self.pub = rospy.Publisher(self.topics['topic_from_controller'], Float64, queue_size=10)
-        self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
+        self.pub_diag = diagnostics_publisher()
         self.server = Server(PidConfig, self._on_reconfigure)
         rospy.Subscriber(self.topics['topic_from_plant'], Float64, self._on_state, queue_size=10)
         rospy.Subscriber(self.topics['setpoint_topic'], Float64, self._on_setpoint, queue_size=10)

@@ -70,3 +70,68 @@ def test_is_finite():
     assert not frames.is_finite(1.0, float('nan'))
     assert not frames.is_finite(float('inf'))
     assert not frames.is_finite(None)
+
+
+# -- the one Odometry -> numbers conversion --------------------------------------------------
+NAN = float('nan')
+LEVEL = (0.0, 0.0, 0.0, 1.0)
+
+
+def test_normalize_quaternion():
+    assert frames.normalize_quaternion((0, 0, 2.0, 0)) == (0.0, 0.0, 1.0, 0.0)
+    for bad in [(0, 0, 0, 0), (0, 0, 0, NAN), (0, 0, 0, float('inf')), (0, 0, 1), None, 'abcd']:
+        with pytest.raises(ValueError):
+            frames.normalize_quaternion(bad)
+    with pytest.raises(ValueError):
+        frames.normalize_quaternion((0, 0, 0, 1e-7), min_norm=1e-6)
+
+
+@pytest.mark.parametrize('roll,pitch,yaw,body,world', [
+    (0.0, 0.0, 0.0, (1.0, 2.0, 3.0), (1.0, 2.0, 3.0)),
+    (0.0, 0.0, 90.0, (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)),        # nose north: forward = +y
+    (0.0, 0.0, 180.0, (1.0, 1.0, 0.0), (-1.0, -1.0, 0.0)),
+    (0.0, 30.0, 0.0, (1.0, 0.0, 0.0), (math.cos(math.radians(30)), 0.0, -math.sin(math.radians(30)))),
+    (20.0, 0.0, -90.0, (0.0, 1.0, 0.0), (math.cos(math.radians(20)), 0.0, math.sin(math.radians(20)))),
+])
+def test_odometry_child_twist_is_rotated_from_body_to_world(roll, pitch, yaw, body, world):
+    rpy = (math.radians(roll), math.radians(pitch), math.radians(yaw))
+    pos, vel, angles = frames.odometry_to_world((1.0, 2.0, 3.0), frames.euler_to_quaternion(*rpy), body)
+    assert pos == (1.0, 2.0, 3.0)
+    assert vel == pytest.approx(world, abs=1e-12)
+    assert angles == pytest.approx(rpy, abs=1e-12)
+    # a world twist is taken as is
+    _, vel, _ = frames.odometry_to_world((1.0, 2.0, 3.0), frames.euler_to_quaternion(*rpy), body, 'world')
+    assert vel == body
+
+
+def test_odometry_normalises_the_quaternion():
+    q = (0.0, 0.0, 2.0 * math.sin(0.25), 2.0 * math.cos(0.25))
+    _, vel, (roll, pitch, yaw) = frames.odometry_to_world((0, 0, 0), q, (1, 0, 0))
+    assert yaw == pytest.approx(0.5) and vel == pytest.approx((math.cos(0.5), math.sin(0.5), 0.0))
+
+
+@pytest.mark.parametrize('args', [
+    ((0, NAN, 0), LEVEL, (0, 0, 0)),
+    ((0, 0, 0), (0, 0, 0, 0), (0, 0, 0)),               # zero quaternion: not a rotation
+    ((0, 0, 0), (0, 0, 0, 1e-9), (0, 0, 0)),
+    ((0, 0, 0), (0, 0, 0, float('inf')), (0, 0, 0)),
+    ((0, 0, 0), LEVEL, (0, 0, NAN)),
+    ((0, 0, 0), LEVEL, (float('inf'), 0, 0)),
+    ((0, 0), LEVEL, (0, 0, 0)),
+    (None, LEVEL, (0, 0, 0)),
+    ((0, 0, 0), (0, 0, 1), (0, 0, 0)),
+])
+@pytest.mark.parametrize('twist_frame', frames.TWIST_FRAMES)
+def test_odometry_refuses_unusable_input(args, twist_frame):
+    assert frames.odometry_to_world(*args, twist_frame=twist_frame) is None
+
+
+def test_odometry_partial_marks_what_cannot_be_computed():
+    pos, vel, rpy = frames.odometry_to_world((1, NAN, 3), (0, 0, 0, 0), (1, 2, 3), partial=True)
+    assert pos[0] == 1.0 and math.isnan(pos[1]) and all(math.isnan(v) for v in vel + rpy)
+    pos, vel, rpy = frames.odometry_to_world((1, 2, 3), (0, 0, 0, 0), (1, 2, 3), 'world', partial=True)
+    assert vel == (1.0, 2.0, 3.0) and all(math.isnan(a) for a in rpy)
+    pos, vel, rpy = frames.odometry_to_world((1, 2, 3), LEVEL, (NAN, 0, 0), partial=True)
+    assert rpy == (0.0, 0.0, 0.0) and math.isnan(vel[0])
+    with pytest.raises(ValueError):
+        frames.odometry_to_world((1, 2, 3), LEVEL, (0, 0, 0), 'body')

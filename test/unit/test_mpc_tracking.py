@@ -1,14 +1,15 @@
-"""anafi_control.mpc_tracking: odometry twist body -> world, the mpc_controller cycle (inputs, staleness,
-solver failure, hover and recovery, counters), the yaw PID (Table 2 via the PID framework config), live
-reconfiguration, and a closed loop on a simple attitude-driven point mass (sign chain end to end)."""
+"""anafi_control.mpc_tracking: the mpc_controller cycle (inputs, staleness, solver failure, hover and
+recovery, counters; the contract's shared cases are in test_contract.py), the twist frame option, the yaw PID
+(Table 2 via the PID framework config), live reconfiguration, and a closed loop on a simple attitude-driven
+point mass (sign chain end to end)."""
 import math
 
 import numpy as np
 import pytest
 
 from anafi_control.frames import euler_to_quaternion, wrap_angle
-from anafi_control.mpc_tracking import (HOVER, MpcTracking, mpc_params_from_flat, odometry_to_world,
-                                        predicted_positions, reference_positions)
+from anafi_control.contract import HOVER
+from anafi_control.mpc_tracking import MpcTracking, mpc_params_from_flat, predicted_positions, reference_positions
 from anafi_control.pid import PidController
 from anafi_control.pid_framework import DEFAULT_CONFIG
 
@@ -27,30 +28,15 @@ def _ready(tr, t=0.0, pos=(0.0, 0.0, 1.0), yaw_deg=0.0, vel=(0.0, 0.0, 0.0), wp=
 
 # ----------------------------------------------------------------------------- odometry
 
-def test_body_twist_rotated_into_world():
-    p, v, yaw = odometry_to_world((1, 2, 3), _q(90.0), (1.0, 0.0, 0.0))
-    np.testing.assert_allclose(p, (1, 2, 3))
-    np.testing.assert_allclose(v, (0.0, 1.0, 0.0), atol=1e-12)   # forward at heading 90 deg = world +y
-    assert abs(yaw - math.pi / 2) < 1e-12
-    # nose-down pitch of 30 deg: body forward speed has a downward world component
-    _, v, _ = odometry_to_world((0, 0, 0), euler_to_quaternion(0.0, math.radians(30.0), 0.0), (2.0, 0.0, 0.0))
-    np.testing.assert_allclose(v, (2.0 * math.cos(math.radians(30)), 0.0, -1.0), atol=1e-12)
-    # world twist taken as is; a non-normalised quaternion is normalised
-    _, v, yaw = odometry_to_world((0, 0, 0), [2 * c for c in _q(90.0)], (1.0, 0.0, 0.0), False)
-    np.testing.assert_allclose(v, (1.0, 0.0, 0.0))
-    assert abs(yaw - math.pi / 2) < 1e-12
-
-
-@pytest.mark.parametrize('args', [
-    ((0, 0, float('nan')), LEVEL, (0, 0, 0)),
-    ((0, 0, 0), (0, 0, 0, 0), (0, 0, 0)),
-    ((0, 0, 0), LEVEL, (float('inf'), 0, 0)),
-    ((0, 0), LEVEL, (0, 0, 0)),
-    (None, LEVEL, (0, 0, 0)),
-])
-def test_unusable_odometry_is_none(args):
-    assert odometry_to_world(*args) is None
-    assert odometry_to_world(*(args + (False,))) is None
+def test_twist_frame_option():
+    body = MpcTracking()
+    world = MpcTracking(twist_in_child_frame=False)
+    for tr in (body, world):
+        assert tr.on_state(0.0, (1, 2, 3), [2 * c for c in _q(90.0)], (1.0, 0.0, 0.0))
+    np.testing.assert_allclose(body.state.velocity, (0.0, 1.0, 0.0), atol=1e-12)   # forward at 90 deg = +y
+    np.testing.assert_allclose(world.state.velocity, (1.0, 0.0, 0.0))
+    assert body.state.yaw == world.state.yaw == pytest.approx(math.pi / 2, abs=1e-12)
+    np.testing.assert_allclose(body.state.position, (1, 2, 3))
 
 
 # ----------------------------------------------------------------------------- cycle
@@ -116,11 +102,12 @@ def test_stale_waypoint_then_recovery():
     assert tr.cycle(1.3).ok
 
 
-def test_clock_jumping_back_counts_as_stale():
+def test_clock_jumping_back_drops_the_inputs():
     tr = MpcTracking()
     _ready(tr, t=100.0)
     assert tr.cycle(100.1).ok
-    assert tr.cycle(3.0).key == 'stale_state'
+    assert tr.cycle(3.0).key == 'clock_jump'
+    assert tr.counters['clock_jumps'] == 1
 
 
 def test_state_arriving_just_after_the_cycle_time_is_fresh():
@@ -156,7 +143,7 @@ def test_solver_failure_hovers_then_recovers():
     _ready(tr, vel=(0.0, 0.0, 4.0))
     out = tr.cycle(0.0)
     assert not out.ok and out.key == 'solver_failed' and out.command == HOVER
-    assert out.reason.startswith('solver:') and out.result is not None and not out.result.ok
+    assert out.reason.startswith('solver: ') and out.result is not None and not out.result.ok
     tr.on_state(0.05, (0, 0, 1), LEVEL, (0, 0, 0))
     assert tr.cycle(0.1).ok and tr.counters['solver_failed'] == 1
 
@@ -257,6 +244,14 @@ def test_carry_option_and_waypoint_jump_reset():
     assert tr.mpc.cumulative_errors[0] > 0.5 and tr.counters['waypoint_jumps'] == 0
     tr.on_waypoint(0.5, (10.0, 0, 5, 0, 0, 0, 0))
     assert tr.counters['waypoint_jumps'] == 1 and not tr.mpc.cumulative_errors.any()
+    # a clock jump (simulation restart) resets them too
+    for t in (0.6, 0.7):
+        tr.on_waypoint(t, (10.0, 0, 5, 0, 0, 0, 0))
+        tr.on_state(t, (0, 0, 5), LEVEL, (0, 0, 0))
+        assert tr.cycle(t).ok
+    assert tr.mpc.cumulative_errors.any()
+    tr.on_state(0.0, (0, 0, 5), LEVEL, (0, 0, 0))
+    assert tr.counters['clock_jumps'] == 1 and not tr.mpc.cumulative_errors.any()
 
 
 def test_paths():

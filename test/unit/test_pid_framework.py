@@ -5,7 +5,8 @@ import os
 import pytest
 import yaml
 
-from anafi_control.pid_framework import (DEFAULT_CONFIG, HOVER, LOOP_NAMES, PidFramework,
+from anafi_control.contract import HOVER
+from anafi_control.pid_framework import (DEFAULT_CONFIG, LOOP_NAMES, PidFramework,
                                          make_config, relative_state)
 from anafi_sim.sim.bridge import PilotingMapping
 

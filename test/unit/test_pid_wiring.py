@@ -1,23 +1,20 @@
-"""anafi_control.pid_wiring: topic wiring of the distributed PID framework, odometry, input gate, command assembly."""
+"""anafi_control.pid_wiring: topic wiring of the distributed PID framework and command assembly (the input gate
+and the odometry conversion are tested in test_contract.py and test_frames.py)."""
 import math
 import os
 import xml.etree.ElementTree as ET
 
 import pytest
 
-from anafi_control.frames import euler_to_quaternion
+from anafi_control.contract import HOVER
 from anafi_control.pid import PidController
-from anafi_control.pid_framework import DEFAULT_CONFIG, HOVER, LOOP_NAMES, PidFramework, relative_state
-from anafi_control.pid_wiring import (BAD_STATE, BAD_WAYPOINT, CASCADES, COMMAND_LOOPS, DISABLED,
-                                      NO_STATE, NO_WAYPOINT, STALE_STATE, STALE_WAYPOINT,
-                                      CommandAssembler, InputGate, check_timeout, input_topics,
-                                      loop_inputs, loop_topics, odometry_state)
+from anafi_control.pid_framework import DEFAULT_CONFIG, LOOP_NAMES, PidFramework, relative_state
+from anafi_control.pid_wiring import (CASCADES, COMMAND_LOOPS, DISABLED, CommandAssembler, input_topics,
+                                      loop_inputs, loop_topics)
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 LAUNCH = os.path.join(REPO, 'anafi_sim', 'launch', 'pid.launch')
 NAN = float('nan')
-LEVEL = (0.0, 0.0, 0.0, 1.0)
-WP = (3.0, 2.0, 5.0, 0.0, 0.0, 0.0, 0.0)
 
 
 # -- topic wiring -------------------------------------------------------------------------
@@ -118,102 +115,10 @@ def test_tables_reproduce_the_single_process_framework():
     assert compared == 89 and any(v != 0.0 for v in fw.command())
 
 
-# -- odometry ------------------------------------------------------------------------------
-@pytest.mark.parametrize('roll,pitch,yaw,body,world', [
-    (0.0, 0.0, 0.0, (1.0, 2.0, 3.0), (1.0, 2.0, 3.0)),
-    (0.0, 0.0, 90.0, (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)),        # nose north: forward = +y
-    (0.0, 0.0, 180.0, (1.0, 1.0, 0.0), (-1.0, -1.0, 0.0)),
-    (0.0, 30.0, 0.0, (1.0, 0.0, 0.0), (math.cos(math.radians(30)), 0.0, -math.sin(math.radians(30)))),
-    (20.0, 0.0, -90.0, (0.0, 1.0, 0.0), (math.cos(math.radians(20)), 0.0, math.sin(math.radians(20)))),
-])
-def test_odometry_twist_is_rotated_from_body_to_world(roll, pitch, yaw, body, world):
-    q = euler_to_quaternion(math.radians(roll), math.radians(pitch), math.radians(yaw))
-    pos, vel, heading = odometry_state((1.0, 2.0, 3.0), q, body)
-    assert pos == (1.0, 2.0, 3.0)
-    assert vel == pytest.approx(world, abs=1e-12)
-    assert heading == pytest.approx(math.radians(yaw))
-
-
-def test_odometry_refuses_garbage_and_normalises():
-    assert odometry_state((0, NAN, 0), LEVEL, (0, 0, 0)) is None
-    assert odometry_state((0, 0, 0), (0, 0, 0, float('inf')), (0, 0, 0)) is None
-    assert odometry_state((0, 0, 0), LEVEL, (0, 0, NAN)) is None
-    assert odometry_state((0, 0, 0), (0, 0, 0, 0), (0, 0, 0)) is None          # not a rotation
-    assert odometry_state((0, 0), LEVEL, (0, 0, 0)) is None
-    _, vel, heading = odometry_state((0, 0, 0), (0, 0, 2.0 * math.sin(0.25), 2.0 * math.cos(0.25)), (1, 0, 0))
-    assert heading == pytest.approx(0.5) and vel == pytest.approx((math.cos(0.5), math.sin(0.5), 0.0))
-
-
-# -- input gate ----------------------------------------------------------------------------
-def test_gate_reasons_in_order_then_runs():
-    gate = InputGate(state_timeout=0.5, waypoint_timeout=1.0)
-    assert gate.step(0.0) == (None, NO_STATE)
-    gate.on_state(0.1, (1, 2, 3), LEVEL, (0, 0, 0))
-    assert gate.step(0.2) == (None, NO_WAYPOINT)
-    gate.on_waypoint(0.2, WP)
-    inputs, reason = gate.step(0.3)
-    assert reason is None
-    assert inputs.pos == (1, 2, 3) and inputs.vel == (0, 0, 0) and inputs.yaw == 0.0 and inputs.waypoint == WP
-    assert gate.cycles == 3 and gate.hover_cycles == 2
-
-
-def test_gate_stale_state_and_waypoint():
-    gate = InputGate(state_timeout=0.5, waypoint_timeout=1.0)
-    gate.on_state(0.0, (0, 0, 0), LEVEL, (0, 0, 0))
-    gate.on_waypoint(0.0, WP)
-    assert gate.step(0.5)[1] is None                 # exactly the timeout is still fresh
-    assert gate.step(0.51) == (None, STALE_STATE)
-    gate.on_state(0.9, (0, 0, 0), LEVEL, (0, 0, 0))
-    assert gate.step(1.0)[1] is None
-    assert gate.step(1.01) == (None, STALE_WAYPOINT)
-    gate.on_waypoint(1.1, WP)
-    assert gate.step(1.2)[1] is None
-
-
-def test_gate_waypoint_timeout_zero_holds_a_single_waypoint():
-    gate = InputGate(state_timeout=0.5, waypoint_timeout=0.0)
-    gate.on_waypoint(0.0, WP)
-    gate.on_state(100.0, (0, 0, 0), LEVEL, (0, 0, 0))
-    assert gate.step(100.1)[1] is None
-
-
-@pytest.mark.parametrize('bad', ['state', 'waypoint', 'waypoint_short'])
-def test_gate_non_finite_input_hovers_until_a_good_sample(bad):
-    gate = InputGate()
-    gate.on_state(0.0, (0, 0, 0), LEVEL, (0, 0, 0))
-    gate.on_waypoint(0.0, WP)
-    if bad == 'state':
-        assert not gate.on_state(0.1, (0, 0, 0), LEVEL, (NAN, 0, 0))
-        assert gate.step(0.1) == (None, BAD_STATE) and gate.bad_states == 1
-        gate.on_state(0.2, (0, 0, 0), LEVEL, (0, 0, 0))
-    else:
-        assert not gate.on_waypoint(0.1, WP[:6] + (NAN,) if bad == 'waypoint' else WP[:3])
-        assert gate.step(0.1) == (None, BAD_WAYPOINT) and gate.bad_waypoints == 1
-        gate.on_waypoint(0.2, WP)
-    assert gate.step(0.2)[1] is None
-
-
-def test_gate_clock_going_back_drops_inputs():
-    gate = InputGate()
-    gate.on_state(10.0, (0, 0, 0), LEVEL, (0, 0, 0))
-    gate.on_waypoint(10.0, WP)
-    assert gate.step(10.1)[1] is None
-    assert gate.step(1.0) == (None, NO_STATE)        # simulation restarted
-    assert gate.clock_jumps == 1
-
-
 @pytest.mark.parametrize('value', [0.0, -1.0, NAN, float('inf'), True, '1'])
-def test_bad_timeouts_are_refused(value):
-    with pytest.raises(ValueError):
-        InputGate(state_timeout=value)
+def test_bad_effort_timeouts_are_refused(value):
     with pytest.raises(ValueError):
         CommandAssembler(effort_timeout=value)
-
-
-def test_timeout_zero_allowed_only_where_it_means_never():
-    assert check_timeout('w', 0, allow_zero=True) == 0.0
-    with pytest.raises(ValueError):
-        InputGate(waypoint_timeout=-0.1)
 
 
 # -- command assembly ----------------------------------------------------------------------
@@ -266,10 +171,3 @@ def test_assembler_disable_hovers_and_needs_fresh_efforts_after_enable():
     assert asm.command(0.1)[0] == HOVER            # the old efforts were forgotten
     fill(asm, 0.2)
     assert asm.command(0.2)[1] is None
-
-
-def test_gate_health_waiting_for_the_first_waypoint_is_not_a_warning():
-    from anafi_control.pid_wiring import NO_WAYPOINT, STALE_STATE, gate_health
-    assert gate_health(None) == (False, 'tracking')
-    assert gate_health(NO_WAYPOINT) == (False, 'hovering: ' + NO_WAYPOINT)
-    assert gate_health(STALE_STATE) == (True, 'hovering: ' + STALE_STATE)

@@ -1,0 +1,298 @@
+#!/usr/bin/env python3
+"""One tracking-controller node for every implementation of the controller contract (thin node).
+
+Stage: controllers -> piloting command. ``~controller`` picks the implementation (``anafi_control.contract``):
+``mpc`` = the paper's MPC (``anafi_control.mpc_tracking.MpcTracking``, run as node ``mpc_controller`` by
+mpc.launch), ``pid`` = the paper's PID framework in one process (``anafi_control.pid_framework.PidTracking``,
+node ``pid_framework``, pid.launch mode single). Every 1/~rate s of ROS time one ``cycle``; the command goes
+out every cycle, or every 1/~command_rate s for a controller with a command rate (pid: cycles 30 Hz,
+commands 10 Hz).
+
+Namespace /<drone> (default /anafi). Topics, relative to the namespace:
+- in  ~state_topic (nav_msgs/Odometry, default drone/odom = the drone's estimate as in the paper;
+      ground_truth/odom selectable; pose in the world frame, twist in the child frame),
+      ~waypoint_topic (anafi_sim/Waypoint, default position_control/waypoint: ENU m, m/s, yaw deg);
+- out ~command_topic (olympe_bridge/PilotingCommand, default drone/rpyt; hover = all zero),
+      /diagnostics (1 Hz of wall time: OK tracking or waiting for the first waypoint, WARN hovering for
+      missing / stale / non-finite input or a clock jump, ERROR the controller failed; with counters).
+- mpc only: mpc/predicted_path and mpc/reference_path (nav_msgs/Path in ~frame_id, the drone positions x_k*
+      and waypoint positions z_k over the horizon; built only while someone subscribes), mpc/stats
+      (anafi_sim/MpcStats), dynamic_reconfigure (cfg/Mpc.cfg: weights, limits, horizon,
+      carry_cumulative_errors, applied live).
+Parameters: ~controller (mpc | pid), ~rate [Hz] (default the controller's RATE), ~command_rate [Hz] (pid),
+~state_timeout, ~waypoint_timeout [s], ~state_topic, ~waypoint_topic, ~command_topic; mpc: the keys of
+anafi_sim/config/mpc.yaml; pid: ~<loop>/<pid param> of anafi_sim/config/pid.yaml. Bad parameters:
+logfatal, exit code 1.
+
+A new controller: a ``contract.Controller`` subclass and one line in ``ADAPTERS`` with an ``Adapter`` subclass
+naming it (``controller_class``); override ``build`` for more parameters and ``setup``/``after_cycle`` for
+extra topics (e.g. a preview MPC: ``class PreviewAdapter(MpcAdapter): controller_class = PreviewMpc``).
+"""
+import math
+import threading
+import time
+
+import rospy
+from dynamic_reconfigure.server import Server
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+
+from anafi_control.contract import WAITING
+from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
+from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, RECONFIGURABLE, MpcTracking,
+                                        predicted_positions, reference_positions)
+from anafi_control.pid_framework import DEFAULTS as PID_DEFAULTS, LOOP_NAMES, PidTracking
+from anafi_sim.cfg import MpcConfig
+from anafi_sim.msg import MpcStats
+from anafi_sim.ros import topics
+from anafi_sim.ros.conversions import subscribe_inputs
+from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
+                                start_diagnostics_thread)
+from anafi_sim.ros.wire_types import piloting_command_class
+
+
+def _mapping_param(name):
+    """~name as a dict ({} when unset); ValueError when it is something else."""
+    value = rospy.get_param('~' + name, {})
+    if not isinstance(value, dict):
+        raise ValueError('~%s must be a mapping of pid parameters, got %r' % (name, value))
+    return value
+
+
+class Adapter(object):
+    """What the node does for one kind of controller: ``build`` it from the ~params, and, optionally, extra
+    publishers (``setup``), per-cycle output (``cycle_info`` under the node's lock, ``after_cycle``) and
+    diagnostic values. The default builds ``controller_class`` with ~state_timeout and ~waypoint_timeout."""
+    label = 'controller'      # diagnostics name prefix and log prefix
+    controller_class = None   # the contract.Controller subclass
+
+    def __init__(self, node):
+        self.node = node
+
+    def build(self, p):
+        """The contract.Controller, from the node's ParamReader ``p`` (and rospy.get_param for mappings)."""
+        return self.controller_class(state_timeout=p.positive('state_timeout', 0.5),
+                                     waypoint_timeout=p.positive('waypoint_timeout', 1.0))
+
+    def setup(self):
+        """Extra publishers, servers (the core exists, subscribers are not yet connected)."""
+
+    def cycle_info(self):
+        """Anything ``after_cycle`` needs from the core, read under the node's lock right after the cycle."""
+
+    def after_cycle(self, out, stamp, info, started):
+        """Extra output of a cycle (``started``: time.perf_counter() at its start)."""
+
+    def diagnostic_values(self):
+        """[(key, value)] added to the diagnostic status (called under the node's lock)."""
+        return []
+
+
+class MpcAdapter(Adapter):
+    """The paper's MPC: mpc.yaml parameters, dynamic_reconfigure, mpc/stats and the predicted/reference paths."""
+    label = 'mpc_controller'
+    controller_class = MpcTracking
+    #: flat MPC parameter names read from ~params (v_max split per axis, as the reconfigure server has them)
+    PARAM_NAMES = tuple(k for k in MPC_DEFAULTS if k != 'v_max') + ('v_max_x', 'v_max_y', 'v_max_z')
+
+    def build(self, p):
+        mpc_params = dict((k, rospy.get_param('~' + k)) for k in self.PARAM_NAMES if rospy.has_param('~' + k))
+        yaw_config = rospy.get_param('~yaw', None)
+        if yaw_config is not None and not isinstance(yaw_config, dict):
+            raise ValueError('~yaw must be a mapping of pid parameters, got %r' % (yaw_config,))
+        d = MPC_TRACKING_DEFAULTS
+        self.frame_id = p.ros_name('frame_id', 'world')
+        return self.controller_class(mpc_params, yaw_config,
+                                     state_timeout=p.positive('state_timeout', d['state_timeout']),
+                                     waypoint_timeout=p.positive('waypoint_timeout', d['waypoint_timeout']),
+                                     twist_in_child_frame=p.flag('twist_in_child_frame', d['twist_in_child_frame']),
+                                     cum_reset_distance=p.positive('cum_reset_distance', d['cum_reset_distance']))
+
+    def setup(self):
+        core = self.node.core
+        if abs(self.node.rate * core.mpc.dt - 1.0) > 1e-6:
+            rospy.logwarn('%s: ~rate %.3g Hz does not match the MPC step dt %.3g s (the model assumes one '
+                          'solve per dt)', self.label, self.node.rate, core.mpc.dt)
+        self.pub_pred = rospy.Publisher('mpc/predicted_path', Path, queue_size=2)
+        self.pub_ref = rospy.Publisher('mpc/reference_path', Path, queue_size=2)
+        self.pub_stats = rospy.Publisher(topics.MPC_STATS, MpcStats, queue_size=10)
+        self.reconfigure_server = Server(MpcConfig, self._on_reconfigure)
+        rospy.loginfo('%s: N=%d, dt=%.2f s', self.label, core.mpc.N, core.mpc.dt)
+
+    def _on_reconfigure(self, config, level):
+        core = self.node.core
+        with self.node.lock:
+            try:
+                before = core.config()
+                applied = core.reconfigure(dict((k, config[k]) for k in RECONFIGURABLE))
+                changed = [k for k in RECONFIGURABLE if applied[k] != before[k]]
+                if changed:
+                    rospy.loginfo('%s: reconfigured %s', self.label,
+                                  ', '.join('%s=%s' % (k, applied[k]) for k in changed))
+            except ValueError as err:
+                rospy.logerr('%s: reconfiguration refused (%s); keeping the current values', self.label, err)
+                applied = core.config()
+        for k in RECONFIGURABLE:
+            config[k] = applied[k]
+        return config
+
+    def cycle_info(self):
+        core = self.node.core
+        return core.counters['cycles'], core.counters['hover'], core.mpc.N, core.mpc.dt
+
+    def after_cycle(self, out, stamp, info, started):
+        cycles, hovers, horizon, dt = info
+        if self.pub_pred.get_num_connections():
+            self.pub_pred.publish(self._path(predicted_positions(out.result), stamp, dt))
+        if self.pub_ref.get_num_connections():
+            self.pub_ref.publish(self._path(reference_positions(out.result), stamp, dt))
+        res = out.result
+        s = MpcStats()
+        s.header.stamp = stamp
+        s.header.frame_id = self.frame_id
+        s.ok = out.ok
+        s.status = res.status if (out.ok and res is not None) else out.reason
+        if res is not None:
+            s.iterations = res.iterations
+            s.solve_time = res.solve_time if math.isfinite(res.solve_time) else 0.0
+            s.setup_time, s.run_time = res.setup_time, res.run_time
+            s.acceleration.x, s.acceleration.y, s.acceleration.z = res.u0
+            s.vz_command = res.vz_command
+        s.horizon = horizon
+        s.cycles, s.hover_cycles = cycles, hovers
+        s.cycle_time = time.perf_counter() - started
+        self.pub_stats.publish(s)
+
+    def _path(self, positions, stamp, dt):
+        path = Path()
+        path.header.stamp = stamp
+        path.header.frame_id = self.frame_id
+        if positions is None:
+            return path
+        for k, (x, y, z) in enumerate(positions):
+            ps = PoseStamped()
+            ps.header.stamp = stamp + rospy.Duration.from_sec(k * dt)
+            ps.header.frame_id = self.frame_id
+            ps.pose.position.x, ps.pose.position.y, ps.pose.position.z = float(x), float(y), float(z)
+            ps.pose.orientation.w = 1.0
+            path.poses.append(ps)
+        return path
+
+    def diagnostic_values(self):
+        core = self.node.core
+        values = []
+        res = core.last.result
+        if res is not None:
+            values += [('osqp_status', res.status), ('iterations', res.iterations),
+                       ('solve_time_ms', '%.3f' % (1e3 * res.solve_time)),
+                       ('run_time_ms', '%.3f' % (1e3 * res.run_time))]
+        config = core.config()
+        return values + [(k, config[k]) for k in ('N', 'r', 'q_cum', 'q_cum_terminal')]
+
+
+class PidAdapter(Adapter):
+    """The paper's PID framework in one process: loop parameters ~<loop>/<pid param> (pid.yaml)."""
+    label = 'pid_framework'
+    controller_class = PidTracking
+
+    def build(self, p):
+        overrides = dict((loop, _mapping_param(loop)) for loop in LOOP_NAMES)
+        return self.controller_class(overrides, p.positive('state_timeout', PID_DEFAULTS['state_timeout']),
+                                     p.number('waypoint_timeout', PID_DEFAULTS['waypoint_timeout'], minimum=0.0))
+
+    def diagnostic_values(self):
+        fw = self.node.core.framework
+        return [('framework refused inputs', fw.rejected_inputs)] + [
+            ('%s effort' % loop, '%g' % fw.efforts[loop]) for loop in LOOP_NAMES]
+
+
+#: ~controller -> adapter (the registry of controllers this node runs)
+ADAPTERS = {'mpc': MpcAdapter, 'pid': PidAdapter}
+
+
+class ControllerNode(object):
+    def __init__(self, controller=None):
+        p = private_params()
+        kind = p.choice('controller', controller or 'mpc', sorted(ADAPTERS))
+        self.adapter = ADAPTERS[kind](self)
+        self.core = self.adapter.build(p)
+        self.rate = p.positive('rate', self.core.RATE)
+        self.command_rate = None if self.core.COMMAND_RATE is None else \
+            p.positive('command_rate', self.core.COMMAND_RATE)
+        state_topic = p.ros_name('state_topic', topics.ESTIMATE)
+        waypoint_topic = p.ros_name('waypoint_topic', topics.WAYPOINT)
+        command_topic = p.ros_name('command_topic', topics.COMMAND)
+        self.lock = threading.Lock()
+        self.last_key = None
+        self.commands = self.hover_commands = 0
+        self.Command = piloting_command_class()
+        self.pub_cmd = rospy.Publisher(command_topic, self.Command, queue_size=10)
+        self.pub_diag = diagnostics_publisher()
+        self.adapter.setup()
+        self.state_topic, self.waypoint_topic = subscribe_inputs(self.core, self.lock, state_topic, waypoint_topic)
+        rospy.loginfo('%s: %s controller, state %s, waypoint %s -> %s; cycle %g Hz, command %g Hz',
+                      rospy.get_name(), kind, self.state_topic, self.waypoint_topic,
+                      rospy.resolve_name(command_topic), self.rate, self.command_rate or self.rate)
+
+    # -- cycle and command ----------------------------------------------------------------------
+    def _on_cycle(self, _event=None):
+        started = time.perf_counter()
+        stamp = rospy.Time.now()
+        with self.lock:
+            out = self.core.cycle(stamp.to_sec())
+            info = self.adapter.cycle_info()
+        if out.key != self.last_key:
+            if out.ok:
+                rospy.loginfo('%s: tracking the waypoint', rospy.get_name())
+            elif out.key in WAITING:
+                rospy.loginfo('%s: hovering: %s', rospy.get_name(), out.reason)
+            else:
+                rospy.logwarn('%s: hovering: %s', rospy.get_name(), out.reason)
+            self.last_key = out.key
+        if self.command_rate is None:
+            self._publish(out.command, stamp)
+        self.adapter.after_cycle(out, stamp, info, started)
+
+    def _on_command(self, _event=None):
+        stamp = rospy.Time.now()
+        with self.lock:
+            command = self.core.last.command
+        self._publish(command, stamp)
+
+    def _publish(self, command, stamp):
+        msg = self.Command()
+        msg.header.stamp = stamp
+        msg.roll, msg.pitch, msg.yaw, msg.gaz = command
+        with self.lock:
+            self.commands += 1
+            self.hover_commands += not any(command)
+        self.pub_cmd.publish(msg)
+
+    # -- diagnostics (own thread, wall clock: reports even when /clock stops) --------------------
+    def diagnostic_statuses(self):
+        with self.lock:
+            health = self.core.health()
+            extra = [('commands sent', self.commands), ('hover commands', self.hover_commands),
+                     ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]
+            extra += self.adapter.diagnostic_values()
+        return [health_status('%s: %s' % (self.adapter.label, rospy.get_name()), health, namespace_id(), extra)]
+
+    def run(self):
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
+        timers = [rospy.Timer(rospy.Duration.from_sec(1.0 / self.rate), self._on_cycle)]
+        if self.command_rate is not None:
+            timers.append(rospy.Timer(rospy.Duration.from_sec(1.0 / self.command_rate), self._on_command))
+        try:
+            rospy.spin()
+        finally:
+            for timer in timers:
+                timer.shutdown()
+
+
+def main(controller=None, name='controller'):
+    """Run the node (``controller``: the default of ~controller; ``name``: the default node name)."""
+    run_node(name, lambda: ControllerNode(controller))
+
+
+if __name__ == '__main__':
+    main()

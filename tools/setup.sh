@@ -18,7 +18,7 @@ if [ -f /opt/ros/noetic/setup.bash ]; then
         python3-catkin-lint python3-pytest python3-venv python3-pip python3-numpy python3-scipy python3-yaml
         python3-matplotlib python3-psutil cmake g++"
 else
-  PKGS="ros-base-python-dev python3-rostest python3-tf2-ros python3-tf2-geometry-msgs
+  PKGS="ros-base-python-dev rosbash python3-rostest python3-tf2-ros python3-tf2-geometry-msgs
         python3-dynamic-reconfigure libdynamic-reconfigure-config-init-mutex-dev catkin-lint python3-pytest
         python3-venv python3-pip python3-numpy python3-scipy python3-yaml python3-matplotlib python3-psutil
         cmake g++"

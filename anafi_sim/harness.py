@@ -1,6 +1,7 @@
-"""Harness of the benchmarks and rostests (pure Python, no rospy): ports, process groups, private masters, CPU time.
+"""Process harness (pure Python, no rospy): ports, process groups, private masters, node pids, CPU time.
 
-Used by benchmarks/*.py, test/ros/*.py and tools/demo.sh; nothing of the stack imports it.
+Used by benchmarks/*.py, test/ros/*.py, tools/demo.sh and the experiment monitor node (controller CPU);
+no core module imports it.
 
 - ports: ``free_port`` (the OS's pick, or a free one in a range);
 - processes: ``start`` runs a command in a session (process group) of its own, ``stop`` ends it and

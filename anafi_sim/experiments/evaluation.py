@@ -701,3 +701,24 @@ def evaluate_bag(bag, drone=None, name='', window=None, use_header_stamp=True,
     if topics['truth'] is None:
         result.warnings.append('no ground-truth topic in the bag')
     return result
+
+
+def summary_markdown(summary):
+    """Markdown text of a summary dict (Evaluation.as_dict() plus 'state')."""
+    lines = ['# Tracking error: %s' % (summary.get('name') or '(unnamed)'), '',
+             '%s samples, window %s s, state %s.' % (summary.get('samples'), summary.get('window'),
+                                                      summary.get('state', '')), '',
+             '| against | e_max [m] | e_mu [m] | e_sigma [m] | valid | excluded | e_mu horizontal [m] |',
+             '|---|---|---|---|---|---|---|']
+    for key, label in (('estimate', 'drone estimate'), ('truth', 'ground truth')):
+        r = summary.get(key)
+        if r is None:
+            lines.append('| %s | absent | | | | | |' % label)
+            continue
+        lines.append('| %s | %s | %s | %s | %s | %s | %s |' % (
+            label, r['e_max'], r['e_mu'], r['e_sigma'], r['n_valid'], r['n_excluded'], r['e_mu_horizontal']))
+    for g in summary.get('garbage') or []:
+        lines.append('- GARBAGE (excluded): %s' % g)
+    for w in summary.get('warnings') or []:
+        lines.append('- WARNING: %s' % w)
+    return '\n'.join(lines) + '\n'

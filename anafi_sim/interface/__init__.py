@@ -1,1 +1,1 @@
-"""."""
+"""The paper's Interface: telemetry samples -> ground truth, and the supervised telemetry process."""

@@ -33,33 +33,12 @@ import yaml
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
-from anafi_sim.experiments.evaluation import LiveEvaluator, stamp_ns
+from anafi_sim.experiments.evaluation import LiveEvaluator, stamp_ns, summary_markdown
 from anafi_sim.msg import Waypoint
 from anafi_sim.experiments.reference_log import write_log
 from anafi_sim.ros import topics
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params,
                                 publish_diagnostics, run_node)
-
-
-def markdown(summary):
-    """Markdown text of a summary dict (Evaluation.as_dict() plus 'state')."""
-    lines = ['# Tracking error: %s' % (summary.get('name') or '(unnamed)'), '',
-             '%s samples, window %s s, state %s.' % (summary.get('samples'), summary.get('window'),
-                                                      summary.get('state', '')), '',
-             '| against | e_max [m] | e_mu [m] | e_sigma [m] | valid | excluded | e_mu horizontal [m] |',
-             '|---|---|---|---|---|---|---|']
-    for key, label in (('estimate', 'drone estimate'), ('truth', 'ground truth')):
-        r = summary.get(key)
-        if r is None:
-            lines.append('| %s | absent | | | | | |' % label)
-            continue
-        lines.append('| %s | %s | %s | %s | %s | %s | %s |' % (
-            label, r['e_max'], r['e_mu'], r['e_sigma'], r['n_valid'], r['n_excluded'], r['e_mu_horizontal']))
-    for g in summary.get('garbage') or []:
-        lines.append('- GARBAGE (excluded): %s' % g)
-    for w in summary.get('warnings') or []:
-        lines.append('- WARNING: %s' % w)
-    return '\n'.join(lines) + '\n'
 
 
 class EvaluatorNode(object):
@@ -180,7 +159,7 @@ class EvaluatorNode(object):
             _makedirs(self.summary_file)
             with open(self.summary_file, 'w') as f:
                 if self.summary_file.endswith('.md'):
-                    f.write(markdown(d))
+                    f.write(summary_markdown(d))
                 else:
                     yaml.safe_dump(dict(d), f, default_flow_style=False, sort_keys=False)
             rospy.loginfo('summary written to %s', self.summary_file)

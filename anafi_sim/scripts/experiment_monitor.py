@@ -30,6 +30,7 @@ the end). ~scenario / ~scenario_file / ~scenario_dir as the generator (for the s
 ~label: the run's name in the output.
 """
 import fnmatch
+import math
 import os
 import sys
 import threading
@@ -42,17 +43,13 @@ from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
+from anafi_sim import harness
 from anafi_sim.experiments.monitor import FAILED, FINAL, ExperimentMonitor, summary_lines
 from anafi_sim.experiments.trajectory import SCENARIO_DIR, load_scenario
 from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim.ros import topics
 from anafi_sim.ros.node import private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
-
-try:
-    from xmlrpc.client import ServerProxy
-except ImportError:   # pragma: no cover - Python 2
-    from xmlrpclib import ServerProxy
 
 try:
     import psutil
@@ -187,11 +184,7 @@ class ExperimentMonitorNode(object):
 
     def _node_pid(self, name):
         """Process id of node ``name`` (its getPid XML-RPC call), None when unknown."""
-        try:
-            code, _, pid = ServerProxy(self.master.lookupNode(name)).getPid(rospy.get_name())
-            return int(pid) if code == 1 else None
-        except Exception:
-            return None
+        return harness.node_pid(name, master_uri=rosgraph.get_master_uri(), caller=rospy.get_name())
 
     def _find_controller_pids(self):
         if not self.controller_patterns or psutil is None:
@@ -211,14 +204,8 @@ class ExperimentMonitorNode(object):
     def _controller_cpu(self):
         if not self.controller_pids or psutil is None:
             return None
-        total = 0.0
-        for pid in self.controller_pids:
-            try:
-                c = psutil.Process(pid).cpu_times()
-                total += c.user + c.system
-            except (psutil.Error, OSError):
-                continue
-        return total
+        seconds = [harness.cpu_seconds(pid) for pid in self.controller_pids]
+        return sum(c for c in seconds if math.isfinite(c))
 
     def _wait_for_evaluator_exit(self):
         """Wait until the evaluator's process has exited (it writes its files first); False on timeout."""

@@ -23,7 +23,8 @@ from anafi_sim import paths
 from anafi_sim.gazebo.airship_path import SHAPES, AirshipPath
 from anafi_sim.gazebo.spawn import SpawnDriver, SpawnTracker
 from anafi_sim.ros import conversions, gazebo_types, topics
-from anafi_sim.ros.node import log_lines, private_params, run_node, run_until_interrupted
+from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, log_lines, private_params, run_node,
+                                run_until_interrupted, start_diagnostics_thread)
 
 
 def read_params():
@@ -67,6 +68,8 @@ class AirshipNode(object):
         rospy.Subscriber(topics.gazebo(topics.MODEL_STATES, ns), gazebo_types.model_states_class(),
                          lambda msg: self.spawner.on_model_states(msg.name, time.monotonic()), queue_size=1)
         self.t0 = None
+        self.published = 0
+        self.diag_pub = diagnostics_publisher()
         rospy.loginfo('airship: %s along a %s (size %.1f m, lap %.0f s, altitude %.1f m) at %g Hz', p['model_name'],
                       p['path'].shape, p['path'].size, p['path'].period, p['path'].altitude, p['rate'])
 
@@ -105,8 +108,19 @@ class AirshipNode(object):
         forward, left = frames.world_to_stability(s.velocity[0], s.velocity[1], s.yaw)   # heading only
         odom.twist.twist = conversions.twist((forward, left, s.velocity[2]), (0.0, 0.0, s.yaw_rate))
         self.odom_pub.publish(odom)
+        self.published += 1
+
+    def diagnostic_statuses(self):
+        """One status: OK while the airship is spawned in the world, WARN while it is not."""
+        name = self.p['model_name']
+        spawned = self.spawner.tracker.is_spawned(name)
+        return [diagnostic_status('airship: %s' % rospy.get_name(), OK if spawned else WARN,
+                                  'moving along its path' if spawned else 'not spawned (no Gazebo world?)',
+                                  [('model', name), ('spawned', spawned), ('poses published', self.published),
+                                   ('spawn service', self.spawn_service)], name)]
 
     def spin(self):
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.diag_pub)
         period = 1.0 / self.p['rate']
         while not rospy.is_shutdown():
             log_lines(self.spawner.poll())

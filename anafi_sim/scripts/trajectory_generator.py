@@ -35,7 +35,8 @@ from anafi_sim.experiments.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR,
                                               load_scenario)
 from anafi_sim.msg import Waypoint
 from anafi_sim.ros import topics
-from anafi_sim.ros.node import private_params, run_node, wait_for_clock
+from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, namespace_id, private_params,
+                                run_node, start_diagnostics_thread, wait_for_clock)
 
 try:
     from std_srvs.srv import Trigger, TriggerResponse
@@ -78,9 +79,19 @@ class TrajectoryGeneratorNode(object):
         if Trigger is not None:
             rospy.Service('~start', Trigger, lambda _: self._service('start'))
             rospy.Service('~stop', Trigger, lambda _: self._service('stop'))
+        self.pub_diag = diagnostics_publisher()
         for line in scenario.describe():
             rospy.loginfo('%s', line)
         self._status('')
+
+    def diagnostic_statuses(self):
+        """One status: the scenario, its state, waypoints published; WARN when the drone never flew."""
+        with self.lock:
+            name, state, published = self.gen.scenario.name, self.gen.state, self.published
+        level, message = (WARN, 'drone never flying: scenario not started') if self.failed else (OK, state)
+        return [diagnostic_status('trajectory_generator: %s' % rospy.get_name(), level, message,
+                                  [('scenario', name), ('state', state), ('waypoints published', published),
+                                   ('drone state', self.drone_state or 'none')], namespace_id())]
 
     # ------------------------------------------------------------ inputs
     def _on_state(self, msg):
@@ -173,6 +184,7 @@ class TrajectoryGeneratorNode(object):
             self.published += 1
 
     def run(self):
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
         wait_for_clock()
         t_start = rospy.get_time()
         warned = False

@@ -54,7 +54,7 @@ class EvaluatorNode(object):
         self.csv_window = p.choice('csv_window', 'measured', ('measured', 'all'))
         self.name = p.text('name')
         self.core = LiveEvaluator(name=self.name, min_altitude=self.min_altitude,
-                                  max_samples=int(p.positive('max_samples', 500000)))
+                                  max_samples=p.integer('max_samples', 500000, minimum=1))
         self.lock = threading.Lock()
         self.end_seen_at = None
         self.finished = False

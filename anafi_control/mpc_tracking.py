@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from anafi_control.contract import (BAD_OUTPUT, OK, SOLVER_FAILED, Controller, CycleOutput,
+from anafi_control.contract import (BAD_OUTPUT, LIMIT_DEFAULTS, OK, SOLVER_FAILED, Controller, CycleOutput,
                                     hover_output)
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc import DRONE_POS, REF_POS, CumulativeErrorMpc, attitude_from_acceleration
@@ -48,6 +48,7 @@ DEFAULTS = {
     'twist_in_child_frame': True,  # nav_msgs/Odometry: twist in child_frame_id (body)
     'cum_reset_distance': 1.0,    # [m] waypoint jump that resets carried cumulative errors
 }
+DEFAULTS.update(LIMIT_DEFAULTS)   # geofence_radius, min/max_altitude, max_waypoint_jump [m] (contract.WaypointLimits)
 
 DroneState = collections.namedtuple('DroneState', ['t', 'position', 'velocity', 'yaw'])
 DroneState.__doc__ = 'Drone state at receipt time t [s]: position [m], velocity [m/s] world ENU, heading [rad].'
@@ -86,7 +87,7 @@ class MpcTracking(Controller):
     def __init__(self, mpc_params=None, yaw_config=None, state_timeout=DEFAULTS['state_timeout'],
                  waypoint_timeout=DEFAULTS['waypoint_timeout'],
                  twist_in_child_frame=DEFAULTS['twist_in_child_frame'],
-                 cum_reset_distance=DEFAULTS['cum_reset_distance']):
+                 cum_reset_distance=DEFAULTS['cum_reset_distance'], limits=None):
         self.mpc = CumulativeErrorMpc(mpc_params_from_flat(mpc_params or {}))
         cfg = copy.deepcopy(PID_FRAMEWORK_CONFIG['yaw'])
         if yaw_config:
@@ -104,7 +105,7 @@ class MpcTracking(Controller):
         self.cum_reset_distance = float(cum_reset_distance)
         self.twist_in_child_frame = bool(twist_in_child_frame)
         Controller.__init__(self, state_timeout, waypoint_timeout,
-                            'child' if self.twist_in_child_frame else 'world')
+                            'child' if self.twist_in_child_frame else 'world', limits)
         self.state = None          # last good DroneState
         self.yaw_rate = 0.0        # [deg/s] last yaw PID effort
 

@@ -60,7 +60,7 @@ import collections
 import copy
 import math
 
-from anafi_control.contract import BAD_STATE, HOVER, OK, Controller, CycleOutput, hover_output
+from anafi_control.contract import BAD_OUTPUT, BAD_STATE, HOVER, OK, Controller, CycleOutput, hover_output
 from anafi_control.frames import is_finite, world_to_stability
 from anafi_control.pid import PidController
 
@@ -218,7 +218,7 @@ DEFAULTS = {
     'rate': 30.0,               # [Hz] relative-state cycle (every loop stepped once)
     'command_rate': 10.0,       # [Hz] PilotingCommand output
     'state_timeout': 0.5,       # [s] state older than this -> hover
-    'waypoint_timeout': 1.0,    # [s] waypoint older than this -> hover; 0 = never stale
+    'waypoint_timeout': 1.0,    # [s] waypoint older than this -> hold position; 0 = never stale
 }
 
 
@@ -227,8 +227,9 @@ class PidTracking(Controller):
 
     ``cycle(t)`` at ``RATE`` (30 Hz) is one relative-state cycle: the input gate, then every loop once
     (``PidFramework.update``); its command is ``PidFramework.command()`` (hover until the loops produced
-    efforts, e.g. on the first cycle after a reset); the node sends ``last.command`` at ``COMMAND_RATE``
-    (10 Hz). A hover cycle resets the loops (``PidFramework.hover``). ``result`` is the RelativeState.
+    efforts, e.g. on the first cycle after a reset: command None, nothing sent); the node sends ``last.command``
+    at ``COMMAND_RATE`` (10 Hz). A change of mode or a silent cycle resets the loops (``PidFramework.hover``);
+    holding runs the same loops towards the hold point (``anafi_control.contract``). ``result`` is the RelativeState.
     ``config``: {loop: {pid param: value}} overriding DEFAULT_CONFIG; bad values raise ValueError.
     """
     NAME = 'pid'
@@ -236,14 +237,20 @@ class PidTracking(Controller):
     COMMAND_RATE = DEFAULTS['command_rate']
 
     def __init__(self, config=None, state_timeout=DEFAULTS['state_timeout'],
-                 waypoint_timeout=DEFAULTS['waypoint_timeout']):
+                 waypoint_timeout=DEFAULTS['waypoint_timeout'], limits=None):
         self.framework = PidFramework(config)
-        Controller.__init__(self, state_timeout, waypoint_timeout, 'child')
+        Controller.__init__(self, state_timeout, waypoint_timeout, 'child', limits)
 
     def _compute(self, t, inputs):
-        if not self.framework.update(t, inputs.pos, inputs.vel, inputs.yaw, inputs.waypoint):
+        fw = self.framework
+        if not fw.update(t, inputs.pos, inputs.vel, inputs.yaw, inputs.waypoint):
             return hover_output(BAD_STATE, ' (refused by the framework)')     # not after the gate's checks
-        return CycleOutput(self.framework.command(), True, OK, OK, self.framework.state)
+        if not fw.valid:         # warming up (a loop's first computation): nothing to send yet
+            return CycleOutput(None, True, OK, OK, fw.state)
+        cmd = (fw.efforts['y_inner'], fw.efforts['x_inner'], fw.efforts['yaw'], fw.efforts['vertical'])
+        if not is_finite(*cmd):
+            return hover_output(BAD_OUTPUT, result=fw.state)
+        return CycleOutput(cmd, True, OK, OK, fw.state)
 
     def _hover(self, out):
         self.framework.hover()

@@ -15,13 +15,14 @@ node (10 Hz). This module holds what those nodes decide, so they stay thin:
   ``anafi_control.contract.InputGate`` (the same rules as every controller).
 * ``CommandAssembler``: last effort of each command loop with its time;
   ``command(t)`` = PilotingCommand tuple (roll, pitch [deg], yaw rate
-  [deg/s], gaz [m/s]) or hover (zeros) with the reason.
+  [deg/s], gaz [m/s]) or None (send nothing: the firmware's hover brake
+  stops the drone; an all-zero command would let it coast) with the reason.
 
 Times are seconds on the caller's clock (ROS time in the nodes).
 """
 import collections
 
-from anafi_control.contract import HOVER, check_timeout
+from anafi_control.contract import check_timeout
 from anafi_control.frames import is_finite
 from anafi_control.pid_framework import LOOP_NAMES
 
@@ -96,11 +97,11 @@ DISABLED = 'pid disabled'
 
 
 class CommandAssembler(object):
-    """Latest effort per command loop -> PilotingCommand tuple, or HOVER with the reason.
+    """Latest effort per command loop -> PilotingCommand tuple, or None (no command) with the reason.
 
-    Hover when the framework is disabled (pid_enable false), or any of the
+    None when the framework is disabled (pid_enable false), or any of the
     four efforts is missing, older than ``effort_timeout`` [s] or non-finite.
-    Counts hover commands (``hovers``) and refused efforts (``bad_efforts``).
+    Counts those periods (``hovers``) and refused efforts (``bad_efforts``).
     """
 
     def __init__(self, effort_timeout=0.5):
@@ -126,7 +127,7 @@ class CommandAssembler(object):
         return True
 
     def on_enable(self, enabled):
-        """pid_enable: while False every command is HOVER; disabling forgets the held efforts."""
+        """pid_enable: while False every command is None; disabling forgets the held efforts."""
         self.enabled = bool(enabled)
         if not self.enabled:
             for field in COMMAND_LOOPS:
@@ -134,13 +135,13 @@ class CommandAssembler(object):
                 self.times[field] = None
 
     def command(self, t):
-        """(cmd, None) or (HOVER, reason) at time t; cmd = (roll, pitch, yaw_rate, gaz)."""
+        """(cmd, None) or (None, reason) at time t; cmd = (roll, pitch, yaw_rate, gaz)."""
         self.commands += 1
         reason = self._reason(t)
         self.last_reason = reason
         if reason is not None:
             self.hovers += 1
-            return HOVER, reason
+            return None, reason
         return tuple(self.values[f] for f in COMMAND_LOOPS), None
 
     def _reason(self, t):

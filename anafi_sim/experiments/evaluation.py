@@ -318,7 +318,7 @@ class Evaluation(object):
                                                           self.window[0], self.window[1])]
         for label, res in (('estimate', self.estimate), ('ground truth', self.truth)):
             if res is None:
-                out.append('  vs %-12s  (absent)' % label)
+                out.append('  vs %-12s  (absent%s)' % (label, ': no ground truth' if res is self.truth else ''))
                 continue
             s, h = res.stats, res.stats_h
             text = '  vs %-12s  e_max %s  e_mu %s  e_sigma %s  [m]  (%d valid, %d excluded)' % (
@@ -349,7 +349,11 @@ def _truth_absent(log, absent):
     if all(c in absent for c in ('x_sphinx', 'y_sphinx', 'z_sphinx')):
         return True
     pos = np.column_stack([log.columns[c] for c in ('x_sphinx', 'y_sphinx', 'z_sphinx')])
-    return len(pos) > 0 and not np.isfinite(pos).any()
+    if len(pos) == 0:
+        return False
+    finite = np.isfinite(pos)
+    # a real-flight CSV has the truth columns but fills them with zeros (no simulator): no ground truth
+    return not finite.any() or bool(np.all(pos[finite] == 0.0))
 
 
 def _source_result(log, source, min_altitude, result_name):

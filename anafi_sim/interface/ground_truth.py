@@ -152,11 +152,19 @@ class GroundTruthInterface(object):
         self._published = RateWindow(self.rate_window)
         self._new = NewCounts()   # counters that grew since the previous health() call
         self._outage_noticed = None  # receipt-clock time the current outage was last reported
+        self.process_starts = 0      # on_process_start calls
+        self.awaiting_samples = False  # the telemetry process (re)started and no valid sample came since
 
     def reset(self):
         """Forget decimation state and the last timestamp (counters are kept)."""
         self.last_timestamp = None
         self._decimator.reset()
+
+    def on_process_start(self):
+        """The telemetry process was (re)started: after a restart, health is ERROR until a valid sample."""
+        self.process_starts += 1
+        if self.process_starts > 1:
+            self.awaiting_samples = True
 
     def on_sample(self, sample, receipt_wall_time):
         """Return ``sample`` if it is to be published now, else None. ``receipt_wall_time`` [s]."""
@@ -165,6 +173,7 @@ class GroundTruthInterface(object):
         if not _finite_sample(sample):
             self.rejected_nonfinite += 1
             return None
+        self.awaiting_samples = False
         ts = sample.timestamp
         last = self.last_timestamp
         if last is not None:
@@ -219,7 +228,9 @@ class GroundTruthInterface(object):
         """Diagnostics summary (``Health``) at ``now_wall``.
 
         parser_counters: dict of ``TelemetryParser.counters``; process: dict of
-        ``ProcessSupervisor.snapshot()``. ERROR when stale; WARN when the rate
+        ``ProcessSupervisor.snapshot()``. ERROR when stale, while the telemetry
+        process is not running (dead, restarting) and after a restart until a
+        valid sample arrives (``on_process_start``); WARN when the rate
         is below ``low_rate_fraction`` of ``publish_rate``, or since the previous
         call the process or the simulator restarted or samples were lost
         (partial samples, non-finite values); OK otherwise. Malformed, blank and
@@ -246,7 +257,7 @@ class GroundTruthInterface(object):
             if name in parser_counters:
                 values.append(('parse ' + name.replace('_', ' '), str(parser_counters[name])))
         for name in ('running', 'pid', 'starts', 'restarts', 'exits', 'hangs', 'spawn_failures',
-                     'last_exit_code', 'last_stderr'):
+                     'oversize_lines', 'last_exit_code', 'last_stderr'):
             if name in process:
                 values.append(('process ' + name.replace('_', ' '), str(process[name])))
 
@@ -257,19 +268,24 @@ class GroundTruthInterface(object):
             ('non-finite values', parser_counters.get('nonfinite', 0) + self.rejected_nonfinite),
         ]))
 
+        down = bool(process) and not process.get('running', True)
         if age is None:
             level, message = ERROR, 'no telemetry received yet'
         elif age > self.stale_timeout:
             level, message = ERROR, 'stale: no telemetry for %.1f s' % age
+        elif down:
+            level, message = ERROR, 'telemetry process not running (restarting)'
+        elif self.awaiting_samples:
+            level, message = ERROR, 'telemetry process restarted, no sample since'
         elif rate < self.low_rate_fraction * self.publish_rate:
             level, message = WARN, 'publishing %.1f Hz < %.1f Hz' % (rate, self.publish_rate)
         elif news:
             level, message = WARN, 'ok but ' + ', '.join(news)
         else:
             level, message = OK, 'publishing %.1f Hz' % rate
-        if news and level == ERROR:
+        if news and not message.startswith('ok but'):     # the restart note is never dropped
             message += ' (' + ', '.join(news) + ')'
-        if process and not process.get('running', True):
+        if down and 'not running' not in message:
             message += '; telemetry process not running'
         return Health(level, message, values)
 

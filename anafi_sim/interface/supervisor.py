@@ -6,11 +6,20 @@ Stage: telemetry -> **interface** (the process that prints the telemetry).
 every stdout line to ``on_line(line, wall_time)`` (line as text, with its
 newline if it had one; wall_time = ``time.time()`` [s] at receipt) from a
 reader thread, and restarts the command when it exits, fails to start or
-hangs (prints nothing for ``restart_timeout`` s, also right after start).
-Restarts wait an exponential back-off (``backoff_initial`` doubling up to
-``backoff_max`` s), back to ``backoff_initial`` after a run that printed for
-at least ``healthy_time`` s. Nothing raised by the process or the callbacks
+hangs (prints no byte for ``restart_timeout`` s, also right after start; the
+timer runs on bytes, so a line that never ends still counts as output, and it
+is bounded: see below). Restarts wait an exponential back-off
+(``backoff_initial`` doubling up to ``backoff_max`` s), back to
+``backoff_initial`` after a run that printed for at least ``healthy_time`` s
+or that exited cleanly (code 0: e.g. the simulator stopped; it is retried at
+once when it comes back). Nothing raised by the process or the callbacks
 escapes: it is counted.
+
+Lines are read with a cap of ``max_line`` bytes: a longer line is dropped
+(counted in ``oversize_lines``, never handed to ``on_line``) and memory stays
+bounded whatever the process prints. ``sample_timeout`` [s] (None: off): the
+process is also treated as hung when ``on_line`` has not returned True (= a
+sample was completed) for that long while it prints (garbage only).
 """
 import os
 import shlex
@@ -30,7 +39,8 @@ class ProcessSupervisor(object):
     """
 
     def __init__(self, command, on_line, restart_timeout=2.0, backoff_initial=0.2, backoff_max=5.0,
-                 on_event=None, healthy_time=1.0, kill_grace=0.2, poll_period=0.05, env=None):
+                 on_event=None, healthy_time=1.0, kill_grace=0.2, poll_period=0.05, env=None, max_line=4096,
+                 sample_timeout=None):
         if isinstance(command, str):
             argv = shlex.split(command)
         else:
@@ -41,6 +51,10 @@ class ProcessSupervisor(object):
                             ('backoff_max', backoff_max)):
             if not value > 0:
                 raise ValueError('%s must be > 0, got %r' % (name, value))
+        if isinstance(max_line, bool) or not isinstance(max_line, int) or max_line < 16:
+            raise ValueError('max_line must be an integer >= 16 [bytes], got %r' % (max_line,))
+        if sample_timeout is not None and not sample_timeout > 0:
+            raise ValueError('sample_timeout must be > 0 or None, got %r' % (sample_timeout,))
         if backoff_max < backoff_initial:
             raise ValueError('backoff_max (%r) < backoff_initial (%r)' % (backoff_max, backoff_initial))
         self.argv = argv
@@ -53,6 +67,8 @@ class ProcessSupervisor(object):
         self.kill_grace = float(kill_grace)
         self.poll_period = float(poll_period)
         self.env = env
+        self.max_line = max_line
+        self.sample_timeout = None if sample_timeout is None else float(sample_timeout)
         # counters / state (read from any thread; written by the supervisor threads)
         self.attempts = 0          # launch attempts
         self.starts = 0            # successful spawns
@@ -62,6 +78,7 @@ class ProcessSupervisor(object):
         self.spawn_failures = 0    # could not start (missing executable, permissions ...)
         self.callback_errors = 0   # exceptions raised by on_line
         self.lines = 0
+        self.oversize_lines = 0    # lines longer than max_line bytes, dropped
         self.last_exit_code = None
         self.last_stderr = ''
         self.last_error = ''
@@ -73,6 +90,7 @@ class ProcessSupervisor(object):
         self._lock = threading.Lock()
         self._thread = None
         self._last_output = 0.0
+        self._last_sample = 0.0
         self._first_output = None
 
     # -- public -----------------------------------------------------------------
@@ -102,7 +120,8 @@ class ProcessSupervisor(object):
         return dict(running=self.running, pid=self.pid, attempts=self.attempts, starts=self.starts,
                     restarts=self.restarts, exits=self.exits, hangs=self.hangs,
                     spawn_failures=self.spawn_failures, callback_errors=self.callback_errors,
-                    lines=self.lines, last_exit_code=self.last_exit_code, last_stderr=self.last_stderr,
+                    lines=self.lines, oversize_lines=self.oversize_lines,
+                    last_exit_code=self.last_exit_code, last_stderr=self.last_stderr,
                     last_error=self.last_error, backoff=self.backoff)
 
     # -- internals ----------------------------------------------------------------
@@ -119,7 +138,7 @@ class ProcessSupervisor(object):
             if self.attempts:
                 self.restarts += 1
             self.attempts += 1
-            healthy = self._run_once()
+            healthy = self._run_once() or self.last_exit_code == 0
             if self._stop.is_set():
                 break
             delay = self._next_delay(healthy)
@@ -146,7 +165,7 @@ class ProcessSupervisor(object):
         self.pid = proc.pid
         self.running = True
         self._first_output = None
-        self._last_output = time.monotonic()
+        self._last_output = self._last_sample = time.monotonic()
         self._event('start', pid=proc.pid, argv=self.argv)
         readers = [threading.Thread(target=self._read_stdout, args=(proc,), name='stdout', daemon=True),
                    threading.Thread(target=self._read_stderr, args=(proc,), name='stderr', daemon=True)]
@@ -156,7 +175,9 @@ class ProcessSupervisor(object):
         while not self._stop.is_set():
             if proc.poll() is not None:
                 break
-            if time.monotonic() - self._last_output > self.restart_timeout:
+            now = time.monotonic()
+            if now - self._last_output > self.restart_timeout or (
+                    self.sample_timeout is not None and now - self._last_sample > self.sample_timeout):
                 hung = True
                 break
             self._stop.wait(self.poll_period)
@@ -180,7 +201,7 @@ class ProcessSupervisor(object):
         if not hung and not self._stop.is_set():
             self.exits += 1
             self._event('exit', pid=proc.pid, code=code, stderr=self.last_stderr,
-                        restart_in=self._next_delay(healthy))
+                        restart_in=self._next_delay(healthy or code == 0))
         for stream in (proc.stdout, proc.stderr):
             try:
                 stream.close()
@@ -211,9 +232,11 @@ class ProcessSupervisor(object):
     def _read_stdout(self, proc):
         readline = proc.stdout.readline
         on_line = self.on_line
+        limit = self.max_line
+        dropping = False          # inside a line longer than max_line: skip to its end
         while True:
             try:
-                raw = readline()
+                raw = readline(limit)
             except (ValueError, OSError):
                 break
             if not raw:
@@ -222,9 +245,18 @@ class ProcessSupervisor(object):
             if self._first_output is None:
                 self._first_output = now
             self._last_output = now
+            complete = raw.endswith(b'\n')
+            if dropping:
+                dropping = not complete
+                continue
+            if not complete and len(raw) >= limit:
+                self.oversize_lines += 1
+                dropping = True
+                continue
             self.lines += 1
             try:
-                on_line(raw.decode('utf-8', 'replace'), time.time())
+                if on_line(raw.decode('utf-8', 'replace'), time.time()):
+                    self._last_sample = now
             except Exception as exc:
                 self.callback_errors += 1
                 self.last_error = 'on_line: %s: %s' % (type(exc).__name__, exc)

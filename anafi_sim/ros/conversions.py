@@ -6,6 +6,7 @@ from geometry_msgs.msg import Pose, Twist
 from nav_msgs.msg import Odometry
 
 from anafi_control import frames
+from anafi_control.contract import LIMIT_DEFAULTS, WaypointLimits
 from anafi_sim.msg import Waypoint
 
 
@@ -59,11 +60,23 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic):
             ok = getattr(target, 'on_' + kind)(rospy.get_time(), *numbers)
             refused = target.counters['rejected_%ss' % kind]
         if not ok:
-            rospy.logwarn_throttle(5.0, '%s: unusable %s on %s refused (%d so far): hovering'
-                                   % (rospy.get_name(), kind, topic, refused))
+            rospy.logwarn_throttle(5.0, '%s: unusable %s on %s refused (%d so far): %s'
+                                   % (rospy.get_name(), kind, topic, refused,
+                                      'holding position' if kind == 'waypoint' else 'no command'))
 
     rospy.Subscriber(state_topic, Odometry, lambda m: feed('state', odometry_numbers(m), resolved[0]),
                      queue_size=5, tcp_nodelay=True)
     rospy.Subscriber(waypoint_topic, Waypoint, lambda m: feed('waypoint', (waypoint_numbers(m),), resolved[1]),
                      queue_size=5, tcp_nodelay=True)
     return resolved
+
+
+def waypoint_limits(p):
+    """The controllers' ``contract.WaypointLimits`` from the node's ParamReader ``p``: ~geofence_radius,
+    ~min_altitude, ~max_altitude, ~max_waypoint_jump [m] (defaults ``contract.LIMIT_DEFAULTS``); ValueError on
+    bad values (the node exits with a FATAL message)."""
+    d = LIMIT_DEFAULTS
+    return WaypointLimits(geofence_radius=p.positive('geofence_radius', d['geofence_radius']),
+                          min_altitude=p.number('min_altitude', d['min_altitude']),
+                          max_altitude=p.number('max_altitude', d['max_altitude']),
+                          max_waypoint_jump=p.positive('max_waypoint_jump', d['max_waypoint_jump']))

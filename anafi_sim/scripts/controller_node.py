@@ -12,15 +12,21 @@ Namespace /<drone> (default /anafi). Topics, relative to the namespace:
 - in  ~state_topic (nav_msgs/Odometry, default drone/odom = the drone's estimate as in the paper;
       ground_truth/odom selectable; pose in the world frame, twist in the child frame),
       ~waypoint_topic (anafi_sim/Waypoint, default position_control/waypoint: ENU m, m/s, yaw deg);
-- out ~command_topic (olympe_bridge/PilotingCommand, default drone/rpyt; hover = all zero),
-      /diagnostics (1 Hz of wall time: OK tracking or waiting for the first waypoint, WARN hovering for
-      missing / stale / non-finite input or a clock jump, ERROR the controller failed; with counters).
+- out ~command_topic (olympe_bridge/PilotingCommand, default drone/rpyt). Failsafes (docs/reliability.md,
+      anafi_control.contract): a bad / stale / out-of-limits waypoint -> the controller holds the position
+      where the hold began with its own loop (commands keep flowing); no / bad / stale state, a clock jump,
+      no waypoint yet or a failed controller -> nothing is published, so the firmware's hover brake stops
+      and holds the drone;
+      /diagnostics (1 Hz of wall time: OK tracking or waiting for the first waypoint, WARN holding or silent
+      for missing / stale / non-finite / out-of-limits input or a clock jump, ERROR the controller failed;
+      with counters).
 - mpc only: mpc/predicted_path and mpc/reference_path (nav_msgs/Path in ~frame_id, the drone positions x_k*
       and waypoint positions z_k over the horizon; built only while someone subscribes), mpc/stats
       (anafi_sim/MpcStats), dynamic_reconfigure (cfg/Mpc.cfg: weights, limits, horizon,
       carry_cumulative_errors, applied live).
 Parameters: ~controller (mpc | pid), ~rate [Hz] (default the controller's RATE), ~command_rate [Hz] (pid),
-~state_timeout, ~waypoint_timeout [s], ~state_topic, ~waypoint_topic, ~command_topic; mpc: the keys of
+~state_timeout, ~waypoint_timeout [s], ~geofence_radius, ~min_altitude, ~max_altitude, ~max_waypoint_jump [m]
+(contract.WaypointLimits), ~state_topic, ~waypoint_topic, ~command_topic; mpc: the keys of
 anafi_sim/config/mpc.yaml; pid: ~<loop>/<pid param> of anafi_sim/config/pid.yaml. Bad parameters:
 logfatal, exit code 1.
 
@@ -37,7 +43,7 @@ from dynamic_reconfigure.server import Server
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 
-from anafi_control.contract import WAITING
+from anafi_control.contract import WAITING, health
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, RECONFIGURABLE, MpcTracking,
                                         predicted_positions, reference_positions)
@@ -45,7 +51,7 @@ from anafi_control.pid_framework import DEFAULTS as PID_DEFAULTS, LOOP_NAMES, Pi
 from anafi_sim.cfg import MpcConfig
 from anafi_sim.msg import MpcStats
 from anafi_sim.ros import topics
-from anafi_sim.ros.conversions import subscribe_inputs
+from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
 from anafi_sim.ros.wire_types import piloting_command_class
@@ -72,7 +78,8 @@ class Adapter(object):
     def build(self, p):
         """The contract.Controller, from the node's ParamReader ``p`` (and rospy.get_param for mappings)."""
         return self.controller_class(state_timeout=p.positive('state_timeout', 0.5),
-                                     waypoint_timeout=p.positive('waypoint_timeout', 1.0))
+                                     waypoint_timeout=p.positive('waypoint_timeout', 1.0),
+                                     limits=waypoint_limits(p))
 
     def setup(self):
         """Extra publishers, servers (the core exists, subscribers are not yet connected)."""
@@ -106,7 +113,8 @@ class MpcAdapter(Adapter):
                                      state_timeout=p.positive('state_timeout', d['state_timeout']),
                                      waypoint_timeout=p.positive('waypoint_timeout', d['waypoint_timeout']),
                                      twist_in_child_frame=p.flag('twist_in_child_frame', d['twist_in_child_frame']),
-                                     cum_reset_distance=p.positive('cum_reset_distance', d['cum_reset_distance']))
+                                     cum_reset_distance=p.positive('cum_reset_distance', d['cum_reset_distance']),
+                                     limits=waypoint_limits(p))
 
     def setup(self):
         core = self.node.core
@@ -198,7 +206,8 @@ class PidAdapter(Adapter):
     def build(self, p):
         overrides = dict((loop, _mapping_param(loop)) for loop in LOOP_NAMES)
         return self.controller_class(overrides, p.positive('state_timeout', PID_DEFAULTS['state_timeout']),
-                                     p.number('waypoint_timeout', PID_DEFAULTS['waypoint_timeout'], minimum=0.0))
+                                     p.number('waypoint_timeout', PID_DEFAULTS['waypoint_timeout'], minimum=0.0),
+                                     limits=waypoint_limits(p))
 
     def diagnostic_values(self):
         fw = self.node.core.framework
@@ -224,7 +233,7 @@ class ControllerNode(object):
         command_topic = p.ros_name('command_topic', topics.COMMAND)
         self.lock = threading.Lock()
         self.last_key = None
-        self.commands = self.hover_commands = 0
+        self.commands = self.hover_commands = self.silent_cycles = 0
         self.Command = piloting_command_class()
         self.pub_cmd = rospy.Publisher(command_topic, self.Command, queue_size=10)
         self.pub_diag = diagnostics_publisher()
@@ -245,9 +254,9 @@ class ControllerNode(object):
             if out.ok:
                 rospy.loginfo('%s: tracking the waypoint', rospy.get_name())
             elif out.key in WAITING:
-                rospy.loginfo('%s: hovering: %s', rospy.get_name(), out.reason)
+                rospy.loginfo('%s: %s', rospy.get_name(), health(out.key, out.reason).message)
             else:
-                rospy.logwarn('%s: hovering: %s', rospy.get_name(), out.reason)
+                rospy.logwarn('%s: %s', rospy.get_name(), health(out.key, out.reason).message)
             self.last_key = out.key
         if self.command_rate is None:
             self._publish(out.command, stamp)
@@ -260,6 +269,10 @@ class ControllerNode(object):
         self._publish(command, stamp)
 
     def _publish(self, command, stamp):
+        if command is None:       # failsafe SILENT (or warming up): nothing, the firmware's hover brake acts
+            with self.lock:
+                self.silent_cycles += 1
+            return
         msg = self.Command()
         msg.header.stamp = stamp
         msg.roll, msg.pitch, msg.yaw, msg.gaz = command
@@ -273,6 +286,7 @@ class ControllerNode(object):
         with self.lock:
             health = self.core.health()
             extra = [('commands sent', self.commands), ('hover commands', self.hover_commands),
+                     ('command periods without a command (silent)', self.silent_cycles),
                      ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]
             extra += self.adapter.diagnostic_values()
         return [health_status('%s: %s' % (self.adapter.label, rospy.get_name()), health, namespace_id(), extra)]

@@ -15,7 +15,14 @@ queued, so ROS I/O never blocks the reader):
   (position, heading) -> <drone>/base_link (roll, pitch) -> <drone>/camera
   (~camera_offset, gimbal roll and pitch); static <drone>/camera ->
   <drone>/camera_optical (z along the view, the Gazebo camera's image frame);
-- /diagnostics at 1 Hz of wall time (so it reports even when /clock stops).
+- /diagnostics at 1 Hz of wall time (so it reports even when /clock stops): ERROR while
+  there is no fresh sample, while the telemetry process is not running (killed,
+  restarting) and after a restart until samples flow again; the restart note stays in
+  the message.
+
+The telemetry process is restarted when it exits, prints no byte or no complete sample
+for ~restart_timeout s; lines longer than MAX_LINE bytes are dropped and counted
+(process oversize lines). Restart warnings are throttled (10 s) with running counts.
 
 Namespace /<drone> (default drone name: the namespace's last part; in the
 root namespace the topics go under /<~drone_name>/). Parameters: see
@@ -31,6 +38,9 @@ from nav_msgs.msg import Odometry
 
 from anafi_sim.interface import ground_truth as gt
 from anafi_sim.interface.supervisor import ProcessSupervisor
+
+#: [bytes] longest telemetry line taken (a Sphinx line is < 100 bytes); longer ones are dropped and counted
+MAX_LINE = 4096
 from anafi_sim.msg import DroneData
 from anafi_sim.ros import conversions, topics
 from anafi_sim.ros.node import diagnostics_publisher, health_status, private_params, run_node, \
@@ -97,7 +107,7 @@ class InterfaceNode(object):
         self.supervisor = ProcessSupervisor(   # ValueError for a command string shlex cannot split
             params['telemetry_command'], self.on_line, restart_timeout=params['restart_timeout'],
             backoff_initial=params['backoff_initial'], backoff_max=params['backoff_max'],
-            on_event=self.on_event)
+            on_event=self.on_event, sample_timeout=params['restart_timeout'], max_line=MAX_LINE)
 
     def run(self):
         rospy.loginfo('interface: running %r, publishing %s at %.0f Hz', self.supervisor.argv,
@@ -113,17 +123,24 @@ class InterfaceNode(object):
         if kind == 'start':
             with self.lock:
                 self.parser.reset()  # a sample cut by the previous process must not be completed by this one
+                self.core.on_process_start()   # ERROR until samples flow again
             rospy.loginfo('interface: telemetry process started (pid %s)', info.get('pid'))
-        elif kind == 'exit':
-            rospy.logwarn('interface: telemetry process %s exited with code %s%s; restarting in %.1f s',
-                          info.get('pid'), info.get('code'),
-                          (' (stderr: %s)' % info['stderr']) if info.get('stderr') else '', info.get('restart_in', 0.0))
+        elif kind == 'exit':     # throttled: a simulator that is down makes the tool exit again and again
+            rospy.logwarn_throttle(10.0, 'interface: telemetry process %s exited with code %s%s; restarting in %.1f s '
+                                   '(%d exits so far)' % (
+                                       info.get('pid'), info.get('code'),
+                                       (' (stderr: %s)' % info['stderr']) if info.get('stderr') else '',
+                                       info.get('restart_in', 0.0), self.supervisor.exits))
         elif kind == 'hang':
-            rospy.logwarn('interface: telemetry process %s printed nothing for %.1f s: killed, restarting in %.1f s',
-                          info.get('pid'), info.get('silent_for', float('nan')), info.get('restart_in', 0.0))
+            rospy.logwarn_throttle(10.0, 'interface: telemetry process %s printed no sample for %.1f s: killed, '
+                                   'restarting in %.1f s (%d hangs so far)' % (
+                                       info.get('pid'), info.get('silent_for', float('nan')),
+                                       info.get('restart_in', 0.0), self.supervisor.hangs))
         elif kind == 'spawn_failed':
-            rospy.logerr('interface: cannot start telemetry command %r: %s; retrying in %.1f s',
-                         self.supervisor.argv, info.get('message'), info.get('restart_in', 0.0))
+            rospy.logerr_throttle(10.0, 'interface: cannot start telemetry command %r: %s; retrying in %.1f s '
+                                  '(%d failures so far)' % (self.supervisor.argv, info.get('message'),
+                                                            info.get('restart_in', 0.0),
+                                                            self.supervisor.spawn_failures))
         elif kind == 'callback_error':
             rospy.logerr('interface: %s', info.get('message'))
 
@@ -131,7 +148,7 @@ class InterfaceNode(object):
         with self.lock:
             sample = self.parser.feed_line(line, line.endswith('\n'))
             if sample is None:
-                return
+                return False
             out = self.core.on_sample(sample, wall_time)
             restarted = self.core.restarted
         if restarted:
@@ -146,6 +163,7 @@ class InterfaceNode(object):
                 if not rospy.is_shutdown():
                     rospy.logerr_throttle(5.0, 'interface: publishing failed (%d times): %s'
                                           % (self.publish_errors, self.last_publish_error))
+        return True     # a sample: the supervisor's sample timer (hang on bytes without samples)
 
     # -- publishing --------------------------------------------------------------------
     def publish(self, s):

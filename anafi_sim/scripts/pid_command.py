@@ -9,10 +9,11 @@ publishes one olympe_bridge/PilotingCommand (wire-identical, see
 anafi_sim.ros.wire_types) on ~command_topic (default drone/rpyt, relative to
 /<drone>/) every 1/~rate s of ROS time (10 Hz).
 
-Safety (anafi_control.pid_wiring.CommandAssembler): pid disabled
-(<pid_namespace>/pid_enable false), an effort missing, older than
-~effort_timeout s or non-finite -> hover command (all zeros), counted and
-reported on /diagnostics (1 Hz wall). Bad parameters: logfatal, exit code 1.
+Safety (anafi_control.pid_wiring.CommandAssembler, docs/reliability.md): pid
+disabled (<pid_namespace>/pid_enable false), an effort missing, older than
+~effort_timeout s or non-finite -> no command is published (the firmware's
+hover brake stops and holds the drone; an all-zero command would only level
+it and let it coast), counted and reported on /diagnostics (1 Hz wall). Bad parameters: logfatal, exit code 1.
 """
 import threading
 
@@ -63,8 +64,10 @@ class PidCommandNode(object):
         stamp = rospy.Time.now()
         with self.lock:
             cmd, reason = self.assembler.command(stamp.to_sec())
-        if reason is not None and not reason.startswith('pid disabled'):
-            rospy.logwarn_throttle(10.0, '%s: hover command: %s' % (rospy.get_name(), reason))
+        if reason is not None:
+            if not reason.startswith('pid disabled'):
+                rospy.logwarn_throttle(10.0, '%s: no command (firmware hover brake): %s' % (rospy.get_name(), reason))
+            return
         msg = self.cls()
         msg.header.stamp = stamp
         msg.header.frame_id = self.frame_id
@@ -80,9 +83,9 @@ class PidCommandNode(object):
             level, message = DiagnosticStatus.OK, 'commanding'
         else:
             level = DiagnosticStatus.OK if reason.startswith('pid disabled') else DiagnosticStatus.WARN
-            message = 'hover command: %s' % reason
-        values = [('commands sent', commands), ('hover commands', hovers),
-                  ('hover commands last second', hovers - self.last_hovers),
+            message = 'no command, firmware hover brake: %s' % reason
+        values = [('command periods', commands), ('periods without a command', hovers),
+                  ('periods without a command last second', hovers - self.last_hovers),
                   ('refused efforts (non-finite)', bad), ('command topic', self.command_topic)]
         values += [('%s effort' % f, 'none' if v is None else ('bad' if v is False else '%g' % v))
                    for f, v in last.items()]

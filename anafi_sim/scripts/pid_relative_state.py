@@ -14,12 +14,17 @@ Inputs (relative to the node's namespace, i.e. /<drone>/):
 ground_truth/odom selectable; pose in the world frame, twist in the child
 frame), ~waypoint_topic (anafi_sim/Waypoint, default position_control/waypoint).
 
-Safety (the controllers' input gate, anafi_control.contract.InputGate): no
-waypoint yet, no state, stale state (> ~state_timeout s), stale waypoint
-(> ~waypoint_timeout s; 0 = never), non-finite input, clock jumped back ->
-nothing is published to the loops and <pid_namespace>/pid_enable (latched
-std_msgs/Bool) goes false (the loops stop, the command node hovers); a
-diagnostic on /diagnostics (1 Hz wall) says why, with counters. Bad
+Safety (the controllers' input gate and failsafes, anafi_control.contract,
+docs/reliability.md): a non-finite, stale (> ~waypoint_timeout s; 0 = never)
+or out-of-limits waypoint (geofence: ~geofence_radius around the first state,
+~min_altitude..~max_altitude; ~max_waypoint_jump from the drone) -> HOLD: the
+loops get the hold point (the drone's position and heading when the hold
+began, zero velocity) instead of the waypoint, so the PID graph brakes and
+holds there; no waypoint yet, no / non-finite / stale state (> ~state_timeout
+s), clock jumped back -> SILENT: nothing is published to the loops and
+<pid_namespace>/pid_enable (latched std_msgs/Bool) goes false (the loops stop,
+the command node publishes nothing, the firmware's hover brake stops the
+drone). A diagnostic on /diagnostics (1 Hz wall) says why, with counters. Bad
 parameters: logfatal, exit code 1.
 """
 import threading
@@ -27,11 +32,11 @@ import threading
 import rospy
 from std_msgs.msg import Bool, Float64
 
-from anafi_control.contract import MESSAGES, NO_STATE, NO_WAYPOINT, InputGate, health
+from anafi_control.contract import MESSAGES, NO_STATE, NO_WAYPOINT, OK, InputGate, health
 from anafi_control.pid_framework import DEFAULTS, relative_state
 from anafi_control.pid_wiring import input_topics, loop_inputs
 from anafi_sim.ros import topics
-from anafi_sim.ros.conversions import subscribe_inputs
+from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
 
@@ -44,7 +49,8 @@ class RelativeStateNode(object):
         waypoint_topic = p.ros_name('waypoint_topic', topics.WAYPOINT)
         pid_ns = p.ros_name('pid_namespace', 'pid')
         self.gate = InputGate(p.positive('state_timeout', DEFAULTS['state_timeout']),
-                              p.number('waypoint_timeout', DEFAULTS['waypoint_timeout'], minimum=0.0))  # 0: never
+                              p.number('waypoint_timeout', DEFAULTS['waypoint_timeout'], minimum=0.0),  # 0: never
+                              limits=waypoint_limits(p))
         self.lock = threading.Lock()
         self.enabled = None
         self.published_cycles = 0
@@ -72,11 +78,14 @@ class RelativeStateNode(object):
             rel = None if inputs is None else relative_state(inputs.pos, inputs.vel, inputs.yaw, inputs.waypoint)
             self.gate.count_cycle(key)
             self.key, self.reason = key, reason
-        if rel is None:     # a hover reason (relative_state refuses nothing after the gate's checks)
+        if rel is None:     # SILENT (relative_state refuses nothing after the gate's checks)
             self._set_enabled(False)
             if key != NO_WAYPOINT:
-                rospy.logwarn_throttle(5.0, '%s: %s: pid disabled, hovering' % (rospy.get_name(), reason))
+                rospy.logwarn_throttle(5.0, '%s: %s: pid disabled, no command (firmware hover brake)'
+                                       % (rospy.get_name(), reason))
             return
+        if key != OK:       # HOLD: rel is relative to the hold point
+            rospy.logwarn_throttle(5.0, '%s: %s: holding position' % (rospy.get_name(), reason))
         self._set_enabled(True)
         for topic, value in loop_inputs(rel):
             self.pubs[topic].publish(Float64(value))

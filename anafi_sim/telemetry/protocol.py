@@ -147,6 +147,9 @@ class TelemetryParser(object):
         except ValueError:
             self.malformed += 1
             return None
+        if '_' in value_text or not value_text.isascii():   # float() also takes 1_000 and non-ASCII digits
+            self.malformed += 1
+            return None
         if value - value != 0.0:  # NaN or +-inf
             self.nonfinite += 1
             return None

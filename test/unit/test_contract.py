@@ -6,7 +6,8 @@ import math
 import pytest
 
 from anafi_control import contract
-from anafi_control.contract import HOVER, HOVER_KEYS, MESSAGES, Controller, InputGate, health
+from anafi_control.contract import (HOLD, HOLD_KEYS, HOVER, HOVER_KEYS, MESSAGES, SILENT, Controller, InputGate,
+                                    WaypointLimits, failsafe, health)
 from anafi_control.frames import euler_to_quaternion
 from anafi_control.mpc_tracking import MpcTracking
 from anafi_control.pid_framework import PidTracking
@@ -31,14 +32,25 @@ def feed(c, t, state=True, waypoint=True, pos=POS, wp=WP, q=LEVEL):
         c.on_waypoint(t, wp)
 
 
-def assert_hover(out, key):
-    assert out.command == HOVER and not out.ok and out.key == key, out
+def assert_finite_command(command):
+    assert len(command) == 4 and all(isinstance(v, float) and math.isfinite(v) for v in command), command
+
+
+def assert_hover(out, key, warming=False):
+    """A cycle that does not track, with its failsafe: SILENT = no command; HOLD = a finite command of the
+    controller's own loop (None allowed on the first cycle of a hold: a PID loop warms up)."""
+    assert not out.ok and out.key == key, out
     assert out.reason.startswith(MESSAGES[key])
+    if failsafe(key) == SILENT:
+        assert out.command is None, out
+    elif not (warming and out.command is None):
+        assert_finite_command(out.command)
 
 
-def assert_runs(out):
+def assert_runs(out, warming=False):
     assert out.ok and out.key == 'ok', out
-    assert len(out.command) == 4 and all(isinstance(v, float) and math.isfinite(v) for v in out.command)
+    if not (warming and out.command is None):
+        assert_finite_command(out.command)
 
 
 def warm(c, t0=0.0):
@@ -46,8 +58,8 @@ def warm(c, t0=0.0):
     for k in range(2):
         t = t0 + k / 30.0
         feed(c, t)
-        assert_runs(c.cycle(t))
-    assert c.last.command != HOVER
+        assert_runs(c.cycle(t), warming=(k == 0))
+    assert c.last.command is not None
     return t0 + 1 / 30.0
 
 
@@ -63,7 +75,7 @@ def test_no_state_then_no_waypoint_then_runs(ctl):
     feed(ctl, 0.0, waypoint=False)
     assert_hover(ctl.cycle(0.03), 'no_waypoint')
     feed(ctl, 0.05)
-    assert_runs(ctl.cycle(0.06))
+    assert_runs(ctl.cycle(0.06), warming=True)
 
 
 def test_waypoint_without_state_is_no_state(ctl):
@@ -79,7 +91,7 @@ def test_bad_state_hovers_then_recovers(ctl, bad):
     assert_hover(ctl.cycle(t + 0.04), 'bad_state')
     assert ctl.counters['rejected_states'] == 1
     feed(ctl, t + 0.07, waypoint=False)              # the held waypoint is still good
-    assert_runs(ctl.cycle(t + 0.08))
+    assert_runs(ctl.cycle(t + 0.08), warming=True)
 
 
 @pytest.mark.parametrize('bad', [WP[:6] + (NAN,), WP[:3], None, 'abcdefg'], ids=['nan', 'short', 'none', 'text'])
@@ -87,10 +99,12 @@ def test_bad_waypoint_hovers_then_recovers(ctl, bad):
     t = warm(ctl)
     assert not ctl.on_waypoint(t + 0.03, bad)
     feed(ctl, t + 0.03, waypoint=False)
-    assert_hover(ctl.cycle(t + 0.04), 'bad_waypoint')
+    assert_hover(ctl.cycle(t + 0.04), 'bad_waypoint', warming=True)
     assert ctl.counters['rejected_waypoints'] == 1
-    feed(ctl, t + 0.07)
-    assert_runs(ctl.cycle(t + 0.08))
+    feed(ctl, t + 0.07, waypoint=False)
+    assert_hover(ctl.cycle(t + 0.08), 'bad_waypoint')     # holding: the own loop's command
+    feed(ctl, t + 0.1)
+    assert_runs(ctl.cycle(t + 0.11), warming=True)
 
 
 def test_stale_state_hovers_then_recovers(ctl):
@@ -99,15 +113,15 @@ def test_stale_state_hovers_then_recovers(ctl):
     assert_hover(ctl.cycle(t + 0.6), 'stale_state')
     assert 'stale state (0.60 s old > 0.50 s)' in ctl.last.reason
     feed(ctl, t + 0.65, waypoint=False)
-    assert_runs(ctl.cycle(t + 0.66))
+    assert_runs(ctl.cycle(t + 0.66), warming=True)
 
 
 def test_stale_waypoint_hovers_then_recovers(ctl):
     t = warm(ctl)
     feed(ctl, t + 1.2, waypoint=False)
-    assert_hover(ctl.cycle(t + 1.2), 'stale_waypoint')
+    assert_hover(ctl.cycle(t + 1.2), 'stale_waypoint', warming=True)
     feed(ctl, t + 1.25)
-    assert_runs(ctl.cycle(t + 1.26))
+    assert_runs(ctl.cycle(t + 1.26), warming=True)
 
 
 def test_clock_jump_drops_the_inputs_until_both_arrive_again(ctl):
@@ -116,7 +130,7 @@ def test_clock_jump_drops_the_inputs_until_both_arrive_again(ctl):
     assert_hover(ctl.cycle(3.01), 'clock_jump')
     assert 'by 97.' in ctl.last.reason and ctl.counters['clock_jumps'] == 1
     feed(ctl, 3.04, state=False)
-    assert_runs(ctl.cycle(3.05))
+    assert_runs(ctl.cycle(3.05), warming=True)
 
 
 def test_clock_jump_seen_by_the_cycle(ctl):
@@ -124,7 +138,7 @@ def test_clock_jump_seen_by_the_cycle(ctl):
     assert_hover(ctl.cycle(t - 0.6), 'clock_jump')
     assert_hover(ctl.cycle(t - 0.5), 'clock_jump')     # the held inputs are gone
     feed(ctl, t - 0.45)
-    assert_runs(ctl.cycle(t - 0.44))
+    assert_runs(ctl.cycle(t - 0.44), warming=True)
 
 
 def test_input_stamped_just_after_the_cycle_time_is_fresh(ctl):
@@ -139,7 +153,7 @@ def test_non_finite_cycle_time_hovers(ctl):
     t = warm(ctl)
     assert_hover(ctl.cycle(NAN), 'bad_state')
     feed(ctl, t + 0.03)
-    assert_runs(ctl.cycle(t + 0.04))
+    assert_runs(ctl.cycle(t + 0.04), warming=True)
 
 
 def test_counters_add_up(ctl):
@@ -148,8 +162,8 @@ def test_counters_add_up(ctl):
     ctl.cycle(t + 2.0)
     c = ctl.counters
     assert c['cycles'] == 4 and c['ok'] == 2 and c['hover'] == 2
-    assert c['hover'] == sum(c[k] for k in HOVER_KEYS)
-    assert c['no_state'] == 1 and c['stale_state'] == 1
+    assert c['hover'] == sum(c[k] for k in HOVER_KEYS) == c['hold'] + c['silent']
+    assert c['no_state'] == 1 and c['stale_state'] == 1 and c['silent'] == 2
     assert c['states'] == 2 and c['waypoints'] == 2
 
 
@@ -160,18 +174,21 @@ def test_commands_are_finite_along_a_moving_target(ctl):
         ctl.on_state(t, (0.1 * t, 0.0, 1.0), euler_to_quaternion(0.05, -0.02, yaw), (0.3, 0.1, 0.0))
         ctl.on_waypoint(t, (3.0 + t, 2.0, 5.0, 1.0, 0.0, 0.0, -175.0))
         out = ctl.cycle(t)
-        assert_runs(out)
+        assert_runs(out, warming=(k == 0))
         assert ctl.last is out
-    assert ctl.last.command != HOVER
+    assert ctl.last.command is not None
 
 
 # -- diagnostics ------------------------------------------------------------------------------
 def test_health_levels():
     assert health('ok', 'ok') == (contract.LEVEL_OK, 'tracking', [])
-    assert health('no_waypoint', MESSAGES['no_waypoint'])[:2] == (contract.LEVEL_OK,
-                                                                  'hovering: no waypoint received yet')
-    for key in ('no_state', 'bad_state', 'bad_waypoint', 'stale_state', 'stale_waypoint', 'clock_jump'):
+    assert health('no_waypoint', MESSAGES['no_waypoint'])[:2] == (
+        contract.LEVEL_OK, 'no command, firmware hover brake: no waypoint received yet')
+    for key in ('no_state', 'bad_state', 'bad_waypoint', 'stale_state', 'stale_waypoint', 'clock_jump',
+                'geofence', 'waypoint_jump'):
         assert health(key, MESSAGES[key]).level == contract.LEVEL_WARN
+    assert health('bad_waypoint', 'x').message == 'holding position: x'
+    assert health('stale_state', 'y').message == 'no command, firmware hover brake: y'
     for key in ('solver_failed', 'bad_output'):
         assert health(key, MESSAGES[key]).level == contract.LEVEL_ERROR
     assert set(HOVER_KEYS) <= set(contract.COUNTER_NAMES)
@@ -180,7 +197,7 @@ def test_health_levels():
 def test_controller_health_reports_the_last_cycle_and_the_counters(ctl):
     ctl.cycle(0.0)
     h = ctl.health()
-    assert h.level == contract.LEVEL_WARN and h.message == 'hovering: no state received yet'
+    assert h.level == contract.LEVEL_WARN and h.message == 'no command, firmware hover brake: no state received yet'
     values = dict(h.values)
     assert values['last_reason'] == 'no state received yet' and values['cycles'] == 1 and values['no_state'] == 1
     warm(ctl, 1.0)
@@ -192,7 +209,7 @@ def test_gate_reasons_in_order_then_runs():
     gate = InputGate(state_timeout=0.5, waypoint_timeout=1.0)
     assert gate.check(0.0) == (None, 'no_state', 'no state received yet')
     gate.on_state(0.1, (1, 2, 3), LEVEL, (0, 0, 0))
-    assert gate.check(0.2) == (None, 'no_waypoint', 'no waypoint received yet')
+    assert gate.check(0.2) == (None, 'no_waypoint', 'no waypoint received yet')       # silent: not engaged yet
     gate.on_waypoint(0.2, WP)
     inputs, key, _ = gate.check(0.3)
     assert key == 'ok'
@@ -273,3 +290,113 @@ def test_waypoint_timeout_zero_allowed_only_where_it_means_never():
     assert InputGate(waypoint_timeout=0.0).waypoint_timeout == 0.0
     with pytest.raises(ValueError):
         InputGate(waypoint_timeout=-0.1)
+
+
+# -- failsafes: hold the position (waypoint faults), silent (state faults) ------------------------
+def test_failsafe_of_every_key():
+    assert failsafe('ok') is None
+    assert set(HOLD_KEYS) == {'bad_waypoint', 'stale_waypoint', 'geofence', 'waypoint_jump'}
+    for key in HOVER_KEYS:
+        assert failsafe(key) == (HOLD if key in HOLD_KEYS else SILENT)
+    assert failsafe('no_waypoint') == SILENT          # not engaged yet: the firmware hovers by itself
+
+
+def hold_cycles(ctl, t, n=3, key='bad_waypoint'):
+    outs = []
+    for k in range(n):
+        feed(ctl, t + k / 30.0, waypoint=False)
+        outs.append(ctl.cycle(t + k / 30.0))
+        assert_hover(outs[-1], key, warming=(k == 0))
+    return outs
+
+
+def test_a_bad_waypoint_holds_the_position_where_the_hold_began(ctl):
+    t = warm(ctl)
+    ctl.on_waypoint(t + 0.03, WP[:6] + (NAN,))
+    outs = hold_cycles(ctl, t + 0.04)
+    assert ctl.gate.hold == (POS[0], POS[1], POS[2], 0.0, 0.0, 0.0, 0.0)     # drone at POS, heading 0 deg
+    assert ctl.counters['holds'] == 1 and ctl.counters['hold'] == 3
+    # at the hold point, at rest, level: the hold command is (close to) nothing to do -- not towards WP
+    roll, pitch, _, gaz = outs[-1].command
+    assert abs(roll) < 1.0 and abs(pitch) < 1.0 and abs(gaz) < 0.2
+    assert ctl.health().message.startswith('holding position: non-finite waypoint')
+
+
+def test_hold_brakes_a_moving_drone_and_pulls_it_back(ctl):
+    t = warm(ctl)
+    ctl.on_waypoint(t + 0.03, (NAN,) * 7)
+    for k in range(3):                 # flying +x at 5 m/s, 2 m past the hold point (captured at x = 0)
+        tk = t + 0.04 + k / 30.0
+        ctl.on_state(tk, (0.0 if k == 0 else 2.0, 0.0, 1.0), LEVEL, (5.0, 0.0, 0.0))
+        out = ctl.cycle(tk)
+    pitch = out.command[1]
+    assert pitch < -5.0, out            # nose up: braking against +x
+
+
+def test_state_faults_are_silent_no_command(ctl):
+    t = warm(ctl)
+    assert not ctl.on_state(t + 0.03, (NAN, 0.0, 1.0), LEVEL, VEL)
+    out = ctl.cycle(t + 0.04)
+    assert out.command is None and ctl.counters['silent'] == 1
+    assert ctl.health().message.startswith('no command, firmware hover brake: non-finite state')
+
+
+def test_hold_recaptures_after_tracking_again(ctl):
+    t = warm(ctl)
+    ctl.on_waypoint(t + 0.03, (NAN,) * 7)
+    hold_cycles(ctl, t + 0.04)
+    t2 = t + 0.2
+    feed(ctl, t2, pos=(1.0, 1.0, 2.0))
+    ctl.cycle(t2)
+    assert ctl.gate.hold is None and ctl.mode == 'ok'
+    ctl.on_waypoint(t2 + 0.03, (NAN,) * 7)
+    ctl.on_state(t2 + 0.04, (1.0, 1.0, 2.0), LEVEL, VEL)
+    ctl.cycle(t2 + 0.04)
+    assert ctl.gate.hold[:3] == (1.0, 1.0, 2.0) and ctl.counters['holds'] == 2
+
+
+# -- geofence and maximum waypoint jump --------------------------------------------------------
+@pytest.mark.parametrize('wp, key, counter', [
+    ((300.0, 0.0, 5.0, 0, 0, 0, 0), 'geofence', 'rejected_geofence'),      # 300 m from the start
+    ((3.0, 2.0, 60.0, 0, 0, 0, 0), 'geofence', 'rejected_geofence'),       # above the altitude band
+    ((3.0, 2.0, 0.1, 0, 0, 0, 0), 'geofence', 'rejected_geofence'),        # below it
+    ((60.0, 0.0, 5.0, 0, 0, 0, 0), 'waypoint_jump', 'rejected_jumps'),     # 60 m from the drone
+    ((1000.0, 0.0, 5.0, 0, 0, 0, 0), 'geofence', 'rejected_geofence'),
+])
+def test_waypoints_beyond_the_limits_are_rejected_and_held(ctl, wp, key, counter):
+    t = warm(ctl)
+    assert not ctl.on_waypoint(t + 0.03, wp)
+    assert ctl.counters[counter] == 1 and ctl.counters['rejected_waypoints'] == 1
+    outs = hold_cycles(ctl, t + 0.04, key=key)
+    assert ctl.gate.hold[:3] == POS
+    assert outs[0].reason.startswith(MESSAGES[key] + ' (')
+    assert ctl.health().level == contract.LEVEL_WARN and ctl.health().message.startswith('holding position')
+    feed(ctl, t + 0.2)                  # a good waypoint again: tracking
+    assert_runs(ctl.cycle(t + 0.2), warming=True)
+
+
+def test_geofence_centre_is_the_first_state_and_limits_are_configurable():
+    limits = WaypointLimits(geofence_radius=10.0, min_altitude=1.0, max_altitude=20.0, max_waypoint_jump=100.0)
+    gate = InputGate(limits=limits)
+    gate.on_state(0.0, (50.0, 50.0, 5.0), LEVEL, (0, 0, 0))
+    gate.on_state(0.1, (0.0, 0.0, 5.0), LEVEL, (0, 0, 0))
+    assert gate.centre == (50.0, 50.0)
+    assert gate.on_waypoint(0.1, (55.0, 55.0, 5.0, 0, 0, 0, 0))
+    assert not gate.on_waypoint(0.2, (0.0, 0.0, 5.0, 0, 0, 0, 0))
+    assert gate.check(0.2)[1] == 'geofence'
+
+
+def test_no_jump_check_without_a_state_but_the_altitude_band_applies():
+    gate = InputGate()
+    assert gate.on_waypoint(0.0, (100.0, 0.0, 5.0, 0, 0, 0, 0))
+    assert not gate.on_waypoint(0.0, (0.0, 0.0, -1.0, 0, 0, 0, 0))
+
+
+@pytest.mark.parametrize('kw', [dict(geofence_radius=0.0), dict(max_waypoint_jump=-1.0), dict(min_altitude=NAN),
+                                dict(min_altitude=10.0, max_altitude=5.0), dict(max_altitude=True),
+                                dict(geofence_radius='1')])
+def test_bad_limits_are_refused(kw):
+    with pytest.raises(ValueError):
+        WaypointLimits(**kw)
+    with pytest.raises(ValueError):
+        InputGate(limits='x')

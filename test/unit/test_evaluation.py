@@ -85,6 +85,19 @@ def test_truth_is_interpolated_and_missing_truth_is_reported():
     assert abs(abs(yaw[0, 0]) - math.pi) < 1e-9                              # across +-pi, not through 0
 
 
+def test_all_zero_truth_columns_are_no_ground_truth():
+    # a real-flight CSV has the *_sphinx columns filled with zeros: "no ground truth", not an error of |wp|
+    t = np.arange(10) * 0.1
+    wp = np.tile([5.0, 5.0, 1.0], (10, 1))
+    r = ev.evaluate_arrays(t, wp, wp - [0.1, 0.0, 0.0], truth=np.zeros((10, 3)), t_truth=t)
+    assert r.truth is None and r.estimate.stats.mean == pytest.approx(0.1)
+    assert any('no ground truth' in line for line in r.lines())
+    # a truth that is zero only at some samples (e.g. at the origin) is still ground truth
+    truth = np.zeros((10, 3))
+    truth[5:] = [5.0, 5.0, 1.0]
+    assert ev.evaluate_arrays(t, wp, wp, truth=truth, t_truth=t).truth is not None
+
+
 def test_garbage_is_excluded_and_reported():
     n = 20
     t = np.arange(n) * 0.05

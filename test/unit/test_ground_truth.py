@@ -175,6 +175,31 @@ def test_health_levels():
     assert float(dict(h.values)['sample age [s]']) == pytest.approx(0.61, abs=0.01)
 
 
+def test_health_is_error_while_the_process_is_down_or_restarting_until_samples_flow():
+    core = gt.GroundTruthInterface(publish_rate=100.0, stale_timeout=0.5)
+    core.on_process_start()
+    run(core, 100.0, 2.0, wall0=0.0)
+    proc = dict(running=True, restarts=0, starts=1)
+    assert core.health(2.0, {}, proc).level == gt.OK
+    # kill -9: the process is gone, samples are still fresh (< stale_timeout): ERROR, not OK
+    h = core.health(2.05, {}, dict(running=False, restarts=0, starts=1))
+    assert h.level == gt.ERROR and 'not running' in h.message
+    # restarted: ERROR until a sample arrives, and the restart note is in the message
+    core.on_process_start()
+    h = core.health(2.1, {}, dict(running=True, restarts=1, starts=2))
+    assert h.level == gt.ERROR and 'restarted, no sample since' in h.message and 'process restarts' in h.message
+    assert core.health(2.2, {}, dict(running=True, restarts=1, starts=2)).level == gt.ERROR
+    core.on_sample(sample_at(2.5), 2.5)
+    assert core.health(2.5, {}, dict(running=True, restarts=1, starts=2)).level != gt.ERROR
+
+
+def test_restart_note_is_kept_when_the_rate_warning_wins():
+    core = gt.GroundTruthInterface(publish_rate=100.0)
+    run(core, 50.0, 2.0, wall0=0.0)
+    h = core.health(1.99, {}, dict(running=True, restarts=1, starts=2))
+    assert h.level == gt.WARN and 'Hz' in h.message and 'process restarts' in h.message
+
+
 def test_health_warns_on_low_rate_and_lost_samples():
     core = gt.GroundTruthInterface(publish_rate=100.0)
     run(core, 50.0, 2.0, wall0=0.0)

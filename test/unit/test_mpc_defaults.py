@@ -6,6 +6,7 @@ import os
 import pytest
 import yaml
 
+from anafi_control.contract import LIMIT_DEFAULTS
 from anafi_control.mpc import DEFAULT_PARAMS
 from anafi_control.mpc_tracking import DEFAULTS, RECONFIGURABLE, MpcTracking, mpc_params_from_flat
 
@@ -78,5 +79,14 @@ def test_tracking_defaults_are_the_constructor_defaults():
     assert tr.gate.waypoint_timeout == DEFAULTS['waypoint_timeout']
     assert tr.twist_in_child_frame == DEFAULTS['twist_in_child_frame']
     assert tr.cum_reset_distance == DEFAULTS['cum_reset_distance']
+    assert all(tr.gate.limits.as_dict()[k] == DEFAULTS[k] for k in LIMIT_DEFAULTS)
     assert MpcTracking.RATE == DEFAULTS['rate'] == pytest.approx(1.0 / DEFAULT_PARAMS['dt'])
     assert tr.config() == dict((k, _yaml()[k]) for k in RECONFIGURABLE)
+
+
+def test_waypoint_limits_are_the_same_in_both_controller_yamls_and_the_code():
+    with open(os.path.join(REPO, 'anafi_sim', 'config', 'pid.yaml')) as f:
+        pid = yaml.safe_load(f)
+    data = _yaml()
+    for key, value in LIMIT_DEFAULTS.items():
+        assert data[key] == pid[key] == value == DEFAULTS[key], key

@@ -41,13 +41,13 @@ def test_twist_frame_option():
 
 # ----------------------------------------------------------------------------- cycle
 
-def test_no_inputs_hover_with_reason_and_counters():
+def test_no_inputs_no_command_with_reason_and_counters():
     tr = MpcTracking()
     out = tr.cycle(0.0)
-    assert out.command == HOVER and not out.ok and out.key == 'no_state'
+    assert out.command is None and not out.ok and out.key == 'no_state'
     tr.on_state(0.0, (0, 0, 1), LEVEL, (0, 0, 0))
     out = tr.cycle(0.05)
-    assert out.command == HOVER and out.key == 'no_waypoint' and 'waypoint' in out.reason
+    assert out.command is None and out.key == 'no_waypoint' and 'waypoint' in out.reason
     assert tr.counters['no_state'] == 1 and tr.counters['no_waypoint'] == 1 and tr.counters['hover'] == 2
     assert tr.counters['cycles'] == 2 and tr.counters['ok'] == 0
 
@@ -87,7 +87,7 @@ def test_stale_state_then_recovery():
     _ready(tr)
     assert tr.cycle(0.4).ok
     out = tr.cycle(0.6)
-    assert not out.ok and out.key == 'stale_state' and out.command == HOVER and 'stale state' in out.reason
+    assert not out.ok and out.key == 'stale_state' and out.command is None and 'stale state' in out.reason
     tr.on_state(0.7, (0, 0, 1), LEVEL, (0, 0, 0))
     assert tr.cycle(0.7).ok
     assert tr.counters['stale_state'] == 1 and tr.counters['ok'] == 2
@@ -97,7 +97,8 @@ def test_stale_waypoint_then_recovery():
     tr = MpcTracking(state_timeout=10.0, waypoint_timeout=1.0)
     _ready(tr)
     out = tr.cycle(1.2)
-    assert out.key == 'stale_waypoint' and out.command == HOVER
+    assert out.key == 'stale_waypoint' and not out.ok          # holds where it is: (0, 0, 1), at rest
+    assert out.command[1] == pytest.approx(0.0, abs=1e-3) and out.result.ok
     tr.on_waypoint(1.3, WP)
     assert tr.cycle(1.3).ok
 
@@ -127,7 +128,11 @@ def test_non_finite_input_hovers_then_recovers(which):
     else:
         assert not tr.on_waypoint(0.05, (3, 2, float('inf'), 0, 0, 0, 0))
     out = tr.cycle(0.1)
-    assert not out.ok and out.command == HOVER and out.key == 'bad_' + which
+    assert not out.ok and out.key == 'bad_' + which
+    if which == 'state':
+        assert out.command is None                       # silent: the firmware brakes
+    else:                                                # hold at (0, 0, 1), at rest: nearly nothing to do
+        assert max(abs(v) for v in out.command) < 0.1
     assert tr.counters['rejected_%ss' % which] == 1
     # the last good value of the other input is still there; a good message restores the command
     if which == 'state':
@@ -142,7 +147,7 @@ def test_solver_failure_hovers_then_recovers():
     # |v_z| = 4 m/s cannot be brought within 2 m/s in one step with |a_z| <= 5 m/s^2: infeasible
     _ready(tr, vel=(0.0, 0.0, 4.0))
     out = tr.cycle(0.0)
-    assert not out.ok and out.key == 'solver_failed' and out.command == HOVER
+    assert not out.ok and out.key == 'solver_failed' and out.command is None
     assert out.reason.startswith('solver: ') and out.result is not None and not out.result.ok
     tr.on_state(0.05, (0, 0, 1), LEVEL, (0, 0, 0))
     assert tr.cycle(0.1).ok and tr.counters['solver_failed'] == 1

@@ -5,7 +5,7 @@ import os
 import pytest
 import yaml
 
-from anafi_control.contract import HOVER
+from anafi_control.contract import HOVER, LIMIT_DEFAULTS
 from anafi_control.pid_framework import (DEFAULT_CONFIG, LOOP_NAMES, PidFramework,
                                          make_config, relative_state)
 from anafi_sim.sim.bridge import PilotingMapping
@@ -51,6 +51,8 @@ def test_relative_state_refuses_missing_or_non_finite(bad):
 def test_yaml_matches_default_config():
     with open(os.path.join(REPO, 'anafi_sim', 'config', 'pid.yaml')) as f:
         data = yaml.safe_load(f)
+    limits = dict((k, data.pop(k)) for k in LIMIT_DEFAULTS if k in data)
+    assert limits == dict(LIMIT_DEFAULTS)      # the waypoint limits (contract.WaypointLimits), = the code defaults
     assert sorted(data) == sorted(LOOP_NAMES)
     for loop in LOOP_NAMES:
         assert sorted(data[loop]) == sorted(DEFAULT_CONFIG[loop])

@@ -6,7 +6,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from anafi_control.contract import HOVER
+HOVER = None     # CommandAssembler: no command (the firmware brakes)
 from anafi_control.pid import PidController
 from anafi_control.pid_framework import DEFAULT_CONFIG, LOOP_NAMES, PidFramework, relative_state
 from anafi_control.pid_wiring import (CASCADES, COMMAND_LOOPS, DISABLED, CommandAssembler, input_topics,
@@ -149,7 +149,7 @@ def test_assembler_stale_effort_hovers():
     asm.on_effort('gaz', 0.4, 1.0)
     assert asm.command(0.5)[1] is None
     assert asm.command(0.51) == (HOVER, 'stale effort from yaw')
-    assert asm.command(-1.0)[0] == HOVER           # clock went back: not fresh
+    assert asm.command(-1.0)[0] is HOVER           # clock went back: not fresh
 
 
 def test_assembler_non_finite_effort_hovers_and_counts():
@@ -168,6 +168,6 @@ def test_assembler_disable_hovers_and_needs_fresh_efforts_after_enable():
     asm.on_enable(False)
     assert asm.command(0.1) == (HOVER, DISABLED)
     asm.on_enable(True)
-    assert asm.command(0.1)[0] == HOVER            # the old efforts were forgotten
+    assert asm.command(0.1)[0] is HOVER            # the old efforts were forgotten
     fill(asm, 0.2)
     assert asm.command(0.2)[1] is None

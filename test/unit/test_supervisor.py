@@ -194,3 +194,45 @@ def test_bad_arguments_raise_at_construction():
     with pytest.raises(ValueError):
         ProcessSupervisor('', lambda l, t: None)
     assert os.path.exists(PY)
+
+
+def test_a_line_without_end_is_capped_dropped_and_counted(rec):
+    # 64 kB per chunk, no newline, then a normal line: memory stays bounded, the normal line comes through
+    script = ('import sys, time\n'
+              'for i in range(40):\n    sys.stdout.write("x" * 65536); sys.stdout.flush()\n'
+              'sys.stdout.write("\\nshort\\n"); sys.stdout.flush(); time.sleep(30)\n')
+    sup = make(rec, [PY, '-c', script], restart_timeout=5.0, max_line=1024)
+    try:
+        assert rec.wait_for(lambda: 'short\n' in [l for l, _ in rec.lines], timeout=10.0)
+    finally:
+        sup.stop()
+    assert sup.oversize_lines == 1 and sup.snapshot()['oversize_lines'] == 1
+    assert all(len(l) <= 1024 for l, _ in rec.lines) and sup.hangs == 0
+
+
+def test_endless_bytes_without_samples_count_as_a_hang_with_a_sample_timeout(rec):
+    script = 'import sys\nwhile True:\n    sys.stdout.write("y" * 4096); sys.stdout.flush()\n'
+    sup = make(rec, [PY, '-c', script], restart_timeout=5.0, sample_timeout=0.5, max_line=1024,
+               backoff_initial=0.05)
+    try:
+        assert rec.wait_for(lambda: len(rec.kinds('hang')) >= 1, timeout=10.0)
+    finally:
+        sup.stop()
+    assert sup.oversize_lines >= 1 and sup.lines == 0
+
+
+def test_a_clean_exit_restarts_without_growing_back_off(rec):
+    # the telemetry tool exits with code 0 when the simulator stops: retry at once, do not back off
+    sup = make(rec, ['sh', '-c', 'exit 0'], backoff_initial=0.05, backoff_max=2.0)
+    try:
+        assert rec.wait_for(lambda: len(rec.kinds('start')) >= 5, timeout=4.0)
+    finally:
+        sup.stop()
+    assert sup.backoff == pytest.approx(0.1)
+    assert all(e[1]['restart_in'] == pytest.approx(0.05) for e in rec.kinds('exit'))
+
+
+@pytest.mark.parametrize('kw', [dict(max_line=0), dict(max_line=8), dict(max_line=1.5), dict(sample_timeout=0.0)])
+def test_bad_line_cap_or_sample_timeout_raise(kw):
+    with pytest.raises(ValueError):
+        ProcessSupervisor(['true'], lambda line, t: None, **kw)

@@ -78,6 +78,11 @@ def test_blank_lines_are_counted_and_ignored():
     'omniscient_anafi.worldPosition.x : 0x1p3\n',    # not a decimal number
     'omniscient_anafi.worldPos',                      # cut in the key
     'omniscient_anafi.worldPosition.x : 1.2.3\n',
+    'omniscient_anafi.worldPosition.x : 1_000\n',                 # Python literal syntax, not a number here
+    'omniscient_anafi.worldPosition.x : 1_0.5e1_0\n',
+    'omniscient_anafi.worldPosition.x : \u0661\u0662\n',           # Arabic-Indic digits (float() takes them)
+    'omniscient_anafi.worldPosition.x : \uff11.5\n',               # full-width digit one
+    'omniscient_anafi.worldPosition.x : 1.5\u2003\n',              # non-ASCII white space
 ])
 def test_malformed_lines_are_counted_and_ignored(bad):
     parser = TelemetryParser()
@@ -85,6 +90,14 @@ def test_malformed_lines_are_counted_and_ignored(bad):
     lines.insert(5, bad)
     assert feed_all(parser, lines) == [make_sample()]
     counts(parser, malformed=1)
+
+
+@pytest.mark.parametrize('text, value', [('1', 1.0), ('-2.5', -2.5), ('+.5', 0.5), ('3.', 3.0), ('1e3', 1000.0),
+                                         ('-1.25E-2', -0.0125), ('  7.0\t', 7.0)])
+def test_ascii_decimal_and_exponent_forms_are_accepted(text, value):
+    parser = TelemetryParser(required_fields=('x',))
+    sample = parser.feed_line('omniscient_anafi.worldPosition.x : %s\n' % text)
+    assert sample is not None and sample.x == value
 
 
 def test_partial_last_line_is_malformed_even_if_it_parses():

@@ -6,7 +6,7 @@ SHELL := /bin/bash
 ROOT := $(abspath $(dir $(lastword $(MAKEFILE_LIST))))
 IN_ENV := source $(ROOT)/env.bash &&
 
-.PHONY: setup demo test unit rostest bench lint calibrate clean
+.PHONY: setup demo test unit rostest bench bench-ros lint calibrate clean
 
 setup:
 	@$(ROOT)/tools/setup.sh
@@ -24,7 +24,10 @@ rostest: setup
 	@$(IN_ENV) python $(ROOT)/tools/run_tests.py --rostest-only
 
 bench: setup
-	@$(IN_ENV) $(ROOT)/tools/bench.sh
+	@$(IN_ENV) $(ROOT)/tools/bench.sh inprocess
+
+bench-ros: setup
+	@$(IN_ENV) $(ROOT)/tools/bench.sh ros
 
 lint: setup
 	@$(IN_ENV) catkin_lint -W1 $(ROOT)

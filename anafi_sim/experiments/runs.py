@@ -1,0 +1,346 @@
+"""Many in-process runs: one run's files, the paper's batch and its report, and the executors that spread
+runs over processes or a Dask cluster (pure, no ROS).
+
+Stage: experiments (on top of ``anafi_sim.experiments.engine``; used by anafi_sim/scripts/experiment.py
+and ``anafi_sim.experiments.sweep``).
+
+- A *task* is a plain dict (``make_task``: scenario, controller, seed, wind, params, schedule, state_source,
+  name, and where to write files), so it pickles to any worker; ``run_task(task)`` runs it and returns its
+  *record*: the batch record of benchmarks/results/experiments.yaml (scenario, controller, ok, error,
+  summary = the evaluator's dict, info = run figures, step = static-waypoint step metrics, wall_s, files,
+  plot). With ``out_dir`` it writes ``<name>.yaml`` (the summary), ``<name>.csv`` (the reference log of the
+  whole run, as the evaluator's ``csv_window: all``) and, with ``plot``, ``<name>.png``.
+- ``execute(tasks, workers, scheduler)`` runs tasks serially (1 worker), on a ``ProcessPoolExecutor``
+  (``workers`` processes) or on a Dask distributed cluster (``scheduler``: its address; the same tasks
+  through ``distributed.Client(address).get_executor()``); records come back in task order; progress as a
+  tqdm bar on a terminal, else one line per finished run.
+- ``batch(out_dir, ...)``: every scenario of the paper with both controllers -> ``out_dir/experiments.yaml``
+  (``{'meta', 'records'}``, the schema of the ROS batch), ``out_dir/report.md``
+  (``anafi_sim.experiments.report``: the paper's tables) and the plots (one per run and the static
+  waypoints' comparison, ``anafi_sim.experiments.plots``).
+"""
+import collections
+import datetime
+import os
+import platform
+import re
+import sys
+import time
+
+import yaml
+
+from anafi_sim.experiments import report
+from anafi_sim.experiments import step_response
+from anafi_sim.experiments.engine import Engine
+from anafi_sim.experiments.reference_log import write_log
+from anafi_sim.experiments.trajectory import load_scenario
+
+TASK_DEFAULTS = collections.OrderedDict([
+    ('scenario', None), ('controller', 'mpc'), ('seed', None), ('wind', None), ('params', None),
+    ('schedule', None), ('state_source', 'estimate'), ('name', None), ('out_dir', None), ('plot', False),
+    ('detail', True),
+])
+
+
+def make_task(scenario, controller='mpc', **kwargs):
+    """A task dict (keys ``TASK_DEFAULTS``); ``detail`` False keeps only the summary and key figures."""
+    unknown = sorted(set(kwargs) - set(TASK_DEFAULTS))
+    if unknown:
+        raise ValueError('unknown task key(s): %s' % ', '.join(unknown))
+    task = collections.OrderedDict(TASK_DEFAULTS)
+    task.update(scenario=scenario, controller=controller)
+    task.update(kwargs)
+    return dict(task)
+
+
+def task_name(task):
+    """The run's name: the task's ``name`` or SCENARIO_CONTROLLER (scenario file name without .yaml)."""
+    if task.get('name'):
+        return task['name']
+    scenario = os.path.splitext(os.path.basename(str(task['scenario'])))[0]
+    return '%s_%s' % (scenario, str(task['controller']).split(':')[-1])
+
+
+def _write_yaml(path, data):
+    with open(path, 'w') as stream:
+        yaml.safe_dump(data, stream, default_flow_style=False, sort_keys=False)
+
+
+def run_task(task):
+    """Run one task (see the module doc); returns its record (plain data, picklable)."""
+    name = task_name(task)
+    t0 = time.perf_counter()
+    record = collections.OrderedDict([('scenario', None), ('controller', task['controller']), ('ok', False),
+                                      ('error', '')])
+    try:
+        scenario = load_scenario(task['scenario'])
+        record['scenario'] = scenario.name if os.sep not in str(task['scenario']) else str(task['scenario'])
+        engine = Engine(scenario, task['controller'], seed=task.get('seed'), wind=task.get('wind'),
+                        controller_params=task.get('params'), schedule=task.get('schedule'),
+                        state_source=task.get('state_source') or 'estimate', name=name)
+        result = engine.run()
+    except Exception as error:      # a bad task must not take the batch down: the record says why
+        record['error'] = '%s: %s' % (type(error).__name__, error)
+        record.update(summary=None, info=None, step=None, wall_s=round(time.perf_counter() - t0, 3), files={},
+                      plot='')
+        return dict(record)
+    record['scenario'] = scenario.name
+    record['ok'] = result.ok
+    record['error'] = result.error
+    record['summary'] = result.summary
+    info = result.info
+    if not task.get('detail', True):
+        info = dict((k, info[k]) for k in ('engine', 'state', 'seed', 'wind', 'sim_s', 'scenario_sim_s',
+                                           'wall_s', 'achieved_rtf', 'hover_commands', 'controller_cpu_s'))
+    record['info'] = info
+    record['step'] = None
+    files = {}
+    out_dir = task.get('out_dir')
+    if out_dir:
+        if not os.path.isdir(out_dir):
+            os.makedirs(out_dir, exist_ok=True)
+        files['summary'] = os.path.join(out_dir, name + '.yaml')
+        _write_yaml(files['summary'], result.summary)
+        if result.evaluation is not None:
+            files['csv'] = os.path.join(out_dir, name + '.csv')
+            write_log(files['csv'], result.evaluation.full_log)
+    if result.ok and scenario.name.startswith('static') and result.evaluation is not None:
+        from anafi_sim.experiments.plots import summary_window
+        try:
+            record['step'] = step_response.as_dict(step_response.step_metrics(result.evaluation.full_log,
+                                                                               summary_window(result.summary)))
+        except (ValueError, TypeError) as error:
+            record['error'] = 'step metrics: %s' % error
+    record['plot'] = ''
+    if task.get('plot') and files.get('csv'):
+        plot_dir = task['plot'] if isinstance(task['plot'], str) else out_dir
+        path = os.path.join(plot_dir, name + '.png')
+        try:
+            from anafi_sim.experiments.plots import plot_run
+            plot_run(files['csv'], path, summary=result.summary,
+                     title='%s, %s' % (scenario.name, report.LABELS.get(task['controller'], task['controller'])))
+            files['plot'] = path
+        except (IOError, OSError, ValueError) as error:
+            record['error'] = record['error'] or 'plot: %s' % error
+    record['wall_s'] = round(time.perf_counter() - t0, 3)
+    record['files'] = files
+    record['leftover_processes'] = []
+    record['attempts'] = 1
+    record['earlier_attempts'] = []
+    return dict(record)
+
+
+def result_line(record, name=None):
+    """One line: RESULT name ok|FAILED e_mu / e_max / e_sigma vs estimate and truth [m], rtf, files."""
+    summary = record.get('summary') or {}
+    est, tru = summary.get('estimate') or {}, summary.get('truth') or {}
+    info = record.get('info') or {}
+    parts = ['RESULT %s' % (name or summary.get('name') or '%s_%s' % (record.get('scenario'),
+                                                                        record.get('controller'))),
+             'ok' if record.get('ok') else 'FAILED (%s)' % record.get('error'),
+             'e_mu %s e_max %s e_sigma %s m (estimate)' % tuple(report.fmt(est.get(k), 4)
+                                                               for k in ('e_mu', 'e_max', 'e_sigma')),
+             'e_mu %s m (truth)' % report.fmt(tru.get('e_mu'), 4),
+             'samples %s' % summary.get('samples'),
+             'sim %s s in %s s wall (rtf %s)' % (report.fmt(info.get('sim_s'), 1), report.fmt(info.get('wall_s'), 2),
+                                                 report.fmt(info.get('achieved_rtf'), 1))]
+    return '  '.join(parts)
+
+
+# ---------------------------------------------------------------------------------------------- executors
+class Progress(object):
+    """A tqdm bar when ``stream`` is a terminal (and tqdm is installed), else one line per finished run."""
+
+    def __init__(self, total, label='runs', stream=None, bar=None):
+        self.total, self.label = total, label
+        self.stream = stream or sys.stderr
+        self.done = 0
+        self.t0 = time.monotonic()
+        self.bar = None
+        if bar is None:
+            bar = hasattr(self.stream, 'isatty') and self.stream.isatty()
+        if bar:
+            try:
+                from tqdm import tqdm
+                self.bar = tqdm(total=total, desc=label, file=self.stream, unit='run', dynamic_ncols=True)
+            except ImportError:
+                self.bar = None
+
+    def update(self, record):
+        self.done += 1
+        if self.bar is not None:
+            est = ((record.get('summary') or {}).get('estimate') or {}).get('e_mu')
+            self.bar.set_postfix_str('%s_%s e_mu %s' % (record.get('scenario'), record.get('controller'),
+                                                        report.fmt(est, 3)))
+            self.bar.update(1)
+            return
+        est = ((record.get('summary') or {}).get('estimate') or {})
+        info = record.get('info') or {}
+        self.stream.write('[%7.1f s] %*d/%d %-24s %s  e_mu %s m  (%s s, rtf %s)%s\n' % (
+            time.monotonic() - self.t0, len(str(self.total)), self.done, self.total,
+            (record.get('name') or (record.get('summary') or {}).get('name')
+             or '%s_%s' % (record.get('scenario'), record.get('controller'))),
+            'ok    ' if record.get('ok') else 'FAILED', report.fmt(est.get('e_mu'), 4),
+            report.fmt(record.get('wall_s'), 2), report.fmt(info.get('achieved_rtf'), 0),
+            '' if record.get('ok') else '  ' + str(record.get('error'))))
+        self.stream.flush()
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _dask_executor(scheduler):
+    """(executor, closer) of a Dask distributed cluster: ``scheduler`` is an address, or a Client."""
+    try:
+        import distributed
+    except ImportError:
+        raise RuntimeError('--scheduler needs Dask distributed (Debian: apt-get install python3-distributed)')
+    client = scheduler if isinstance(scheduler, distributed.Client) else distributed.Client(scheduler)
+    close = (lambda: None) if client is scheduler else client.close
+    return client.get_executor(), close
+
+
+def execute(tasks, workers=1, scheduler=None, progress=None, label='runs', function=run_task, order=None):
+    """Run ``function(task)`` for every task; returns the results in task order.
+
+    workers: processes (1 = in this process, no pool); scheduler: a Dask scheduler address (or Client): the
+    tasks go to that cluster instead; progress: a ``Progress`` (default: one on stderr); order: indices in
+    the order to submit (default: as given; the batch submits its longest runs first).
+    """
+    import concurrent.futures as cf
+    tasks = list(tasks)
+    results = [None] * len(tasks)
+    own_progress = progress is None
+    progress = progress or Progress(len(tasks), label)
+    order = list(range(len(tasks))) if order is None else list(order)
+    try:
+        if scheduler is None and workers <= 1:
+            for i in order:
+                results[i] = function(tasks[i])
+                progress.update(results[i])
+            return results
+        if scheduler is not None:
+            executor, close = _dask_executor(scheduler)
+        else:
+            executor = cf.ProcessPoolExecutor(max_workers=int(workers))
+            close = executor.shutdown
+        try:
+            futures = dict((executor.submit(function, tasks[i]), i) for i in order)
+            for future in cf.as_completed(futures):
+                i = futures[future]
+                results[i] = future.result()
+                progress.update(results[i])
+        finally:
+            close()
+    finally:
+        if own_progress:
+            progress.close()
+    return results
+
+
+# ---------------------------------------------------------------------------------------------- batch
+def batch_tasks(scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLERS, runs_dir=None, plots_dir=None,
+                seed=None, schedule=None):
+    """The batch's tasks: every scenario x controller (scenario-major, as the ROS batch orders them)."""
+    return [make_task(s, c, seed=seed, schedule=schedule, out_dir=runs_dir, plot=plots_dir or False)
+            for s in scenarios for c in controllers]
+
+
+def cost(task):
+    """Rough relative cost of a task: simulated seconds, x3 for the MPC (its solves dominate)."""
+    try:
+        duration = load_scenario(task['scenario']).duration
+    except ValueError:
+        duration = 0.0
+    return duration * (3.0 if task['controller'] == 'mpc' else 1.0)
+
+
+def static_comparison(records, plots_dir, report_dir):
+    """The static waypoints' comparison plot (Fig. 6 style) from the runs' CSVs: [(title, relative path)]."""
+    from anafi_sim.experiments import plots
+    static = [r for r in records if r['scenario'] in report.STATIC and r.get('ok')
+              and os.path.exists((r.get('files') or {}).get('csv') or '')]
+    if not static:
+        return []
+    runs = []
+    for rec in sorted(static, key=lambda r: (r['scenario'], r['controller'] != 'pid')):
+        window = plots.summary_window(rec['summary'])
+        runs.append(('%s %s' % (report.LABELS.get(rec['controller'], rec['controller']),
+                                'WP0' if rec['scenario'].endswith('0') else 'WP1'),
+                     rec['files']['csv'], window[0] if window else 0.0))
+    path = os.path.join(plots_dir, 'static_waypoints.png')
+    plots.plot_comparison(runs, path, title='Static waypoints WP0 / WP1 from hover (cf. Fig. 6); t = 0 at the step')
+    return [('Static waypoints WP0 / WP1, PID and MPC (cf. the paper\'s Fig. 6)', os.path.relpath(path, report_dir))]
+
+
+def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLERS, workers=None, scheduler=None,
+          runs_dir=None, plots=True, command='', progress=None, seed=None, schedule=None):
+    """The paper's batch in-process (see the module doc); returns (records, meta, report path)."""
+    out_dir = os.path.abspath(out_dir)
+    runs_dir = os.path.abspath(runs_dir or os.path.join(out_dir, 'runs'))
+    plots_dir = os.path.join(out_dir, 'plots')
+    for d in (out_dir, runs_dir) + ((plots_dir,) if plots else ()):
+        os.makedirs(d, exist_ok=True)
+    workers = workers or os.cpu_count() or 1
+    tasks = batch_tasks(scenarios, controllers, runs_dir, plots_dir if plots else None, seed, schedule)
+    order = sorted(range(len(tasks)), key=lambda i: -cost(tasks[i]))
+    t0 = time.perf_counter()
+    records = execute(tasks, workers=workers, scheduler=scheduler, progress=progress, label='batch', order=order)
+    wall = time.perf_counter() - t0
+    plot_list, comparisons = [], []
+    for rec in records:
+        path = (rec.get('files') or {}).get('plot')
+        if path:
+            rec['plot'] = os.path.relpath(path, out_dir)
+            plot_list.append(('%s_%s' % (rec['scenario'], rec['controller']), rec['plot']))
+    if plots:
+        try:
+            comparisons = static_comparison(records, plots_dir, out_dir)
+        except (IOError, OSError, ValueError) as error:
+            sys.stderr.write('static comparison plot failed: %s\n' % error)
+    sim = sum((r.get('info') or {}).get('sim_s') or 0.0 for r in records)
+    meta = collections.OrderedDict([
+        ('command', command or 'anafi_sim/scripts/experiment.py batch'),
+        ('date', datetime.datetime.now().strftime('%Y-%m-%d %H:%M')),
+        ('machine', '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0, platform.python_version())),
+        ('engine', 'inprocess'),
+        ('rtf', 'none (virtual time)'), ('wall_s', round(wall, 1)), ('mirror', 'no (in-process engine)'),
+        ('pid_mode', 'distributed'),
+        ('workers', 'the Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)' % workers),
+        ('sim_s', round(sim, 1)), ('batch_rtf', round(sim / wall, 1) if wall > 0 else None),
+        ('notes', ['- In-process engine (anafi_sim/experiments/engine.py): one process per run, virtual time, the '
+                   'cores of the ROS graph on its schedule (rates, phases, transport delays: the engine\'s '
+                   'DEFAULT_SCHEDULE); "achieved RTF" is simulated seconds per wall second of the run; the '
+                   'simulator cannot fall behind, so there are no overruns, re-anchors or start-up wall times.',
+                   '- %d runs on %s: %.1f s wall for %.0f s of simulated time.' % (
+                       len(records), 'Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)'
+                       % workers, wall, sim),
+                   '- Controller CPU: the time spent in the controller\'s callbacks within one process; the ROS '
+                   'batch counts whole node processes (the distributed PID\'s 8 nodes pay ROS\'s per-message cost), '
+                   'so the PID / MPC ratio here is not the paper\'s measure.']),
+    ])
+    report_path = os.path.join(out_dir, 'report.md')
+    with open(report_path, 'w') as stream:
+        stream.write(inprocess_report(records, meta, plot_list, comparisons))
+    _write_yaml(os.path.join(out_dir, 'experiments.yaml'), {'meta': dict(meta), 'records': records})
+    return records, meta, report_path
+
+
+def inprocess_report(records, meta, plots=(), comparisons=()):
+    """``report.render`` of an in-process batch, with its first lines and the "keeping up" section saying
+    what the engine is (no ROS master, virtual time) instead of what the ROS batch was."""
+    text = report.render(records, meta, plots=plots, comparison_plots=comparisons)
+    text = re.sub(r'one at a time, each on its own ROS master; simulation time at a requested real-time factor of '
+                  r'[^;]*; kinematic world \+ Gazebo mirror: [^;]*;',
+                  'in-process (anafi_sim/experiments/engine.py) on %s: virtual time, no ROS master, no Gazebo '
+                  'mirror;' % meta.get('workers'), text, count=1)
+    rtfs = [(r.get('info') or {}).get('achieved_rtf') for r in records]
+    rtfs = sorted(v for v in rtfs if v)
+    text = re.sub(r'(## Did the simulator keep up\?\n\n)[^\n]*\n',
+                  lambda m: m.group(1) + 'In-process the simulation runs on virtual time: the simulator cannot fall '
+                  'behind and no controller can be starved, so there are no overruns, re-anchors, hover commands '
+                  'from starvation or repeats. Achieved real-time factor (simulated seconds per wall second of a '
+                  'run): min %s, max %s.\n' % (report.fmt(rtfs[0] if rtfs else None, 0),
+                                               report.fmt(rtfs[-1] if rtfs else None, 0)), text, count=1)
+    return text

@@ -1,0 +1,435 @@
+"""Sweeps of in-process runs: a YAML spec -> a grid (or list) of runs -> a tidy CSV of every run's metrics and a
+Markdown summary with a plot (pure, no ROS).
+
+Stage: experiments (on top of ``anafi_sim.experiments.runs``; ``experiment.py sweep SPEC.yaml``). Example
+specs, one per concern: anafi_sim/config/sweeps/.
+
+Spec (YAML)::
+
+    name: wind_circles                       # default: the file name
+    description: free text
+    scenarios: [circle_r1_v1, circle_r2_v1]  # names or paths; 'all', or a group: static, straight, circle,
+                                             #   vertical (anafi_sim.experiments.report)
+    controllers: [mpc, pid]                  # or a mapping: controller -> {params: GRID, schedule: GRID}
+    seeds: {range: [0, 20]}                  # an int, a list, or {range: [start, stop]} / {range: N}
+    wind:                                    # wind cases (a list; one mapping = one case); keys x, y, z [m/s],
+      - {x: 1.0, y: 0.0, gust: 0.5}          #   gust, gust_vertical [m/s std], gust_time_constant [s]
+    schedule: {generator_phase: [0.0, 0.05]} # GRID of engine schedule overrides (every controller)
+    state_source: estimate                   # or truth: the controllers' state (ground_truth/odom)
+    group_by: [wind]                         # extra columns of the summary table: wind, or a factor column
+
+A GRID is a mapping (nested for the PID's loops: {x_outer: {Kp: [0.5, 0.875]}}) whose list values are axes
+of the grid and whose other values are fixed; the runs are every combination of scenario x controller x
+wind case x params x schedule x seed. Instead of the grid keys, ``runs:`` gives an explicit list of runs
+(each a mapping with scenario, controller, seed, wind, params, schedule).
+
+Outputs in the output folder: ``runs.csv`` (tidy: one row per run; factor columns scenario, controller,
+seed, the wind, ``param:<path>`` and ``schedule:<key>`` of every parameter set anywhere; metric columns:
+e_mu, e_max, e_sigma [m] against the estimate, the same with ``_truth``, samples, the simulated and wall
+seconds), ``summary.md`` (per scenario x controller (x ``group_by``): runs, e_mu mean, std, min, max; the
+plot) and ``e_mu.png`` (the distribution of e_mu per scenario and controller over the other factors).
+"""
+import collections
+import csv
+import datetime
+import itertools
+import json
+import math
+import os
+import platform
+import time
+
+import yaml
+
+from anafi_sim.experiments import report
+from anafi_sim.experiments.engine import CONTROLLERS, WIND_KEYS, make_schedule, simulator_config, wind_settings
+from anafi_sim.experiments.runs import execute, make_task, run_task
+from anafi_sim.experiments.trajectory import list_scenarios
+
+SPEC_KEYS = ('name', 'description', 'scenarios', 'controllers', 'seeds', 'wind', 'schedule', 'state_source',
+             'group_by', 'runs')
+RUN_KEYS = ('scenario', 'controller', 'seed', 'wind', 'params', 'schedule', 'name')
+GROUPS = {'all': report.ALL_SCENARIOS, 'static': report.STATIC, 'straight': report.STRAIGHT,
+          'circle': report.CIRCLE_SCENARIOS, 'vertical': report.VERTICAL_SCENARIOS}
+METRICS = (('e_mu', 'estimate', 'e_mu'), ('e_max', 'estimate', 'e_max'), ('e_sigma', 'estimate', 'e_sigma'),
+           ('e_mu_truth', 'truth', 'e_mu'), ('e_max_truth', 'truth', 'e_max'), ('e_sigma_truth', 'truth', 'e_sigma'),
+           ('e_mu_horizontal', 'estimate', 'e_mu_horizontal'), ('drift', 'estimate', 'drift'))
+
+
+# ---------------------------------------------------------------------------------------------- spec
+def load_spec(path):
+    """The spec dict of a YAML file (``name`` defaults to the file name); ValueError when malformed."""
+    with open(path) as stream:
+        try:
+            spec = yaml.safe_load(stream)
+        except yaml.YAMLError as error:
+            raise ValueError('%s: not valid YAML: %s' % (path, error))
+    if not isinstance(spec, dict):
+        raise ValueError('%s: a sweep spec is a mapping' % path)
+    spec.setdefault('name', os.path.splitext(os.path.basename(path))[0])
+    try:
+        expand(spec)
+    except ValueError as error:
+        raise ValueError('%s: %s' % (path, error))
+    return spec
+
+
+def _list(value):
+    return list(value) if isinstance(value, (list, tuple)) else [value]
+
+
+def _scenarios(value):
+    names = []
+    known = set(list_scenarios())
+    for item in _list(value):
+        item = str(item)
+        for name in GROUPS.get(item, (item,)):
+            if name not in known and os.sep not in name and not name.endswith(('.yaml', '.yml')):
+                raise ValueError('unknown scenario %r (known: %s)' % (name, ', '.join(sorted(known))))
+            if name not in names:
+                names.append(name)
+    if not names:
+        raise ValueError('no scenarios')
+    return names
+
+
+def _seeds(value):
+    if value is None:
+        return [None]
+    if isinstance(value, dict):
+        if set(value) != {'range'}:
+            raise ValueError('seeds: a mapping must be {range: [start, stop]} or {range: N}, got %r' % (value,))
+        r = _list(value['range'])
+        if not 1 <= len(r) <= 2 or not all(isinstance(v, int) and not isinstance(v, bool) for v in r):
+            raise ValueError('seeds: range needs integers, got %r' % (value['range'],))
+        return list(range(*r))
+    seeds = _list(value)
+    for s in seeds:
+        if isinstance(s, bool) or not isinstance(s, int) or s < 0:
+            raise ValueError('seeds must be integers >= 0, got %r' % (s,))
+    return seeds
+
+
+def _flatten(grid, prefix=''):
+    """[(dotted path, value)] of a nested mapping."""
+    out = []
+    for key, value in (grid or {}).items():
+        path = '%s%s' % (prefix, key)
+        if isinstance(value, dict):
+            out.extend(_flatten(value, path + '.'))
+        else:
+            out.append((path, value))
+    return out
+
+
+def _unflatten(pairs):
+    out = {}
+    for path, value in pairs:
+        node = out
+        parts = path.split('.')
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+        node[parts[-1]] = value
+    return out
+
+
+def grid(mapping):
+    """Every combination of a GRID (lists = axes): a list of nested mappings ([{}] for an empty grid)."""
+    if mapping is None:
+        return [{}]
+    if not isinstance(mapping, dict):
+        raise ValueError('a grid must be a mapping, got %r' % (mapping,))
+    pairs = _flatten(mapping)
+    axes = [[(path, v) for v in _list(value)] for path, value in pairs]
+    for path, value in pairs:
+        if isinstance(value, list) and not value:
+            raise ValueError('grid axis %s is empty' % path)
+    return [_unflatten(combo) for combo in itertools.product(*axes)] if axes else [{}]
+
+
+def _controllers(value):
+    if value is None:
+        value = list(report.CONTROLLERS)
+    if isinstance(value, dict):
+        items = list(value.items())
+    else:
+        items = [(c, {}) for c in _list(value)]
+    out = []
+    for name, cfg in items:
+        cfg = cfg or {}
+        if not isinstance(cfg, dict) or set(cfg) - {'params', 'schedule'}:
+            raise ValueError('controller %s: expected {params: GRID, schedule: GRID}, got %r' % (name, cfg))
+        if name not in CONTROLLERS and ':' not in str(name):
+            raise ValueError('unknown controller %r (known: %s, or package.module:Class)'
+                             % (name, ', '.join(CONTROLLERS)))
+        out.append((str(name), grid(cfg.get('params')), grid(cfg.get('schedule'))))
+    return out
+
+
+def _check_schedule(overrides):
+    make_schedule(overrides)
+    return overrides
+
+
+def expand(spec):
+    """The tasks of a spec (see the module doc), each with a 'factors' entry for the tidy CSV."""
+    unknown = sorted(set(spec) - set(SPEC_KEYS))
+    if unknown:
+        raise ValueError('unknown spec key(s) %s (known: %s)' % (', '.join(unknown), ', '.join(SPEC_KEYS)))
+    state_source = spec.get('state_source', 'estimate')
+    if state_source not in ('estimate', 'truth'):
+        raise ValueError("state_source must be 'estimate' or 'truth', got %r" % (state_source,))
+    tasks = []
+    if spec.get('runs') is not None:
+        clash = sorted(k for k in ('scenarios', 'controllers', 'seeds', 'wind', 'schedule') if k in spec)
+        if clash:
+            raise ValueError('give either runs (a list) or the grid keys, not both (%s)' % ', '.join(clash))
+        for i, run in enumerate(_list(spec['runs'])):
+            if not isinstance(run, dict) or set(run) - set(RUN_KEYS) or 'scenario' not in run:
+                raise ValueError('runs[%d]: a mapping with scenario and any of %s, got %r' % (i, RUN_KEYS, run))
+            wind_settings(run.get('wind'))
+            _check_schedule(run.get('schedule'))
+            _controllers([run.get('controller', 'mpc')])
+            tasks.append(make_task(_scenarios(run['scenario'])[0], run.get('controller', 'mpc'),
+                                   seed=run.get('seed'), wind=run.get('wind'), params=run.get('params'),
+                                   schedule=run.get('schedule'), state_source=state_source, name=run.get('name'),
+                                   detail=False))
+    else:
+        winds = _list(spec.get('wind')) if spec.get('wind') is not None else [None]
+        for w in winds:
+            wind_settings(w)
+        common = grid(spec.get('schedule'))
+        seeds = _seeds(spec.get('seeds'))
+        for scenario in _scenarios(spec.get('scenarios', 'all')):
+            for controller, params_grid, schedule_grid in _controllers(spec.get('controllers')):
+                for w in winds:
+                    for params in params_grid:
+                        for sched_a in common:
+                            for sched_b in schedule_grid:
+                                schedule = dict(sched_a)
+                                schedule.update(sched_b)
+                                _check_schedule(schedule)
+                                for seed in seeds:
+                                    tasks.append(make_task(scenario, controller, seed=seed, wind=w,
+                                                           params=params or None, schedule=schedule or None,
+                                                           state_source=state_source, detail=False))
+    if not tasks:
+        raise ValueError('the spec gives no runs')
+    for i, task in enumerate(tasks):
+        task['name'] = task.get('name') or 'run%04d_%s_%s' % (i, os.path.splitext(os.path.basename(
+            str(task['scenario'])))[0], str(task['controller']).split(':')[-1])
+    return tasks
+
+
+# ---------------------------------------------------------------------------------------------- rows
+def _wind_values(wind):
+    settings = simulator_config(wind_settings(wind))[1]
+    return collections.OrderedDict((k, settings[v]) for k, v in WIND_KEYS.items())
+
+
+def wind_label(wind):
+    """'calm' or e.g. 'wind (1, 0, 0) m/s, gusts 0.5 m/s'."""
+    v = _wind_values(wind)
+    if not any(v[k] for k in ('x', 'y', 'z', 'gust', 'gust_vertical')):
+        return 'calm'
+    text = 'wind (%g, %g, %g) m/s' % (v['x'], v['y'], v['z'])
+    if v['gust'] or v['gust_vertical']:
+        text += ', gusts %g/%g m/s (tau %g s)' % (v['gust'], v['gust_vertical'], v['gust_time_constant'])
+    return text
+
+
+def rows(tasks, records):
+    """Tidy rows (OrderedDicts, one per run) of tasks and their records; the factor columns of params and
+    schedule are the union over the runs."""
+    param_keys, schedule_keys = [], []
+    for task in tasks:
+        for path, _ in _flatten(task.get('params')):
+            if path not in param_keys:
+                param_keys.append(path)
+        for key in (task.get('schedule') or {}):
+            if key not in schedule_keys:
+                schedule_keys.append(key)
+    out = []
+    for i, (task, rec) in enumerate(zip(tasks, records)):
+        rec = rec or {}
+        summary = rec.get('summary') or {}
+        info = rec.get('info') or {}
+        row = collections.OrderedDict([('run', i), ('name', task['name']), ('scenario', rec.get('scenario')
+                                                                            or task['scenario']),
+                                       ('controller', task['controller']),
+                                       ('seed', info.get('seed', task.get('seed')))])
+        for k, v in _wind_values(task.get('wind')).items():
+            row['wind_' + k if k in ('x', 'y', 'z') else k] = v
+        params = dict(_flatten(task.get('params')))
+        for path in param_keys:
+            row['param:' + path] = params.get(path, '')
+        schedule = task.get('schedule') or {}
+        for key in schedule_keys:
+            row['schedule:' + key] = schedule.get(key, '')
+        row['ok'] = bool(rec.get('ok'))
+        row['error'] = rec.get('error') or ''
+        for column, source, key in METRICS:
+            row[column] = (summary.get(source) or {}).get(key)
+        row['samples'] = summary.get('samples')
+        row['sim_s'] = info.get('sim_s')
+        row['scenario_sim_s'] = info.get('scenario_sim_s')
+        row['wall_s'] = info.get('wall_s')
+        row['rtf'] = info.get('achieved_rtf')
+        row['controller_cpu_s'] = info.get('controller_cpu_s')
+        out.append(row)
+    return out
+
+
+def write_csv(table, path):
+    """Write the tidy rows as CSV (None -> empty)."""
+    if not table:
+        raise ValueError('no rows to write')
+    with open(path, 'w', newline='') as stream:
+        writer = csv.writer(stream, lineterminator='\n')
+        writer.writerow(list(table[0]))
+        for row in table:
+            writer.writerow(['' if v is None else v for v in row.values()])
+
+
+def _stats(values):
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    if not v:
+        return None
+    mean = sum(v) / len(v)
+    std = math.sqrt(sum((x - mean) ** 2 for x in v) / len(v))
+    return collections.OrderedDict([('n', len(v)), ('mean', mean), ('std', std), ('min', min(v)),
+                                    ('max', max(v))])
+
+
+def groups(tasks, table, group_by=()):
+    """OrderedDict (scenario, controller, extra...) -> rows, in the order of the runs."""
+    out = collections.OrderedDict()
+    for task, row in zip(tasks, table):
+        key = [row['scenario'], row['controller']]
+        for g in group_by:
+            key.append(wind_label(task.get('wind')) if g == 'wind' else row.get(g))
+        out.setdefault(tuple(key), []).append(row)
+    return out
+
+
+def plot_distribution(tasks, table, path, metric='e_mu', title=''):
+    """Box plots of ``metric`` per scenario (x) and controller (boxes side by side) over the other factors:
+    the values [m] on top, each value / the median of its box below (the spread on one scale)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from anafi_sim.experiments.plots import RUN_COLORS, save
+    scenarios, controllers = [], []
+    for row in table:
+        if row['scenario'] not in scenarios:
+            scenarios.append(row['scenario'])
+        if row['controller'] not in controllers:
+            controllers.append(row['controller'])
+    width_in = min(14.0, max(6.0, 0.45 * len(scenarios) * max(1, len(controllers)) + 2.0))
+    fig = Figure(figsize=(width_in, 6.0))
+    FigureCanvasAgg(fig)
+    axes = (fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2))
+    width = 0.8 / max(1, len(controllers))
+    handles = []
+    for j, controller in enumerate(controllers):
+        data, positions = [], []
+        for i, scenario in enumerate(scenarios):
+            values = [r[metric] for r in table if r['scenario'] == scenario and r['controller'] == controller
+                      and r[metric] is not None]
+            if values:
+                data.append(values)
+                positions.append(i + (j - 0.5 * (len(controllers) - 1)) * width)
+        if not data:
+            continue
+        color = RUN_COLORS[j % len(RUN_COLORS)]
+        relative = [[v / sorted(d)[len(d) // 2] for v in d] if sorted(d)[len(d) // 2] else d for d in data]
+        for ax, values in zip(axes, (data, relative)):
+            box = ax.boxplot(values, positions=positions, widths=0.85 * width, patch_artist=True,
+                             manage_ticks=False, flierprops={'markersize': 3})
+            for patch in box['boxes']:
+                patch.set_facecolor(color)
+                patch.set_alpha(0.6)
+        handles.append((box['boxes'][0], report.LABELS.get(controller, controller)))
+    rotate = len(scenarios) > 4
+    for ax, label in zip(axes, ('%s [m]' % metric, '%s / median' % metric)):
+        ax.set_xticks(range(len(scenarios)))
+        ax.set_xticklabels(scenarios if ax is axes[1] else [''] * len(scenarios), rotation=30 if rotate else 0,
+                           ha='right' if rotate else 'center', fontsize=7)
+        ax.set_ylabel(label, fontsize=8)
+        ax.tick_params(axis='y', labelsize=7)
+        ax.grid(True, axis='y', alpha=0.3)
+    if handles:
+        axes[0].legend([h for h, _ in handles], [l for _, l in handles], loc='upper left', fontsize=8)
+    axes[0].set_title(title or '%s per scenario and controller' % metric, fontsize=10)
+    fig.tight_layout()
+    return save(fig, path)
+
+
+def summary_markdown(spec, tasks, table, meta, plot=None):
+    """The Markdown summary of a sweep."""
+    group_by = [g for g in _list(spec.get('group_by') or [])]
+    winds = set(wind_label(t.get('wind')) for t in tasks)
+    if len(winds) > 1 and 'wind' not in group_by:
+        group_by.insert(0, 'wind')
+    ok = sum(1 for r in table if r['ok'])
+    lines = ['# Sweep %s' % spec.get('name', ''), '']
+    if spec.get('description'):
+        lines += [str(spec['description']).strip(), '']
+    lines += ['Generated by `%s` on %s (%s). In-process engine (anafi_sim/experiments/engine.py), virtual time.' % (
+        meta.get('command'), meta.get('date'), meta.get('machine')), '',
+        '- Runs: %d (%d ok, %d failed) on %s; **%.1f s wall** for %.0f s of simulated time (%.0f x real time).' % (
+            len(table), ok, len(table) - ok, meta.get('workers'), meta.get('wall_s'), meta.get('sim_s'),
+            meta.get('sim_s') / meta.get('wall_s') if meta.get('wall_s') else float('nan')),
+        '- Wind: %s.' % '; '.join(sorted(winds)),
+        '- Every run\'s metrics: [runs.csv](runs.csv) (tidy: one row per run).', '',
+        '## e_mu per scenario and controller [m]', '',
+        'Against the drone\'s estimate (the paper\'s metric) over the runs of each group (seeds and the other '
+        'factors); e_mu truth: mean against ground truth.', '']
+    head = ['scenario', 'controller'] + group_by + ['runs', 'e_mu mean', 'std', 'min', 'max', 'e_mu truth mean']
+    lines += ['| %s |' % ' | '.join(head), '|%s' % ('---|' * len(head))]
+    for key, members in groups(tasks, table, group_by).items():
+        s = _stats([r['e_mu'] for r in members])
+        t = _stats([r['e_mu_truth'] for r in members])
+        cells = [str(k) for k in key]
+        if s is None:
+            cells += [str(len(members)), '-', '-', '-', '-', '-']
+        else:
+            cells += [str(s['n']), report.fmt(s['mean'], 3), report.fmt(s['std'], 3), report.fmt(s['min'], 3),
+                      report.fmt(s['max'], 3), report.fmt(t['mean'] if t else None, 3)]
+        lines.append('| %s |' % ' | '.join(cells))
+    failed = [r for r in table if not r['ok']]
+    if failed:
+        lines += ['', '## Failed runs', ''] + ['- %s: %s' % (r['name'], r['error']) for r in failed]
+    if plot:
+        lines += ['', '## Distribution', '', '![e_mu per scenario and controller](%s)' % plot]
+    return '\n'.join(lines) + '\n'
+
+
+def run_sweep(spec, out_dir, workers=1, scheduler=None, command='', progress=None, plot=True):
+    """Run a spec (a dict, see ``load_spec``) into ``out_dir``; returns (rows, paths)."""
+    tasks = expand(spec)
+    os.makedirs(out_dir, exist_ok=True)
+    t0 = time.perf_counter()
+    records = execute(tasks, workers=workers, scheduler=scheduler, progress=progress, label=spec.get('name', 'sweep'),
+                      function=run_task)
+    wall = time.perf_counter() - t0
+    table = rows(tasks, records)
+    paths = collections.OrderedDict([('csv', os.path.join(out_dir, 'runs.csv')),
+                                     ('summary', os.path.join(out_dir, 'summary.md'))])
+    write_csv(table, paths['csv'])
+    plot_name = None
+    if plot and any(r['e_mu'] is not None for r in table):
+        paths['plot'] = plot_distribution(tasks, table, os.path.join(out_dir, 'e_mu.png'),
+                                          title='%s: e_mu (vs estimate) per scenario and controller'
+                                          % spec.get('name', ''))
+        plot_name = 'e_mu.png'
+    meta = {'command': command or 'experiment.py sweep', 'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M'),
+            'machine': '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0,
+                                                   platform.python_version()),
+            'workers': 'Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)' % workers,
+            'wall_s': wall, 'sim_s': sum(r['sim_s'] or 0.0 for r in table)}
+    with open(paths['summary'], 'w') as stream:
+        stream.write(summary_markdown(spec, tasks, table, meta, plot_name))
+    with open(os.path.join(out_dir, 'spec.yaml'), 'w') as stream:
+        yaml.safe_dump(json.loads(json.dumps(spec)), stream, default_flow_style=False, sort_keys=False)
+    paths['spec'] = os.path.join(out_dir, 'spec.yaml')
+    return table, paths, meta

@@ -31,15 +31,17 @@ from scipy.signal import lfilter, savgol_filter
 
 from anafi_sim.experiments.reference_log import STATE_NAMES, detect_garbage, tracking_error
 from anafi_sim.experiments.report import PAPER_TABLE3
+from anafi_sim.sim.drone_model import EFFECTS_OFF
 
 GRAVITY = 9.81
 
-# The keys of anafi_model.yaml, in file order (drone_model.MODEL_KEYS must be the same set).
+# The keys of anafi_model.yaml, in file order (drone_model.MODEL_KEYS must be the same set): the fitted
+# model, then the fidelity effects (EFFECTS_OFF: the values that switch each off, shipped in anafi_model.yaml).
 MODEL_KEYS = (
     'gravity', 'attitude_time_constant', 'attitude_delay', 'yaw_rate_time_constant',
     'vertical_speed_time_constant', 'drag_linear', 'drag_quadratic', 'drag_vertical',
     'estimate_delay', 'estimate_time_constant', 'estimate_rate', 'estimate_float16',
-)
+) + tuple(EFFECTS_OFF)
 
 SIM_STEP = 0.002                   # s, integration step of the first-order responses in the fits
 ESTIMATE_STEP = 0.005              # s, the same for the (long, many-channel) estimate fits
@@ -666,15 +668,533 @@ def replay_translation(log, params, trim=(0.0, 0.0), vertical_command=None, step
     return result
 
 
+# --------------------------------------------------------------------------- (f) fidelity effects (issue 10)
+# Each effect has keys in anafi_model.yaml whose shipped values switch it off; anafi_model_fitted.yaml has
+# them on. The fits below give the fitted values, their residuals and the open-loop checks of the report.
+
+def fused_position_response(t, truth, velocity, fix_delay, fix_gain, initial, t_out=None, step=ESTIMATE_STEP):
+    """The position fusion of ``StateEstimate`` on one axis: p' = v + k (p_truth(t - D) - p), p(t[0]) = initial.
+
+    ``truth`` (position) and ``velocity`` (the velocity the estimator integrates) are samples at ``t``
+    (linear in between; the fix before t[0] is truth[0]); integrated on a ``step`` grid exactly as the
+    simulator's estimate does (integrate, then correct with c = 1 - exp(-k step)); returns the fused
+    position at ``t_out`` (default ``t``), not held.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    t_out = t if t_out is None else np.asarray(t_out, dtype=np.float64)
+    grid = np.arange(t[0], t_out[-1] + step, step)
+    fix = np.interp(grid - fix_delay, t, np.asarray(truth, dtype=np.float64))
+    v = np.interp(grid, t, np.asarray(velocity, dtype=np.float64))
+    a = math.exp(-fix_gain * step)
+    u = a * v * step + (1.0 - a) * fix
+    body, _ = lfilter([1.0], [1.0, -a], u[1:], zi=[a * float(initial)])
+    return np.interp(t_out, grid, np.concatenate(([float(initial)], body)))
+
+
+def lag_along_motion(t, truth_p, estimate_p, velocity, min_speed=0.5):
+    """Least-squares lag L [s] of an estimate behind the truth along the motion: (p - p_est) ~ L v.
+
+    ``truth_p``, ``estimate_p``, ``velocity``: (n, k) arrays (k axes); samples with |v| > ``min_speed``
+    [m/s]. NaN when there are none.
+    """
+    e = np.asarray(truth_p, dtype=np.float64) - np.asarray(estimate_p, dtype=np.float64)
+    v = np.asarray(velocity, dtype=np.float64)
+    moving = np.sqrt(np.sum(v * v, axis=1)) > min_speed
+    if not moving.any():
+        return float('nan')
+    return float(np.sum(e[moving] * v[moving]) / np.sum(v[moving] * v[moving]))
+
+
+PositionFusionFit = collections.namedtuple('PositionFusionFit', [
+    'fix_delay', 'effective_delay', 'fix_gain', 'rms', 'groups', 'per_series', 'baseline', 'files',
+    'excluded_z', 'pure_delay'])
+PositionFusionFit.__doc__ = (
+    'Position fusion fit: model fix delay D [s] (= effective_delay - 0.5/rate: the hold adds half a period), '
+    'effective (logged) delay [s], fix gain k [1/s], rms [m] (mean square over series, each series weighted '
+    'equally), {group: (k, D_effective, rms with its own k and D, rms with the common ones)} for horizontal '
+    '(x, y), vertical (z), static (the static-waypoint transients) and straight (steady flight) alone, '
+    '{(file, axis): rms} of the fit, {(file, axis): rms} of the delay/smoothing model (before), files, files '
+    'whose z is not used, {label: (delay [s], rms static, rms straight)} of a pure delay of the truth instead '
+    'of the fusion (the alternative structure: no single delay fits both).')
+
+FUSION_GRID = ((0.05, 0.1, 0.2, 0.4, 0.8, 1.5), (0.05, 0.15, 0.25, 0.35))   # (k, D) starting points
+
+
+def _fusion_series(logs, axes):
+    series = []
+    for log in logs:
+        for axis in axes:
+            if axis == 'z' and not log.name.startswith('static'):
+                continue               # level straight flight: z says nothing about the fusion
+            series.append((log.name, axis, log.t, log.columns[axis + '_sphinx'], log.columns['v%s_anafi' % axis],
+                           log.columns[axis + '_anafi']))
+    return series
+
+
+def _fusion_cost(series, k, d, per_series=None):
+    total = 0.0
+    for name, axis, t, truth, velocity, est in series:
+        r = fused_position_response(t, truth, velocity, d, k, est[0]) - est
+        ms = float(np.mean(r[1:] ** 2))
+        total += ms
+        if per_series is not None:
+            per_series[(name, axis)] = math.sqrt(ms)
+    return total / max(len(series), 1)
+
+
+def _fit_fusion(series, start=None):
+    """(k, D_effective, rms) of ``series``: Nelder-Mead from the best ``FUSION_GRID`` point, or from ``start``."""
+    def cost(p):
+        if not (1e-4 <= p[0] <= 5.0 and 0.0 <= p[1] <= 1.0):
+            return 1e12
+        return _fusion_cost(series, p[0], p[1])
+
+    if start is None:
+        start = min((cost((k, d)), k, d) for k in FUSION_GRID[0] for d in FUSION_GRID[1])
+    else:
+        start = (cost(start),) + tuple(start)
+    result = minimize(cost, [start[1], start[2]], method='Nelder-Mead',
+                      options={'xatol': 1e-4, 'fatol': 1e-12, 'maxiter': 400})
+    best = result.x if result.fun <= start[0] else np.array(start[1:])
+    return float(best[0]), float(best[1]), math.sqrt(min(result.fun, start[0]))
+
+
+def fit_position_fusion(logs, rate, baseline_delay, baseline_time_constant):
+    """The position estimate as a fusion (``StateEstimate``'s ``estimate_position_fusion``); ``PositionFusionFit``.
+
+    Every clean log, x and y (z only in the static-waypoint logs: the straight flights are level): the
+    logged estimate velocity integrated and corrected toward the truth delayed by D with gain k, started at
+    the logged estimate, against the logged position estimate; (k, D) common to all series (grid, then
+    Nelder-Mead). The velocity the firmware integrates is its own estimate, so the fit uses the logged one
+    (the simulator uses its modelled velocity estimate). ``baseline_*``: the delay/smoothing model
+    (estimate_delay, estimate_time_constant at ``rate``) the position had without the fusion, for the
+    per-series comparison.
+    """
+    clean = [log for log in logs if is_clean(log)]
+    if not clean:
+        raise ValueError('fit_position_fusion: no clean log')
+    series = _fusion_series(clean, ('x', 'y', 'z'))
+    k, d, rms = _fit_fusion(series)
+    per_series = collections.OrderedDict()
+    _fusion_cost(series, k, d, per_series)
+    groups = collections.OrderedDict()
+    static = [log for log in clean if log.name.startswith('static')]
+    straight = [log for log in clean if not log.name.startswith('static')]
+    subsets = (('horizontal', clean, ('x', 'y')), ('vertical', clean, ('z',)),
+               ('static', static, ('x', 'y', 'z')), ('straight', straight, ('x', 'y')))
+    for group, subset, axes in subsets:
+        part = _fusion_series(subset, axes)
+        if part:
+            groups[group] = _fit_fusion(part, start=(k, d)) + (math.sqrt(_fusion_cost(part, k, d)),)
+    baseline = collections.OrderedDict()
+    for name, axis, t, truth, _, est in series:
+        model = estimate_model_response(t, truth, baseline_delay, baseline_time_constant, rate, step=ESTIMATE_STEP)
+        baseline[(name, axis)] = float(np.sqrt(np.mean((model - est)[1:] ** 2)))
+    pure = collections.OrderedDict()
+    for label, delay in (('velocity/attitude lag', baseline_delay + 0.5 / rate), ('steady position lag', d)):
+        rms_kind = []
+        for subset, axes in ((static, ('x', 'y', 'z')), (straight, ('x', 'y'))):
+            part = _fusion_series(subset, axes)
+            ms = [float(np.mean((np.interp(t - delay, t, truth) - est)[1:] ** 2)) for _, _, t, truth, _, est in part]
+            rms_kind.append(math.sqrt(np.mean(ms)) if ms else float('nan'))
+        pure[label] = (delay,) + tuple(rms_kind)
+    return PositionFusionFit(max(0.0, d - 0.5 / rate), d, k, rms, groups, per_series, baseline,
+                             tuple(log.name for log in clean),
+                             tuple(log.name for log in clean if not log.name.startswith('static')), pure)
+
+
+def replay_estimate(log, params, lead=20.0, rate=200.0):
+    """Open-loop check: the simulator's ``StateEstimate`` fed the logged truth; dict of arrays at ``log.t``.
+
+    The truth is fed at ``rate`` Hz (linear between the log's samples, yaw on the circle), preceded by
+    ``lead`` s of steady flight at the first sample's velocity (so a straight-line log starts in the
+    estimate's steady state, as the logged estimate does). The estimate re-samples half a hold period
+    before each log sample (the logs are stamped on the estimate's 20 Hz grid; the fitted delays assume
+    a held value is on average half a period old when logged). Keys: x, y, z, vx, vy, vz, roll, pitch, yaw.
+    """
+    from anafi_sim.sim.state_estimate import StateEstimate
+    est = StateEstimate(params)
+    phase = 0.5 / est.rate - float(log.t[0])      # estimate time = log time + phase
+    t = log.t
+    grid = np.arange(t[0] - lead, t[-1] + 0.5 / rate, 1.0 / rate)
+    truth = {}
+    for name in STATE_NAMES:
+        values = log.columns[name + '_sphinx']
+        values = np.unwrap(values) if name == 'yaw' else values
+        truth[name] = np.interp(grid, t, values)
+    before = grid < t[0]
+    for axis in ('x', 'y', 'z'):
+        truth[axis][before] = log.columns[axis + '_sphinx'][0] + log.columns['v%s_sphinx' % axis][0] * (grid[before]
+                                                                                                         - t[0])
+    rows = np.column_stack([truth[name] for name in STATE_NAMES])
+    rows[:, 8] = (rows[:, 8] + math.pi) % (2.0 * math.pi) - math.pi
+    out = np.empty_like(rows)
+    update = est.update
+    for i, (time, row) in enumerate(zip(grid.tolist(), rows.tolist())):
+        update(time + phase, *row)
+        out[i] = est.values()
+    index = np.clip(np.searchsorted(grid, t + 1e-9, side='right') - 1, 0, len(grid) - 1)
+    return dict((name, out[index, j]) for j, name in enumerate(STATE_NAMES))
+
+
+EstimateReplay = collections.namedtuple('EstimateReplay', ['rms', 'steady_lag', 'transient_lag', 'on_grid'])
+EstimateReplay.__doc__ = (
+    'Open-loop estimate replays of every log, effects off ("before") and on ("after"): {file: {channel: '
+    '(rms before, rms after)}} (position per axis [m], velocity [m/s] and yaw [rad]; garbage columns '
+    'left out), {file: (logged, before, after)} lag along the motion [s] of the straight-line logs and of '
+    'the static-waypoint transients (|v| > 1 m/s), {column: fraction of the replayed estimate on its '
+    'quantisation grid} after.')
+
+
+def replay_estimates(logs, before, after, lead=20.0):
+    """``EstimateReplay`` of ``logs`` with the model dicts ``before`` and ``after``."""
+    rms = collections.OrderedDict()
+    steady = collections.OrderedDict()
+    transient = collections.OrderedDict()
+    grid_hits = collections.defaultdict(list)
+    quanta = {'x': after.get('estimate_quantum_x', 0.0), 'y': after.get('estimate_quantum_y', 0.0),
+              'z': after.get('estimate_quantum_z', 0.0), 'vx': after.get('estimate_quantum_velocity', 0.0),
+              'vy': after.get('estimate_quantum_velocity', 0.0), 'vz': after.get('estimate_quantum_velocity', 0.0)}
+    for log in logs:
+        garbage = detect_garbage(log)
+        runs = (replay_estimate(log, before, lead), replay_estimate(log, after, lead))
+        per = collections.OrderedDict()
+        for name in ('x', 'y', 'z', 'vx', 'vy', 'vz', 'yaw'):
+            column = name + '_anafi'
+            ok = ~garbage.mask(column, name + '_sphinx')
+            if not ok.any():
+                continue
+            logged = log.columns[column][ok]
+            errors = []
+            for run in runs:
+                r = run[name][ok] - logged
+                if name == 'yaw':
+                    r = np.angle(np.exp(1j * r))
+                errors.append(float(np.sqrt(np.mean(r ** 2))))
+            per[name] = tuple(errors)
+            q = quanta.get(name, 0.0)
+            if q > 0.0:
+                v = runs[1][name][ok] / q
+                grid_hits[name].append(np.abs(v - np.round(v)) < 1e-6)
+        rms[log.name] = per
+        axes = [a for a in ('x', 'y', 'z') if not garbage.mask(a + '_anafi').any()]
+        truth_p = np.column_stack([log.columns[a + '_sphinx'] for a in axes])
+        velocity = np.column_stack([log.columns['v%s_sphinx' % a] for a in axes])
+        lags = tuple(lag_along_motion(log.t, truth_p, est, velocity)
+                     for est in [np.column_stack([log.columns[a + '_anafi'] for a in axes])]
+                     + [np.column_stack([run[a] for a in axes]) for run in runs])
+        (transient if log.name.startswith('static') else steady)[log.name] = lags
+    on_grid = collections.OrderedDict((name, float(np.mean(np.concatenate(hits))))
+                                      for name, hits in grid_hits.items())
+    return EstimateReplay(rms, steady, transient, on_grid)
+
+
+TiltFit = collections.namedtuple('TiltFit', [
+    'attenuation', 'rms_before', 'rms', 'n', 'per_file', 'joint', 'saturation', 'airspeed', 'straight', 'files'])
+TiltFit.__doc__ = (
+    'Tilt attenuation a (delivered = (1 - a) x commanded roll/pitch) fitted with the attitude loop\'s time '
+    'constant and delay fixed: residual rms [rad] without / with it, samples, {file: {axis: (rms before, rms '
+    'after)}}; alternatives on the same data: joint (tau, delay, a, rms) refit, saturation (S, rms) of '
+    'S tanh(u / S), airspeed (c, rms) of u / (1 + c |v|) (tau, delay fitted with each); {file: (speed, '
+    'commanded, delivered + trim offset, ratio)} steady means of the straight-line PID logs (a check: their '
+    'replayed command depends on the waypoint timing); files fitted.')
+
+
+def _attitude_data(logs, window=20.0, turn_rate=0.1):
+    """(t_cmd, u, t, measured, mask, speed at t_cmd, file, axis) of the static PID logs (turns excluded)."""
+    data = []
+    used = [log for log in logs if is_clean(log) and log.name.endswith('_pid') and 'static' in log.name]
+    for log in used:
+        tr = reconstruct_pid_commands(log)
+        t0 = log.t[tr.start_index]
+        calm = (log.t >= t0 - 0.5) & (log.t <= t0 + window) & (np.abs(measured_yaw_rate(log)) <= turn_rate)
+        speed = np.interp(tr.t, log.t, np.hypot(log.vx_sphinx, log.vy_sphinx))
+        for axis in ('pitch', 'roll'):
+            data.append((tr.t, getattr(tr, axis), log.t, log.columns[axis + '_sphinx'], calm, speed, log.name, axis))
+    return data, tuple(log.name for log in used)
+
+
+def _tilt_residuals(data, tau, delay, transform):
+    """Per series residual (offset removed: the trim) of the first-order loop fed transform(u, speed)."""
+    out = []
+    for t_u, u, t_y, y, mask, speed, _, _ in data:
+        model = first_order_response(t_u, transform(u, speed), tau, delay, t_y)[mask]
+        r = y[mask] - model
+        out.append(r - np.mean(r))
+    return out
+
+
+def _rms(parts):
+    r = np.concatenate(parts)
+    return float(np.sqrt(np.mean(r ** 2)))
+
+
+def _minimise(cost, starts):
+    best = None
+    for x0 in starts:
+        result = minimize(cost, x0, method='Nelder-Mead', options={'xatol': 1e-5, 'fatol': 1e-14, 'maxiter': 2000})
+        if best is None or result.fun < best.fun:
+            best = result
+    return best
+
+
+def fit_tilt_attenuation(logs, attitude):
+    """``TiltFit`` from the PID replays of the static-waypoint logs (the attitude loop ``attitude`` fixed).
+
+    The model scales the commanded roll/pitch by (1 - a) before the first-order loop; a is the least-squares
+    value with the loop's time constant and delay as fitted without it (the model delays every channel of
+    the PCMD alike, so the delay stays that of the other loops). Reported besides: the same with tau and
+    delay refitted, a saturation and an airspeed-dependent attenuation, and the steady straight-line PID
+    logs (commanded from the replay vs delivered).
+    """
+    data, files = _attitude_data(logs)
+    if not data:
+        raise ValueError('fit_tilt_attenuation: no clean static-waypoint PID log')
+    tau, delay = attitude.time_constant, attitude.delay
+
+    def gain_cost(p, tau=tau, delay=delay):
+        if not 0.3 <= p[0] <= 1.5:
+            return 1e12
+        return _rms(_tilt_residuals(data, tau, delay, lambda u, s: p[0] * u)) ** 2
+
+    gain = float(_minimise(gain_cost, ([0.85],)).x[0])
+    before = _tilt_residuals(data, tau, delay, lambda u, s: u)
+    after = _tilt_residuals(data, tau, delay, lambda u, s: gain * u)
+    per_file = collections.OrderedDict()
+    for item, rb, ra in zip(data, before, after):
+        per_file.setdefault(item[6], collections.OrderedDict())[item[7]] = (
+            float(np.sqrt(np.mean(rb ** 2))), float(np.sqrt(np.mean(ra ** 2))))
+
+    def joint_cost(p, kind):
+        tau_, delay_, a = p
+        if not (0.0 <= tau_ <= 1.0 and 0.0 <= delay_ <= 0.5):
+            return 1e12
+        if kind == 'gain':
+            if not 0.3 <= a <= 1.5:
+                return 1e12
+            transform = lambda u, s: a * u                      # noqa: E731
+        elif kind == 'tanh':
+            if not 0.05 <= a <= 5.0:
+                return 1e12
+            transform = lambda u, s: a * np.tanh(u / a)         # noqa: E731
+        else:
+            if not 0.0 <= a <= 2.0:
+                return 1e12
+            transform = lambda u, s: u / (1.0 + a * s)          # noqa: E731
+        return _rms(_tilt_residuals(data, tau_, delay_, transform)) ** 2
+
+    out = {}
+    for kind, a0 in (('gain', 0.85), ('tanh', 0.4), ('speed', 0.1)):
+        best = _minimise(lambda p: joint_cost(p, kind), ([tau, delay, a0], [0.1, 0.18, a0], [0.25, 0.1, a0]))
+        out[kind] = tuple(float(v) for v in best.x) + (math.sqrt(best.fun),)
+    offsets = [float(np.mean(y[m] - first_order_response(tu, u, tau, delay, ty)[m]))
+               for tu, u, ty, y, m, _, _, _ in data]
+    trim = float(np.mean(offsets[0::2]))                 # the pitch offset of the static runs (hover trim)
+    straight = collections.OrderedDict()
+    for log in logs:
+        if log.name.startswith('x_straight') and log.name.endswith('_pid'):
+            tr = reconstruct_pid_commands(log)
+            steady_cmd = tr.t > log.t[0] + 1.0
+            steady = log.t > log.t[0] + 1.3
+            commanded = float(np.mean(tr.pitch[steady_cmd]))
+            delivered = float(np.mean(log.pitch_sphinx[steady])) - trim
+            straight[log.name] = (float(np.mean(np.hypot(log.vx_sphinx, log.vy_sphinx))), commanded, delivered,
+                                  delivered / commanded)
+    return TiltFit(1.0 - gain, _rms(before), _rms(after), int(sum(r.size for r in after)), per_file,
+                   (out['gain'][0], out['gain'][1], 1.0 - out['gain'][2], out['gain'][3]),
+                   (out['tanh'][2], out['tanh'][3]), (out['speed'][2], out['speed'][3]), straight, files)
+
+
+DescentFit = collections.namedtuple('DescentFit', [
+    'max_descent_speed', 'per_file', 'commanded', 'climb', 'replay', 'files'])
+DescentFit.__doc__ = (
+    'Descent limit [m/s]: mean descent speed of the truth under a saturated descent command, {file: (mean, '
+    'std, samples)}, the commanded descent [m/s], {file: climb speed [m/s] reached under the saturated climb '
+    'command}, {file: (vz rms before, after)} [m/s] of the vertical loop replays, files.')
+
+
+def fit_descent(logs, vertical_time_constant, delay, saturated=0.99):
+    """``DescentFit``: the firmware's descent speed under a saturated descent command.
+
+    The only saturated descents in the reference logs are those of x_straight_2_pid and x_straight_3_pid:
+    their z estimate is garbage (a 16-bit wrap, so they are excluded from every other fit), which makes
+    the PID command the full -2 m/s for the whole log, while their ground truth is valid. The limit is the
+    mean truth vertical speed over the samples where the replayed command has been saturated for 1 s.
+    The climbs of the static PID logs show no such limit (reported). ``vertical_time_constant``, ``delay``:
+    the vertical loop for the replay check (before: no limit, after: with it).
+    """
+    from anafi_sim.sim.bridge import MAX_VERTICAL_SPEED
+    per_file = collections.OrderedDict()
+    climb = collections.OrderedDict()
+    traces = {}
+    for log in logs:
+        if not log.name.endswith('_pid'):
+            continue
+        tr = traces[log.name] = reconstruct_pid_commands(log)
+        held = tr.vertical_speed[np.clip(np.searchsorted(tr.t, log.t, side='right') - 1, 0, None)]
+        for sign, store in ((-1.0, per_file), (1.0, climb)):
+            full = sign * held >= saturated * MAX_VERTICAL_SPEED
+            settled = np.zeros_like(full)
+            for i in np.flatnonzero(full):
+                settled[i] = np.all(full[(log.t >= log.t[i] - 1.0) & (log.t <= log.t[i])]) and log.t[i] - 1.0 >= \
+                    tr.t[0]
+            if settled.sum() >= 10:
+                vz = log.vz_sphinx[settled]
+                if sign < 0:
+                    store[log.name] = (float(-np.mean(vz)), float(np.std(vz)), int(settled.sum()))
+                else:
+                    store[log.name] = float(np.mean(vz[-10:]))
+    if not per_file:
+        return DescentFit(0.0, per_file, -MAX_VERTICAL_SPEED, climb, collections.OrderedDict(), ())
+    limit = float(np.mean([v[0] for v in per_file.values()]))
+    replay = collections.OrderedDict()
+    for name, tr in traces.items():
+        log = [lg for lg in logs if lg.name == name][0]
+        t0 = log.t[tr.start_index]
+        win = log.t >= t0 + 0.5 if name in per_file else (log.t >= t0 - 0.5) & (log.t <= t0 + 20.0)
+        out = []
+        for cap in (None, limit):
+            u = tr.vertical_speed if cap is None else np.maximum(tr.vertical_speed, -cap)
+            model = first_order_response(tr.t, u, vertical_time_constant, delay, log.t, hold=True,
+                                         initial=log.vz_sphinx[0])
+            out.append(float(np.sqrt(np.mean((model - log.vz_sphinx)[win] ** 2))))
+        replay[name] = tuple(out)
+    return DescentFit(limit, per_file, -MAX_VERTICAL_SPEED, climb, replay, tuple(per_file))
+
+
+QuantumFit = collections.namedtuple('QuantumFit', ['steps', 'on_grid', 'truth_on_grid', 'samples'])
+QuantumFit.__doc__ = ('Quantisation of the estimate: {column: step} (0 where none is found), {column: fraction '
+                      'of the estimate\'s values on that grid}, {column: the same fraction for the truth (what '
+                      'chance gives)}, {column: values tested}; measured where the float16 storage of the logs is '
+                      'at least 4x finer than the step.')
+
+QUANTUM_CANDIDATES = tuple(2.0 ** -n for n in range(3, 10))     # 1/8 .. 1/512 (fixed-point steps)
+
+
+def _informative(values, step):
+    """The finite ``values`` whose float16 spacing is at most step/4 (|v| < 512 step): a grid shows there."""
+    v = np.asarray(values, dtype=np.float64)
+    return v[np.isfinite(v) & (np.abs(v) < 512.0 * step)]
+
+
+def estimate_quantum(values, hit=0.98, min_samples=50):
+    """Step of a quantised column (0.0 when it is not): the coarsest power-of-two step (``QUANTUM_CANDIDATES``)
+    with >= ``hit`` of the informative values (``_informative``, float16 round trip, ``quantum_fraction``) on
+    its grid; a random float16 column has 1/4 of them there at most."""
+    for step in sorted(QUANTUM_CANDIDATES, reverse=True):
+        v = _informative(values, step)
+        if v.size >= min_samples and quantum_fraction(v, step) >= hit:
+            return step
+    return 0.0
+
+
+def fit_quantisation(logs, columns=('x', 'y', 'z', 'vx', 'vy', 'vz', 'roll', 'pitch', 'yaw')):
+    """``QuantumFit`` of the estimate columns of the clean logs (the truth columns as the control)."""
+    clean = [log for log in logs if is_clean(log)]
+    steps = collections.OrderedDict()
+    on_grid = collections.OrderedDict()
+    truth = collections.OrderedDict()
+    samples = collections.OrderedDict()
+    for name in columns:
+        est = np.concatenate([log.columns[name + '_anafi'] for log in clean])
+        tru = np.concatenate([log.columns[name + '_sphinx'] for log in clean])
+        step = estimate_quantum(est)
+        steps[name] = step
+        probe = step or 1.0 / 256.0          # where none is found: the fractions on the 1/256 grid
+        on_grid[name] = quantum_fraction(_informative(est, probe), probe)
+        truth[name] = quantum_fraction(_informative(tru, probe), probe)
+        samples[name] = int(_informative(est, probe).size)
+    return QuantumFit(steps, on_grid, truth, samples)
+
+
+YawBiasFit = collections.namedtuple('YawBiasFit', ['bias', 'per_file', 'spread', 'by_controller', 'turn'])
+YawBiasFit.__doc__ = ('Yaw estimate bias [rad]: the median over the clean logs of their mean yaw_anafi - '
+                      'yaw_sphinx, {file: mean}, (min, max), {controller: median}, {file: (before the turn, '
+                      'end of the log)} of the logs with a 180 deg turn.')
+
+
+def fit_yaw_bias(logs, estimate):
+    """``YawBiasFit`` from ``estimate.yaw_bias`` (per-file means) and the static 180 deg turns."""
+    per_file = collections.OrderedDict((name, value) for name, value in estimate.yaw_bias.items())
+    values = list(per_file.values())
+    by_controller = collections.OrderedDict()
+    for controller in ('mpc', 'pid'):
+        own = [v for name, v in per_file.items() if name.endswith('_' + controller)]
+        if own:
+            by_controller[controller] = float(np.median(own))
+    turn = collections.OrderedDict()
+    for log in logs:
+        if log.name.startswith('static_waypoint_yaw_180') and is_clean(log):
+            e = np.angle(np.exp(1j * (log.yaw_anafi - log.yaw_sphinx)))
+            wp = log.waypoint()[:, 6]
+            first = int(np.argmax(wp != wp[0])) if np.any(wp != wp[0]) else len(e)
+            turn[log.name] = (float(np.mean(e[:max(first, 1)])), float(np.mean(e[-20:])))
+    return YawBiasFit(float(np.median(values)), per_file, (float(min(values)), float(max(values))), by_controller,
+                      turn)
+
+
+Effects = collections.namedtuple('Effects', ['fusion', 'tilt', 'descent', 'quanta', 'yaw', 'estimate_chain',
+                                             'replay'])
+Effects.__doc__ = ('The fidelity effects: PositionFusionFit, TiltFit, DescentFit, QuantumFit, YawBiasFit, the '
+                   'FirstOrderFit of the estimate delay/smoothing on velocity and attitude alone (the position '
+                   'has its own model once the fusion is on), EstimateReplay (open-loop check).')
+
+# What calibrate() writes into anafi_model.yaml: False = every effect off (the fitted values go to
+# anafi_model_fitted.yaml only); True = the fitted values, every effect on. Flip it and rerun the script to
+# switch the effects on in one step.
+SHIPPED_EFFECTS = False
+
+
+def fit_effects(logs, params, commands, estimate):
+    """Fit every effect and return (``Effects``, the fitted model dict with every effect on)."""
+    clean = [log for log in logs if is_clean(log)]
+    dynamic = [log for log in clean if log.name.startswith('static')] or clean
+    channels = ('vx', 'vy', 'vz', 'roll', 'pitch')
+    series, scales = _estimate_series(dynamic, channels)
+    chain = fit_first_order_delay(series, hold=False, fit_offset=True, scales=scales, tau_range=(0.0, 0.5),
+                                  delay_range=(0.0, 0.4), step=ESTIMATE_STEP)
+    fusion = fit_position_fusion(logs, estimate.rate, params['estimate_delay'], params['estimate_time_constant'])
+    tilt = fit_tilt_attenuation(logs, commands.attitude)
+    descent = fit_descent(logs, params['vertical_speed_time_constant'], params['attitude_delay'])
+    quanta = fit_quantisation(logs)
+    yaw = fit_yaw_bias(logs, estimate)
+    fitted = collections.OrderedDict(params)
+    fitted['estimate_delay'] = max(0.0, chain.delay - 0.5 / estimate.rate)
+    fitted['estimate_time_constant'] = chain.time_constant
+    fitted['tilt_attenuation'] = tilt.attenuation
+    fitted['max_descent_speed'] = descent.max_descent_speed
+    fitted['estimate_position_fusion'] = True
+    fitted['estimate_position_fix_delay'] = fusion.fix_delay
+    fitted['estimate_position_fix_gain'] = fusion.fix_gain
+    fitted['estimate_yaw_bias'] = yaw.bias
+    steps = quanta.steps
+    fitted['estimate_quantum_x'] = steps['x']
+    fitted['estimate_quantum_y'] = steps['y']
+    fitted['estimate_quantum_z'] = steps['z']
+    velocity_steps = [steps[c] for c in ('vx', 'vy', 'vz') if steps[c] > 0.0]
+    fitted['estimate_quantum_velocity'] = float(np.median(velocity_steps)) if velocity_steps else 0.0
+    before = collections.OrderedDict(params)
+    before.update(EFFECTS_OFF)
+    replay = replay_estimates(logs, before, fitted)
+    return Effects(fusion, tilt, descent, quanta, yaw, chain, replay), fitted
+
+
 # --------------------------------------------------------------------------- everything
 Calibration = collections.namedtuple('Calibration', ['params', 'drag', 'estimate', 'commands', 'garbage',
-                                                     'notes'])
-Calibration.__doc__ = ('Result of ``calibrate``: params {MODEL_KEYS: value}, DragFit, EstimateFit, CommandFits, '
-                       '{file: GarbageReport}, [notes on what is not identified / not modelled].')
+                                                     'notes', 'fitted', 'effects', 'effects_on'])
+Calibration.__doc__ = ('Result of ``calibrate``: params {MODEL_KEYS: value} (what anafi_model.yaml gets), DragFit, '
+                       'EstimateFit, CommandFits, {file: GarbageReport}, [notes on what is not identified / not '
+                       'modelled], fitted {MODEL_KEYS: value} with every effect on (anafi_model_fitted.yaml), '
+                       'Effects, effects_on (True when params are the fitted ones).')
 
 
-def calibrate(logs, gravity=GRAVITY):
-    """Run every fit on ``logs`` (ReferenceLog list) and assemble the model parameters; ``Calibration``."""
+def calibrate(logs, gravity=GRAVITY, effects=None):
+    """Run every fit on ``logs`` (ReferenceLog list) and assemble the model parameters; ``Calibration``.
+
+    ``effects`` (default ``SHIPPED_EFFECTS``): False = params with every fidelity effect off (the fitted
+    values only in ``fitted``), True = params = fitted.
+    """
+    effects_on = SHIPPED_EFFECTS if effects is None else bool(effects)
     garbage = collections.OrderedDict((log.name, detect_garbage(log)) for log in logs)
     drag = fit_drag(logs, gravity=gravity)
     estimate = fit_estimate(logs)
@@ -703,7 +1223,10 @@ def calibrate(logs, gravity=GRAVITY):
     params['estimate_float16'] = estimate.float16
     if commands.yaw is None:
         notes.append('yaw_rate_time_constant: no PID log with a yaw turn; not identified.')
-    return Calibration(params, drag, estimate, commands, garbage, notes)
+    params.update(EFFECTS_OFF)
+    found, fitted = fit_effects(logs, params, commands, estimate)
+    return Calibration(fitted if effects_on else params, drag, estimate, commands, garbage, notes, fitted, found,
+                       effects_on)
 
 
 # --------------------------------------------------------------------------- Table 3 recomputed

@@ -1,9 +1,10 @@
 """The calibration's replay figure (pure Python + matplotlib, no ROS): the fitted model against the logs.
 
-Stage: offline, a ``fit.Calibration`` and its reference logs -> ``docs/calibration_replay.png``. Nine
+Stage: offline, a ``fit.Calibration`` and its reference logs -> ``docs/calibration_replay.png``. Twelve
 panels: the translational model replaying a static-waypoint log (velocity, position), steady-flight tilt
 vs speed, the firmware loops (attitude, vertical speed, yaw rate) fed the reconstructed PID commands,
-the estimate model on the truth against the logged estimate, and Table 3 paper vs recomputed.
+the estimate model on the truth against the logged estimate, Table 3 paper vs recomputed, and the
+fidelity effects (position fusion in steady flight and in a transient, descent limit).
 matplotlib is imported when a figure is drawn (Agg backend).
 """
 import numpy as np
@@ -11,6 +12,8 @@ import numpy as np
 from anafi_sim.calibration import fit
 
 REPLAY_LOG = 'static_waypoint_yaw_0_pid'
+STEADY_LOG = 'x_straight_5_mpc'
+DESCENT_LOG = 'x_straight_2_pid'
 YAW_LOG = 'static_waypoint_yaw_180_pid'
 STEP_AXIS = 'time since waypoint step [s]'
 
@@ -40,7 +43,7 @@ def plot_replay(cal, logs, path):
 
     by_name = dict((log.name, log) for log in logs)
     p = cal.params
-    fig, axes = plt.subplots(3, 3, figsize=(15, 10.5))
+    fig, axes = plt.subplots(4, 3, figsize=(15, 14.0))
     log = by_name[REPLAY_LOG]
     trace = fit.reconstruct_pid_commands(log)
     t0 = log.t[trace.start_index]
@@ -122,9 +125,46 @@ def plot_replay(cal, logs, path):
                % (p['estimate_delay'], p['estimate_rate'], p['estimate_time_constant'], e.effective_delay),
                STEP_AXIS, unit)
     _table3_panel(axes[2, 2], fit.table3(logs))
+    _effect_panels(axes[3], cal, by_name)
     fig.tight_layout()
     fig.savefig(path, dpi=62)
     plt.close(fig)
+
+
+def _effect_panels(axes, cal, by_name):
+    """Bottom row: the position estimate with the effects off / on (steady flight, transient), the descent limit."""
+    from anafi_sim.sim.drone_model import EFFECTS_OFF
+    before = dict(cal.fitted)
+    before.update(EFFECTS_OFF)
+    before['estimate_delay'] = cal.params['estimate_delay']
+    before['estimate_time_constant'] = cal.params['estimate_time_constant']
+    for ax, name in ((axes[0], STEADY_LOG), (axes[1], REPLAY_LOG)):
+        if name not in by_name:
+            continue
+        log = by_name[name]
+        off = fit.replay_estimate(log, before)
+        on = fit.replay_estimate(log, cal.fitted)
+        ax.plot(log.t, log.x_sphinx - log.x_anafi, 'k-', lw=1.5, label='logged')
+        ax.plot(log.t, log.x_sphinx - off['x'], 'C0--', lw=1.2, label='model, effects off')
+        ax.plot(log.t, log.x_sphinx - on['x'], 'C3--', lw=1.2, label='model, fusion on')
+        _label(ax, '%s: x truth - x estimate (k %.3f 1/s, D %.3f s)'
+               % (name, cal.fitted['estimate_position_fix_gain'], cal.fitted['estimate_position_fix_delay']),
+               'log time [s]', 'm')
+    ax = axes[2]
+    de = cal.effects.descent
+    if DESCENT_LOG in by_name and de.max_descent_speed > 0.0:
+        log = by_name[DESCENT_LOG]
+        trace = fit.reconstruct_pid_commands(log)
+        c = cal.commands.vertical
+        ax.step(trace.t, trace.vertical_speed, where='post', color='C2', lw=0.8, alpha=0.6,
+                label='vz command (replay)')
+        ax.plot(log.t, log.vz_sphinx, 'k-', lw=1.5, label='truth')
+        for cap, style, text in ((None, 'C0--', 'model, no limit'), (de.max_descent_speed, 'C3--', 'model, limit')):
+            u = trace.vertical_speed if cap is None else np.maximum(trace.vertical_speed, -cap)
+            ax.plot(log.t, fit.first_order_response(trace.t, u, c.time_constant, c.delay, log.t,
+                                                    initial=log.vz_sphinx[0]), style, lw=1.2, label=text)
+        _label(ax, '%s: descent limit %.2f m/s (truth valid, z estimate garbage)'
+               % (DESCENT_LOG, de.max_descent_speed), 'log time [s]', 'm/s')
 
 
 def _table3_panel(ax, rows):

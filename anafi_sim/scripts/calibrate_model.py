@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
 """Fit the simulated Anafi's parameters to reference logs; write the YAML, a report and a replay figure.
 
-Usage: calibrate_model.py [--logs DIR] [--out YAML] [--report MD] [--plot PNG]
+Usage: calibrate_model.py [--logs DIR] [--out YAML] [--fitted YAML] [--report MD] [--plot PNG]
 Defaults (paths of the package's checkout, found through the ROS package path): logs
-<checkout>/../shared/reference_logs, out anafi_sim/config/anafi_model.yaml, report docs/calibration.md,
-plot docs/calibration_replay.png. The fits are anafi_sim/calibration/fit.py, the texts report.py, the
-figure plot.py; this script only wires them to files.
+<checkout>/../shared/reference_logs, out anafi_sim/config/anafi_model.yaml (the fidelity effects as
+fit.SHIPPED_EFFECTS says), fitted anafi_sim/config/anafi_model_fitted.yaml (every fitted effect on), report
+docs/calibration.md, plot docs/calibration_replay.png. The fits are anafi_sim/calibration/fit.py, the texts
+report.py, the figure plot.py; this script only wires them to files.
 """
 import argparse
 import glob
@@ -28,7 +29,9 @@ def parse_args(argv):
     parser.add_argument('--logs', default=os.path.join(os.path.dirname(root), 'shared', 'reference_logs'),
                         help='directory with reference-log CSVs (default: <checkout>/../shared/reference_logs)')
     parser.add_argument('--out', default=os.path.join(root, 'anafi_sim', 'config', 'anafi_model.yaml'),
-                        help='model YAML to write')
+                        help='model YAML to write (fidelity effects as fit.SHIPPED_EFFECTS says)')
+    parser.add_argument('--fitted', default=os.path.join(root, 'anafi_sim', 'config', 'anafi_model_fitted.yaml'),
+                        help='model YAML with every fitted fidelity effect on ("" to skip)')
     parser.add_argument('--report', default=os.path.join(root, 'docs', 'calibration.md'),
                         help='Markdown report to write ("" to skip)')
     parser.add_argument('--plot', default=os.path.join(root, 'docs', 'calibration_replay.png'),
@@ -58,7 +61,10 @@ def main(argv=None):
             print('garbage: ' + line)
     print(report.format_summary(cal))
 
-    write(args.out, report.format_model_yaml(cal, [log.name + '.csv' for log in logs]))
+    names = [log.name + '.csv' for log in logs]
+    write(args.out, report.format_model_yaml(cal, names))
+    if args.fitted:
+        write(args.fitted, report.format_model_yaml(cal, names, fitted=True))
     plot_name = None
     if args.plot:
         plot.plot_replay(cal, logs, args.plot)

@@ -16,6 +16,24 @@ turns them into firmware setpoints) and integrates:
 - a flight state machine ``landed | taking_off | flying | landing`` and the
   firmware's hover brake when no command came for ``command_timeout`` s.
 
+Firmware effects switched by keys that are OFF by default (``EFFECTS_OFF``;
+fitted by ``anafi_sim/calibration/fit.py``, see docs/calibration.md):
+
+- ``tilt_attenuation`` a: the firmware delivers (1 - a) of the roll/pitch a
+  PCMD commands (before the max-tilt clamp); its own hover brake is not
+  attenuated;
+- ``max_descent_speed`` [m/s]: the firmware descends at most this fast,
+  whatever the commanded vertical speed (0 = no limit beyond the PCMD's).
+
+The estimate's effects (position fusion, yaw bias, quantisation) are
+``anafi_sim/sim/state_estimate.py``'s. With every effect off the model is bit
+for bit the one without them.
+
+Firmware behaviour without a command (shared/interfaces/anafi_ros.md): a
+streamed PCMD of zeros holds level attitude and 0 m/s climb, so the drone
+keeps drifting with its momentum and the wind; when the stream stops for
+``command_timeout`` s the hover brake stops the drone and holds the point.
+
 Frames and units (REP-103): world ENU [m, m/s]; Euler roll/pitch/yaw of the
 FLU body [rad] (R = Rz(yaw) Ry(pitch) Rx(roll), positive pitch = nose down);
 body quantities in FLU. The body linear acceleration is the *kinematic*
@@ -30,6 +48,7 @@ import numpy as np
 
 from anafi_control import frames
 from anafi_sim import paths
+from anafi_sim.sim import state_estimate
 from anafi_sim.sim.bridge import PilotingMapping
 from anafi_sim.telemetry.protocol import TelemetrySample
 
@@ -39,8 +58,8 @@ FLYING = 'flying'
 LANDING = 'landing'
 FLIGHT_STATES = (LANDED, TAKING_OFF, FLYING, LANDING)
 
-# Keys of anafi_sim/config/anafi_model.yaml (fitted by scripts/calibrate_model.py).
-MODEL_KEYS = (
+# Keys every model dict has (anafi_sim/config/anafi_model.yaml, fitted by scripts/calibrate_model.py).
+REQUIRED_KEYS = (
     'gravity',                       # m/s^2
     'attitude_time_constant',        # s
     'attitude_delay',                # s
@@ -54,6 +73,15 @@ MODEL_KEYS = (
     'estimate_rate',                 # Hz
     'estimate_float16',              # bool
 )
+# Optional effect keys and the values that switch them off (missing = off); anafi_model.yaml ships them off,
+# anafi_model_fitted.yaml has every one on (docs/calibration.md).
+EFFECTS_OFF = collections.OrderedDict((
+    ('tilt_attenuation', 0.0),       # fraction of the commanded roll/pitch not delivered, in [0, 1)
+    ('max_descent_speed', 0.0),      # m/s, firmware descent limit (0 = none)
+))
+EFFECTS_OFF.update(state_estimate.EFFECTS_OFF)
+# Every key of anafi_model.yaml, in file order.
+MODEL_KEYS = REQUIRED_KEYS + tuple(EFFECTS_OFF)
 _POSITIVE = ('gravity', 'estimate_rate')
 _BOOLEAN = ('estimate_float16',)
 
@@ -94,16 +122,20 @@ def _is_number(value):
 
 
 def validate_model_params(params):
-    """Check the model dict (exactly ``MODEL_KEYS``) and return a clean copy; ValueError otherwise."""
+    """Check the model dict and return a clean copy; ValueError otherwise.
+
+    ``REQUIRED_KEYS`` must all be present, the effect keys (``EFFECTS_OFF``) may be (missing = off; the
+    copy has only the keys given), nothing else.
+    """
     if not isinstance(params, dict):
         raise ValueError('model parameters must be a dict, got %r' % (type(params).__name__,))
-    missing = [k for k in MODEL_KEYS if k not in params]
+    missing = [k for k in REQUIRED_KEYS if k not in params]
     unknown = sorted(str(k) for k in params if k not in MODEL_KEYS)
     if missing or unknown:
-        raise ValueError('bad Anafi model parameters: missing %s, unknown %s (expected exactly %s)'
-                         % (missing, unknown, list(MODEL_KEYS)))
+        raise ValueError('bad Anafi model parameters: missing %s, unknown %s (expected %s, optionally %s)'
+                         % (missing, unknown, list(REQUIRED_KEYS), list(EFFECTS_OFF)))
     clean = {}
-    for key in MODEL_KEYS:
+    for key in REQUIRED_KEYS:
         value = params[key]
         if key in _BOOLEAN:
             if not isinstance(value, bool):
@@ -117,7 +149,24 @@ def validate_model_params(params):
         if value < 0.0:
             raise ValueError('model parameter %s must be >= 0, got %r' % (key, value))
         clean[key] = float(value)
+    given = [key for key in EFFECTS_OFF if key in params]
+    if given:
+        effects = state_estimate.validate_effects(params)
+        for key in ('tilt_attenuation', 'max_descent_speed'):
+            value = params.get(key, EFFECTS_OFF[key])
+            if not _is_number(value) or value < 0.0:
+                raise ValueError('model parameter %s must be a finite number >= 0, got %r' % (key, value))
+            effects[key] = float(value)
+        if not effects['tilt_attenuation'] < 1.0:
+            raise ValueError('model parameter tilt_attenuation must be < 1, got %r' % (effects['tilt_attenuation'],))
+        for key in given:
+            clean[key] = effects[key]
     return clean
+
+
+def effect_params(params):
+    """The effect values of a (validated) model dict, the missing ones off: {key: value} in file order."""
+    return collections.OrderedDict((key, params.get(key, off)) for key, off in EFFECTS_OFF.items())
 
 
 def validate_settings(settings=None):
@@ -140,10 +189,14 @@ def validate_settings(settings=None):
 
 
 def load_model_params(path=DEFAULT_MODEL_FILE):
-    """Read and validate a model YAML file (default: anafi_sim/config/anafi_model.yaml)."""
+    """Read and validate a model YAML file (default: anafi_sim/config/anafi_model.yaml); ValueError when it
+    cannot be read or is not a valid model."""
     import yaml
-    with open(path) as stream:
-        params = yaml.safe_load(stream)
+    try:
+        with open(path) as stream:
+            params = yaml.safe_load(stream)
+    except (OSError, yaml.YAMLError) as error:
+        raise ValueError('cannot read the model file %s: %s' % (path, error))
     try:
         return validate_model_params(params)
     except ValueError as error:
@@ -173,6 +226,9 @@ class AnafiModel(object):
         self._drag_lin = p['drag_linear']
         self._drag_quad = p['drag_quadratic']
         self._drag_vert = p['drag_vertical']
+        effects = effect_params(p)
+        self._tilt_gain = 1.0 - effects['tilt_attenuation']
+        self._max_descent = effects['max_descent_speed']
         self._max_tilt = math.radians(self.mapping.max_tilt_deg)
         self._max_vs = self.mapping.max_vertical_speed
         self._max_yaw_rate = math.radians(self.mapping.max_yaw_rate_deg)
@@ -223,7 +279,11 @@ class AnafiModel(object):
         self.last_pcmd = pcmd
         self._last_command_time = t
         if self.state == FLYING:
-            self._queue.append((t,) + self.mapping.pcmd_to_setpoints(*pcmd))
+            setpoints = self.mapping.pcmd_to_setpoints(*pcmd)
+            if self._tilt_gain != 1.0:     # firmware delivers less tilt than commanded
+                gain = self._tilt_gain
+                setpoints = (setpoints[0] * gain, setpoints[1] * gain, setpoints[2], setpoints[3])
+            self._queue.append((t,) + setpoints)
 
     def command_age(self, t):
         """Seconds since the last PCMD (inf if none)."""
@@ -364,6 +424,8 @@ class AnafiModel(object):
         pitch_sp = -tilt if pitch_sp < -tilt else (tilt if pitch_sp > tilt else pitch_sp)
         vmax = self._max_vs
         vz_sp = -vmax if vz_sp < -vmax else (vmax if vz_sp > vmax else vz_sp)
+        if self._max_descent > 0.0 and vz_sp < -self._max_descent:
+            vz_sp = -self._max_descent              # the firmware descends slower than commanded
 
         # Attitude: first order towards the setpoints; Euler rates -> body rates.
         roll0, pitch0, yaw0 = self.roll, self.pitch, self.yaw

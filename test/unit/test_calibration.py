@@ -234,6 +234,86 @@ def test_estimate_model_response_holds_and_delays():
     assert out == pytest.approx([0.4, 0.5, 0.8], abs=1e-3)
 
 
+# ----------------------------------------------------------------------------------------- fidelity effects
+def fused_by_euler(t, truth, velocity, fix_delay, gain, initial, h=1e-3):
+    """p' = v + k (truth(t - D) - p) by explicit Euler at a fine step (independent of the module)."""
+    grid = np.arange(t[0], t[-1] + h, h)
+    fix = np.interp(grid - fix_delay, t, truth)
+    v = np.interp(grid, t, velocity)
+    p = np.empty(len(grid))
+    value = initial
+    for i in range(len(grid)):
+        p[i] = value
+        value += (v[i] + gain * (fix[i] - value)) * h
+    return np.interp(t, grid, p)
+
+
+def synthetic_fusion_log(name, fix_delay, gain, seed, cruise=0.0, duration=30.0):
+    """Truth moving (smooth manoeuvres + ``cruise`` m/s along x), estimate = the fusion of the truth velocity."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration, 0.05)
+    truth = dict((s, np.zeros_like(t)) for s in STATE_NAMES)
+    est = dict((s, np.zeros_like(t)) for s in STATE_NAMES)
+    fine = np.arange(-5.0, duration, 0.001)
+    for axis, amplitude in (('x', 2.0), ('y', 2.0), ('z', 1.0)):
+        # manoeuvres: velocity steps held for 4 s (smoothed by 0.3 s), so the lag has time to build up
+        steps = np.repeat(rng.uniform(-amplitude, amplitude, int(duration / 4.0) + 3), 4000)[:len(fine)]
+        speed = lfilter([0.001 / 0.3], [1.0, 0.001 / 0.3 - 1.0], steps) + (cruise if axis == 'x' else 0.0)
+        position = np.cumsum(speed) * 0.001 + (5.0 if axis == 'z' else 0.0)
+        truth[axis] = np.interp(t, fine, position)
+        truth['v' + axis] = np.interp(t, fine, speed)
+        start = fine >= -3.0
+        fused = fused_by_euler(fine[start], position[start], speed[start], fix_delay, gain,
+                               position[start][0] - cruise * fix_delay * (axis == 'x'))
+        est[axis] = np.interp(t, fine[start], fused)
+        est['v' + axis] = truth['v' + axis]
+    return make_log(t, truth, est, name=name)
+
+
+def test_position_fusion_fit_recovers_gain_and_delay():
+    logs = [synthetic_fusion_log('static_fusion_a', 0.2, 0.4, seed=11),
+            synthetic_fusion_log('x_straight_fusion', 0.2, 0.4, seed=12, cruise=3.0)]
+    fit = cal.fit_position_fusion(logs, 20.0, 0.01, 0.01)
+    assert fit.effective_delay == pytest.approx(0.2, abs=0.01)
+    assert fit.fix_delay == pytest.approx(0.2 - 0.5 / 20.0, abs=0.01)
+    assert fit.fix_gain == pytest.approx(0.4, rel=0.1)
+    assert fit.rms < 0.01
+    assert fit.rms < 0.2 * np.sqrt(np.mean(np.square(list(fit.baseline.values()))))   # the delay model fits worse
+    # a pure delay of the truth fits the steady flight at the fusion's delay, not the transients
+    assert fit.pure_delay['steady position lag'][2] < fit.pure_delay['velocity/attitude lag'][2]
+    assert fit.groups['static'][3] < fit.pure_delay['steady position lag'][1]
+
+
+def test_fused_position_response_matches_independent_integration():
+    t = np.arange(0.0, 10.0, 0.05)
+    truth = 2.0 * t + np.sin(t)
+    velocity = 2.0 + np.cos(t)
+    ours = cal.fused_position_response(t, truth, velocity, 0.25, 0.5, 0.3, step=0.001)
+    ref = fused_by_euler(t, truth, velocity, 0.25, 0.5, 0.3, h=1e-4)
+    assert np.max(np.abs(ours - ref)) < 2e-3
+    ramp = cal.fused_position_response(t, 2.0 * t, np.full_like(t, 2.0), 0.25, 0.5, 0.3)
+    assert ramp[-1] == pytest.approx(2.0 * t[-1] - 0.25 * 2.0, abs=0.01)          # steady: D x speed behind
+
+
+def test_lag_along_motion():
+    t = np.arange(0.0, 5.0, 0.05)
+    v = np.column_stack((np.full_like(t, 2.0), np.zeros_like(t)))
+    truth = np.column_stack((2.0 * t, np.zeros_like(t)))
+    assert cal.lag_along_motion(t, truth, truth - 0.3 * v, v) == pytest.approx(0.3)
+    assert math.isnan(cal.lag_along_motion(t, truth, truth, 0.0 * v))
+
+
+def test_quantum_detection_finds_the_grid_and_not_float16_noise():
+    rng = np.random.default_rng(9)
+    raw = rng.uniform(-1.9, 1.9, 2000)
+    quantised = np.round(raw * 256.0) / 256.0
+    as_logged = np.array([float(str(v)) for v in np.float16(quantised)])        # as logged: shortest repr
+    assert cal.estimate_quantum(as_logged) == 1.0 / 256.0
+    assert cal.estimate_quantum(np.float16(np.round(raw * 64.0) / 64.0).astype(float)) == 1.0 / 64.0
+    assert cal.estimate_quantum(np.float16(raw).astype(float)) == 0.0            # float16 alone: no grid
+    assert cal.estimate_quantum(np.float16(raw[:20]).astype(float)) == 0.0       # too few values to tell
+
+
 # ----------------------------------------------------------------------------------------- PID replay
 def test_reconstructed_pid_commands_have_the_bridge_signs():
     t = np.arange(0.0, 6.0, 0.05)
@@ -307,25 +387,82 @@ def test_real_log_residuals_within_bounds(real):
 
 def test_yaml_text_has_exactly_the_model_keys_and_validates(real):
     logs, result = real
-    from anafi_sim.sim.drone_model import MODEL_KEYS, validate_model_params
-    text = report.format_model_yaml(result, [log.name + '.csv' for log in logs])
-    data = yaml.safe_load(text)
-    assert set(data) == set(MODEL_KEYS) and list(data) == list(cal.MODEL_KEYS)
-    assert validate_model_params(data)['drag_linear'] == pytest.approx(result.params['drag_linear'], rel=1e-5)
-    assert 'Generated by anafi_sim/scripts/calibrate_model.py' in text
-    assert not re.search(r'\d{4}-\d{2}-\d{2}', text)          # date-free: reruns are reproducible
+    from anafi_sim.sim.drone_model import EFFECTS_OFF, MODEL_KEYS, validate_model_params
+    names = [log.name + '.csv' for log in logs]
+    for fitted in (False, True):
+        text = report.format_model_yaml(result, names, fitted=fitted)
+        data = yaml.safe_load(text)
+        assert set(data) == set(MODEL_KEYS) and list(data) == list(cal.MODEL_KEYS)
+        expected = result.fitted if fitted else result.params
+        clean = validate_model_params(data)
+        for key in cal.MODEL_KEYS:
+            assert clean[key] == pytest.approx(expected[key], rel=1e-5), key
+        assert 'Generated by anafi_sim/scripts/calibrate_model.py' in text
+        assert not re.search(r'\d{4}-\d{2}-\d{2}', text)          # date-free: reruns are reproducible
+        comments = dict(line.split(':', 1)[0:1] + line.split('#', 1)[1:] for line in text.splitlines()
+                        if not line.startswith('#'))
+        for key in EFFECTS_OFF:                                     # every effect says how it was fitted
+            assert len(comments[key].strip()) > 20, key
+    off = yaml.safe_load(report.format_model_yaml(result, names))
+    if not result.effects_on:
+        assert all(off[key] == value for key, value in EFFECTS_OFF.items())
 
 
 def test_committed_config_is_this_fit(real):
-    """The committed anafi_model.yaml must be regenerated when the fit changes (rerun the script)."""
+    """The committed anafi_model.yaml / anafi_model_fitted.yaml must be regenerated when the fit changes."""
     _, result = real
-    with open(os.path.join(REPO, 'anafi_sim', 'config', 'anafi_model.yaml')) as stream:
-        committed = yaml.safe_load(stream)
-    for key in cal.MODEL_KEYS:
-        if key == 'estimate_float16':
-            assert committed[key] is result.params[key]
-        else:
-            assert committed[key] == pytest.approx(result.params[key], rel=1e-3, abs=1e-4), key
+    for name, expected in (('anafi_model.yaml', result.params), ('anafi_model_fitted.yaml', result.fitted)):
+        with open(os.path.join(REPO, 'anafi_sim', 'config', name)) as stream:
+            committed = yaml.safe_load(stream)
+        for key in cal.MODEL_KEYS:
+            if isinstance(expected[key], bool):
+                assert committed[key] is expected[key], (name, key)
+            else:
+                assert committed[key] == pytest.approx(expected[key], rel=1e-3, abs=1e-4), (name, key)
+
+
+def test_real_log_effects(real):
+    """Every effect is found in the shared logs with its documented value and helps where it should."""
+    logs, result = real
+    f, p = result.effects, result.fitted
+    assert result.effects_on is cal.SHIPPED_EFFECTS
+    # fusion: steady lag of the replayed estimate within 0.03 s of the logged one, transients well below it
+    fusion = f.fusion
+    assert 0.15 < fusion.fix_delay < 0.3 and 0.05 < fusion.fix_gain < 1.0
+    assert fusion.rms < 0.6 * np.sqrt(np.mean(np.square(list(fusion.baseline.values()))))
+    for name, (logged, before, after) in f.replay.steady_lag.items():
+        if name in fusion.files:
+            assert after == pytest.approx(logged, abs=0.03), name
+            assert before < 0.5 * logged
+    for name, (logged, before, after) in f.replay.transient_lag.items():
+        assert after < 0.5 * fusion.effective_delay and after == pytest.approx(logged, abs=0.035), name
+    # no single delay explains both steady flight and transients as well as the fusion
+    for delay, rms_static, rms_straight in fusion.pure_delay.values():
+        assert max(rms_static, rms_straight) > 1.4 * max(fusion.groups['static'][3], fusion.groups['straight'][3])
+    # tilt: the attenuation lowers the attitude residual
+    assert 0.05 < p['tilt_attenuation'] < 0.3 and f.tilt.rms < 0.85 * f.tilt.rms_before
+    # descent: only the two saturated descents; climbs reach the commanded 2 m/s
+    assert set(f.descent.files) == {'x_straight_2_pid', 'x_straight_3_pid'}
+    assert 1.3 < p['max_descent_speed'] < 1.7 and min(f.descent.climb.values()) > 1.9
+    for name in f.descent.files:
+        before, after = f.descent.replay[name]
+        assert after < 0.2 * before
+    # quantisation: z and the velocities of the estimate on a 1/256 grid, the truth not
+    assert p['estimate_quantum_z'] == p['estimate_quantum_velocity'] == 1.0 / 256.0
+    for column in ('z', 'vx', 'vy', 'vz'):
+        assert f.quanta.on_grid[column] > 0.98 and f.quanta.truth_on_grid[column] < 0.3
+    assert all(value == 1.0 for value in f.replay.on_grid.values())
+    # yaw bias: between the per-log extremes
+    assert f.yaw.spread[0] <= p['estimate_yaw_bias'] <= f.yaw.spread[1]
+
+
+def test_report_has_a_section_per_effect(real):
+    logs, result = real
+    text = report.format_report(result, logs)
+    for title in ('### Position estimate: fusion', '### Tilt attenuation', '### Vertical asymmetry: descent limit',
+                  '### Yaw estimate bias', '### Estimate quantisation'):
+        assert title in text
+    assert 'anafi_model_fitted.yaml' in text and 'cannot identify' in text
 
 
 def test_report_contains_table3_and_flags(real):

@@ -345,3 +345,119 @@ def test_bad_pcmd_and_dt_raise():
     with pytest.raises(ValueError):
         model.step(0.0, 0.0)
     assert math.isinf(model.command_age(1.0))           # the rejected PCMD was not recorded
+
+
+# -------------------------------------------------------------- firmware without a command (anafi_ros.md)
+def test_zero_pcmd_levels_out_and_drifts_with_momentum():
+    """A streamed PCMD of zeros holds level attitude and 0 m/s climb: the drone does NOT stop."""
+    model = flying_model()
+    run(model, 4.0, pcmd=(0, 50, 0, 0))
+    v0 = model.vx
+    assert v0 > 3.0
+    run(model, 3.0, pcmd=(0, 0, 0, 0))
+    assert model.commanding
+    assert abs(model.pitch) < 1e-3 and abs(model.roll) < 1e-9         # level
+    assert abs(model.vz) < 1e-6 and model.z == pytest.approx(5.0, abs=0.05)
+    # only drag slows it: after 3 s still most of the speed (drag_linear 0.14 1/s, quadratic 0.035 1/m)
+    assert 0.4 * v0 < model.vx < v0
+    x0 = model.x
+    run(model, 1.0, pcmd=(0, 0, 0, 0))
+    assert model.x - x0 > 0.4 * v0 * 1.0 * 0.5                     # still travelling
+
+
+def test_zero_pcmd_drifts_with_the_wind_and_timeout_holds_against_it():
+    model = flying_model(settings={'wind_x': 3.0})
+    run(model, 30.0, pcmd=(0, 0, 0, 0))
+    assert model.commanding and model.vx == pytest.approx(3.0, abs=0.05)   # carried along by the wind
+    assert abs(model.pitch) < 1e-9
+    run(model, 15.0)                                                        # stream stops: brake and hold
+    assert not model.commanding
+    held = model.position()
+    run(model, 5.0)
+    assert math.sqrt(sum((a - b) ** 2 for a, b in zip(model.position(), held))) < 0.02
+    assert model.pitch < -0.05                                              # leaning into the wind (nose up)
+
+
+# -------------------------------------------------------------- fidelity effects (issue 10)
+EFFECT_SETTINGS = dict(PARAMS, tilt_attenuation=0.2, max_descent_speed=1.5)
+
+
+def test_tilt_attenuation_delivers_the_fraction_of_the_commanded_tilt():
+    commanded = math.radians(MAX_TILT_DEG) * 0.4                     # PCMD pitch 40 %
+    for a in (0.0, 0.2, 0.5):
+        model = flying_model(tilt_attenuation=a)
+        run(model, 3.0, pcmd=(0, 40, 0, 0))                           # >> attitude time constant
+        assert model.pitch == pytest.approx((1.0 - a) * commanded, rel=1e-3)
+    model = flying_model(tilt_attenuation=0.3)
+    run(model, 3.0, pcmd=(-30, 0, 0, 0))
+    assert model.roll == pytest.approx(-0.7 * math.radians(MAX_TILT_DEG) * 0.3, rel=1e-3)
+
+
+def test_tilt_attenuation_does_not_weaken_the_hover_brake():
+    model = flying_model(tilt_attenuation=0.5, settings={'wind_y': 4.0})
+    run(model, 1.0, pcmd=(0, 0, 0, 0))
+    run(model, 20.0)
+    held = model.position()
+    run(model, 5.0)
+    assert math.sqrt(sum((a - b) ** 2 for a, b in zip(model.position(), held))) < 0.02
+
+
+def test_max_descent_speed_limits_descent_not_climb():
+    model = flying_model(z=50.0, max_descent_speed=1.5)
+    run(model, 3.0, pcmd=(0, 0, 0, -100))                              # -2 m/s commanded
+    assert model.vz == pytest.approx(-1.5, abs=1e-3)
+    run(model, 3.0, pcmd=(0, 0, 0, -50))                               # -1 m/s: below the limit
+    assert model.vz == pytest.approx(-1.0, abs=1e-3)
+    run(model, 3.0, pcmd=(0, 0, 0, 100))                               # climbs are not limited
+    assert model.vz == pytest.approx(2.0, abs=1e-3)
+    unlimited = flying_model(z=50.0)
+    run(unlimited, 3.0, pcmd=(0, 0, 0, -100))
+    assert unlimited.vz == pytest.approx(-2.0, abs=1e-3)
+
+
+def test_every_effect_off_is_bit_for_bit_the_model_without_them():
+    from anafi_sim.sim.drone_model import EFFECTS_OFF
+    plain = flying_model(settings={'wind_x': 1.0, 'gust_std_horizontal': 0.5}, seed=3)
+    off = flying_model(settings={'wind_x': 1.0, 'gust_std_horizontal': 0.5}, seed=3, **EFFECTS_OFF)
+    for model in (plain, off):
+        for pcmd in ((10, 40, 20, -100), (-30, 0, -50, 60), (0, 0, 0, 0)):
+            run(model, 2.0, pcmd=pcmd)
+        run(model, 2.0)                                               # timeout: brake
+    assert plain.truth_sample() == off.truth_sample()
+    assert set(validate_model_params(dict(PARAMS, **EFFECTS_OFF))) == set(MODEL_KEYS)
+
+
+@pytest.mark.parametrize('key, value', [
+    ('tilt_attenuation', 1.0), ('tilt_attenuation', -0.1), ('tilt_attenuation', float('nan')),
+    ('max_descent_speed', -1.0), ('max_descent_speed', 'fast'), ('max_descent_speed', True),
+    ('estimate_position_fusion', 'yes'), ('estimate_position_fix_gain', -0.2), ('estimate_quantum_x', float('inf'))])
+def test_bad_effect_values_raise_value_error(key, value):
+    with pytest.raises(ValueError, match=key):
+        AnafiModel(params(**{key: value}))
+
+
+def test_fitted_config_file_is_valid_and_has_every_effect_on():
+    from anafi_sim import paths
+    from anafi_sim.sim.drone_model import EFFECTS_OFF
+    fitted = load_model_params(paths.config_path('anafi_model_fitted.yaml'))
+    assert list(fitted) == list(MODEL_KEYS)
+    assert fitted['estimate_position_fusion'] is True
+    assert fitted['tilt_attenuation'] > 0.0 and fitted['max_descent_speed'] > 0.0
+    shipped = load_model_params(DEFAULT_MODEL_FILE)
+    for key in MODEL_KEYS:                                             # the same fit, only the effects differ
+        if key not in EFFECTS_OFF and key not in ('estimate_delay', 'estimate_time_constant'):
+            assert fitted[key] == shipped[key], key
+    AnafiModel(fitted)
+
+
+def test_unreadable_model_file_is_a_value_error(tmp_path):
+    with pytest.raises(ValueError, match='cannot read'):
+        load_model_params(str(tmp_path / 'missing.yaml'))
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('gravity: [1, 2\n')
+    with pytest.raises(ValueError, match='cannot read'):
+        load_model_params(str(bad))
+    wrong = tmp_path / 'wrong.yaml'
+    wrong.write_text(yaml.safe_dump(dict(PARAMS, tilt_attenuation=1.5)))
+    with pytest.raises(ValueError, match='tilt_attenuation'):
+        load_model_params(str(wrong))

@@ -108,3 +108,102 @@ def test_time_going_back_resets():
     feed(est, ramp, 3.0)
     est.update(0.0, *ramp(0.0))                      # simulator restart
     assert est.position()[0] == pytest.approx(0.0)
+
+
+# ------------------------------------------------------------------ fidelity effects (issue 10)
+FUSION = {'estimate_position_fusion': True, 'estimate_position_fix_delay': 0.2, 'estimate_position_fix_gain': 0.3}
+
+
+def cruise(speed, start=0.0):
+    """Constant-velocity truth along x at ``speed`` [m/s] from x = 0 at t = ``start``."""
+    return lambda t: (speed * max(0.0, t - start), 1.0, 5.0, speed if t >= start else 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def held_lag(est, speed, t):
+    """Lag [s] of the held x estimate behind the truth at ``t`` (truth x = speed t)."""
+    return (speed * t - est.position()[0]) / speed
+
+
+@pytest.mark.parametrize('speed', [1.0, 5.0])
+def test_fusion_steady_lag_is_fix_delay_times_speed(speed):
+    rate = 1000.0                                    # hold negligible: the lag is the fusion's alone
+    est = make(delay=0.0, tau=0.0, rate=rate, **FUSION)
+    feed(est, cruise(speed), 40.0)                   # >> 1/k: steady state
+    assert held_lag(est, speed, 40.0) == pytest.approx(0.2, abs=0.005)
+    # velocity and attitude are not lagged by the fix delay
+    assert est.velocity()[0] == pytest.approx(speed)
+
+
+def test_fusion_lag_adds_the_hold():
+    est = make(delay=0.0, tau=0.0, rate=20.0, **FUSION)
+    out = feed(est, cruise(2.0), 40.0)
+    # lag of the published value averaged over the last second: D + half a hold period
+    lags = [(2.0 * t - v[0]) / 2.0 for t, v in out[-200:]]
+    assert np.mean(lags) == pytest.approx(0.2 + 0.5 / 20.0, abs=0.005)
+
+
+def test_fusion_transient_shows_no_steady_lag():
+    """A short manoeuvre (0.5 s << 1/k) from hover: the position follows the velocity, not the delayed fix."""
+    k = FUSION['estimate_position_fix_gain']
+    est = make(delay=0.0, tau=0.0, rate=1000.0, **FUSION)
+    feed(est, cruise(2.0, start=1.0), 1.5)           # 0.5 s of motion
+    lag = held_lag(est, 2.0, 0.5)
+    assert lag < 0.2 * (1.0 - math.exp(-k * 0.5)) + 0.005   # the lag only starts to build up ...
+    assert lag < 0.05                                        # ... far from the steady 0.2 s
+    # the delay-only estimate (no fusion) with the same delay lags by the full 0.2 s at once
+    delayed = make(delay=0.2, tau=0.0, rate=1000.0)
+    feed(delayed, cruise(2.0, start=1.0), 1.5)
+    assert held_lag(delayed, 2.0, 0.5) == pytest.approx(0.2, abs=0.006)
+
+
+def test_fusion_corrects_toward_the_fix():
+    """A velocity estimate that is wrong (truth jumps without velocity): the position converges at rate k."""
+    est = make(delay=0.0, tau=0.0, rate=1000.0, **FUSION)
+    feed(est, lambda t: (0.0, 0.0, 5.0) + (0.0,) * 6, 1.0)
+    jump = lambda t: (1.0, 0.0, 5.0) + (0.0,) * 6        # teleport: no velocity to integrate
+    feed(est, jump, 1.0 + 0.2 + 1.0 / 0.3, t0=1.0 + DT)
+    # after the fix delay, 1 - exp(-1) of the jump is corrected within 1/k
+    assert est.position()[0] == pytest.approx(1.0 - math.exp(-1.0), abs=0.01)
+
+
+def test_yaw_bias_is_added_and_wrapped():
+    est = make(delay=0.0, tau=0.0, rate=1000.0, estimate_yaw_bias=0.3)
+    feed(est, lambda t: (0.0,) * 8 + (3.0,), 0.1)
+    assert est.attitude()[2] == pytest.approx(3.3 - 2.0 * math.pi)
+    neg = make(delay=0.0, tau=0.0, rate=1000.0, estimate_yaw_bias=-0.1)
+    feed(neg, lambda t: (0.0,) * 8 + (0.5,), 0.1)
+    assert neg.attitude()[2] == pytest.approx(0.4)
+    assert neg.attitude()[:2] == (0.0, 0.0) and neg.position() == (0.0, 0.0, 0.0)
+
+
+def test_quantisation_puts_values_on_their_grid():
+    q, qv = 1.0 / 256.0, 1.0 / 128.0
+    est = make(delay=0.0, tau=0.0, rate=1000.0, estimate_quantum_z=q, estimate_quantum_velocity=qv,
+               estimate_quantum_x=0.01)
+    signal = lambda t: (0.1234567, 0.3333333, 5.0011, 0.123, -0.777, 0.0101, 0.01234, 0.0, 0.5)
+    feed(est, signal, 0.05)
+    x, y, z, vx, vy, vz, roll, pitch, yaw = est.values()
+    for value, step in ((x, 0.01), (z, q), (vx, qv), (vy, qv), (vz, qv)):
+        assert abs(value / step - round(value / step)) < 1e-9
+    assert x == pytest.approx(0.12) and z == pytest.approx(1280.0 / 256.0) and vx == pytest.approx(16.0 / 128.0)
+    assert vz == pytest.approx(1.0 / 128.0) and vy == pytest.approx(-99.0 / 128.0)
+    assert (y, roll, yaw) == (0.3333333, 0.01234, 0.5)      # quantum 0: untouched
+
+
+def test_every_effect_off_is_bit_for_bit_the_plain_estimate():
+    from anafi_sim.sim.state_estimate import EFFECTS_OFF
+    plain = make(delay=0.07, tau=0.03, rate=20.0, f16=True)
+    off = make(delay=0.07, tau=0.03, rate=20.0, f16=True, **EFFECTS_OFF)
+    wobble = lambda t: (math.sin(t), 2.0 * math.cos(0.7 * t), 5.0 + 0.3 * t, math.cos(t), -1.4 * math.sin(0.7 * t),
+                        0.3, 0.1 * math.sin(3 * t), -0.05 * t, 3.0 * math.sin(0.4 * t))
+    assert feed(plain, wobble, 5.0) == feed(off, wobble, 5.0)
+
+
+@pytest.mark.parametrize('key, value', [
+    ('estimate_position_fusion', 1), ('estimate_position_fix_delay', -0.1),
+    ('estimate_position_fix_gain', float('nan')),
+    ('estimate_yaw_bias', float('inf')), ('estimate_quantum_z', -1.0 / 256), ('estimate_quantum_velocity', 'x'),
+    ('estimate_yaw_bias', True)])
+def test_bad_effect_values_raise_value_error(key, value):
+    with pytest.raises(ValueError, match=key):
+        make(**{key: value})

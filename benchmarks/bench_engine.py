@@ -38,6 +38,7 @@ import time
 
 import yaml
 
+import bench_sync
 from anafi_sim import paths
 from anafi_sim.experiments import report, runs, sweep
 from anafi_sim.experiments.engine import DEFAULT_SCHEDULE, Engine
@@ -385,8 +386,12 @@ def main(argv=None):
         elif step == 'profile':
             step_profile(args, figures)
         write_yaml(figures_path, figures)
+    text = render(figures)
+    sync_figures = read_yaml(bench_sync.FIGURES)
+    if sync_figures:                # the lockstep section (benchmarks/bench_sync.py) stays
+        text = bench_sync.splice(text, sync_figures)
     with open(os.path.join(RESULTS, 'engine.md'), 'w') as f:
-        f.write(render(figures))
+        f.write(text)
     print('written: %s, %s' % (os.path.join(RESULTS, 'engine.md'), figures_path))
     return 0
 

@@ -122,7 +122,9 @@ def _flatten(grid, prefix=''):
     return out
 
 
-def _unflatten(pairs):
+def unflatten(pairs):
+    """[(dotted path, value)] -> nested mapping ('a.b', 1) -> {'a': {'b': 1}} (the inverse of a grid's paths;
+    experiment.py's KEY=VALUE options use it too)."""
     out = {}
     for path, value in pairs:
         node = out
@@ -144,7 +146,7 @@ def grid(mapping):
     for path, value in pairs:
         if isinstance(value, list) and not value:
             raise ValueError('grid axis %s is empty' % path)
-    return [_unflatten(combo) for combo in itertools.product(*axes)] if axes else [{}]
+    return [unflatten(combo) for combo in itertools.product(*axes)] if axes else [{}]
 
 
 def _controllers(value):

@@ -16,9 +16,16 @@ zero), drone/pose_enu, drone/attitude, drone/speed (world ENU), drone/altitude,
 drone/rpy (deg), camera/attitude, drone/state (latched), sim/truth (ground
 truth Odometry stamped at its sample's time), /diagnostics (1 Hz wall),
 /clock when ~publish_clock. Parameters: see anafi_sim/config/sim.yaml; the
-fitted model dict is ~model (default: anafi_sim/config/anafi_model.yaml).
+fitted model dict is ~model if set, else read from ~model_file (default anafi_model.yaml, a name in
+anafi_sim/config such as anafi_model_fitted.yaml, or an absolute path).
+~sync (with ~publish_clock): lockstep with the controller
+(anafi_sim.sim.clock.Lockstep): simulation time held at 0 until the graph is
+up (~sync_settle), then at each control period (~sync_period) /clock stops at
+the period's tick until the command stamped at it arrives on drone/rpyt (at
+most ~sync_timeout s wall, counted on /diagnostics).
 Bad parameters: logfatal, exit code 1.
 """
+import os
 import time
 
 import rospy
@@ -28,17 +35,31 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Empty, Float32, String
 
 from anafi_control.frames import euler_to_quaternion
+from anafi_sim import paths
 from anafi_sim.ros import conversions, topics
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 start_diagnostics_thread)
 from anafi_sim.ros.wire_types import piloting_command_class
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
-from anafi_sim.sim.clock import SimClock
+from anafi_sim.sim.clock import Lockstep, SimClock, StartHold
 from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
 from anafi_sim.sim.simulator import SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX
 from anafi_sim.telemetry.server import TelemetryServer
+
+
+FIRST_TICK_HOLD = 1.0
+"""s of wall time the lockstep holds the first step's /clock tick: nodes that wait for /clock to start
+(anafi_sim.ros.node.wait_for_clock polls every 50 ms of wall time, e.g. the trajectory generator's Rate loop)
+all start at that tick, not wherever the simulation got to when they looked."""
+
+
+def sim_time(t):
+    """rospy.Time of simulation time ``t`` [s], rounded to the nanosecond (rospy.Time.from_sec truncates: the
+    step at 1.2 s, computed as 240 x 0.005, would read 1.199999999 and a 10 Hz timer due at 1.2 s would
+    fire one step late)."""
+    return rospy.Time(*divmod(int(round(t * 1e9)), 1000000000))
 
 
 class AnafiSimNode(object):
@@ -54,14 +75,24 @@ class AnafiSimNode(object):
         port = p.integer('telemetry_port', 9060, minimum=0, maximum=65535)   # 0 = any free port
         prefix = p.string('telemetry_prefix', DEFAULT_PREFIX)
         auto_takeoff = p.flag('auto_takeoff', True)
+        sync = p.flag('sync', False)
+        sync_period = p.positive('sync_period', 0.1)            # s sim, the controller's command period
+        sync_timeout = p.positive('sync_timeout', 1.0)          # s wall per period
+        sync_max_missed = p.integer('sync_max_missed', 5, minimum=1)
+        sync_settle = p.number('sync_settle', 3.0, minimum=0.0)  # s wall
+        sync_start_timeout = p.positive('sync_start_timeout', 60.0)
+        if sync and not publish_clock:
+            raise ValueError('~sync needs ~publish_clock true (lockstep holds the simulation clock)')
         mapping = PilotingMapping(p.positive('max_tilt_deg', MAX_TILT_DEG),
                                   p.positive('max_vertical_speed', MAX_VERTICAL_SPEED),
                                   p.positive('max_yaw_rate_deg', MAX_YAW_RATE_DEG))
         settings = dict((k, p.number(k, v)) for k, v in DEFAULT_SETTINGS.items())
         model_params = p.mapping('model')
-        if model_params is None:
-            model_params = load_model_params()
-            rospy.loginfo('anafi_sim: ~model not set, using the packaged anafi_model.yaml')
+        model_file = p.string('model_file', 'anafi_model.yaml', allow_empty=False)
+        if model_params is None:     # a name in anafi_sim/config (e.g. anafi_model_fitted.yaml) or a path
+            model_path = model_file if os.path.isabs(model_file) else paths.config_path(model_file)
+            model_params = load_model_params(model_path)
+            rospy.loginfo('anafi_sim: model parameters from %s', model_path)
         model = AnafiModel(model_params, mapping=mapping, seed=seed, settings=settings)
 
         ns = rospy.get_namespace()
@@ -87,9 +118,14 @@ class AnafiSimNode(object):
             raise ValueError('cannot serve telemetry on %s:%s: %s' % (host, port, error))
         rospy.on_shutdown(self.server.stop)
         rospy.set_param('~telemetry_bound_port', self.server.port)
-        self.sim = SimulatedAnafi(model, StateEstimate(model.params),
-                                  SimClock(rate, rtf, telemetry_rate, estimate_rate, publish_clock),
-                                  server=self.server, auto_takeoff=auto_takeoff)
+        # lockstep: no catching up after a late step (it would squeeze the graph's hops into less sim time)
+        clock = SimClock(rate, rtf, telemetry_rate, estimate_rate, publish_clock, **({'max_lag': 0.0} if sync else {}))
+        lockstep = Lockstep(sync_period, 1.0 / rate, sync_timeout, sync_max_missed) if sync else None
+        self.start_hold = StartHold(sync_settle, sync_start_timeout) if sync else None
+        self.sim = SimulatedAnafi(model, StateEstimate(model.params), clock, server=self.server,
+                                  auto_takeoff=auto_takeoff, lockstep=lockstep)
+        if lockstep is not None:
+            rospy.on_shutdown(lockstep.close)
 
         pub = rospy.Publisher
         self.pub_clock = pub(topics.CLOCK, Clock, queue_size=10) if publish_clock else None
@@ -107,19 +143,21 @@ class AnafiSimNode(object):
         rospy.Subscriber(base + topics.COMMAND, piloting_command_class(), self._on_rpyt, queue_size=20)
         rospy.Subscriber(base + topics.TAKEOFF, Empty, lambda _: self.sim.on_event('takeoff'), queue_size=5)
         rospy.Subscriber(base + topics.LAND, Empty, lambda _: self.sim.on_event('land'), queue_size=5)
-        rospy.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz)%s',
+        rospy.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz)%s%s',
                       self.drone, rate, rtf, host, self.server.port, telemetry_rate,
-                      ', publishing /clock' if publish_clock else '')
+                      ', publishing /clock' if publish_clock else '',
+                      ', lockstep with the controller every %g s (time-out %g s wall)' % (sync_period, sync_timeout)
+                      if sync else '')
 
     # ------------------------------------------------------------ callbacks
     def _on_rpyt(self, msg):
-        if not self.sim.on_command(msg.roll, msg.pitch, msg.yaw, msg.gaz):
+        if not self.sim.on_command(msg.roll, msg.pitch, msg.yaw, msg.gaz, stamp=msg.header.stamp.to_sec()):
             rospy.logwarn_throttle(5.0, 'anafi_sim: ignored a non-finite piloting command %r (%d so far)'
                                    % ((msg.roll, msg.pitch, msg.yaw, msg.gaz), self.sim.bad_commands))
 
     # -------------------------------------------------------------- outputs
     def _stamp(self, t):
-        return rospy.Time.from_sec(t) if self.sim_stamps else rospy.Time.now()
+        return sim_time(t) if self.sim_stamps else rospy.Time.now()
 
     def _header(self, msg, stamp, frame_id='world'):
         msg.header.stamp = stamp
@@ -153,19 +191,50 @@ class AnafiSimNode(object):
                                   health.message, health.values, hardware_id=self.drone)]
 
     # ------------------------------------------------------------- main loop
+    def _hold_at_zero(self, clock_msg):
+        """Lockstep: simulation time 0 until the /clock subscribers settled (the nodes' timers start at 0)."""
+        hold = self.start_hold
+        while not rospy.is_shutdown():
+            self.pub_clock.publish(clock_msg)
+            if hold.ready(time.monotonic(), self.pub_clock.get_num_connections()):
+                break
+            time.sleep(0.05)
+        (rospy.logwarn if hold.timed_out else rospy.loginfo)(
+            'anafi_sim: lockstep: %d /clock subscribers%s, starting simulation time', hold.count or 0,
+            ' (start hold timed out)' if hold.timed_out else '')
+
     def run(self):
         sim = self.sim
         clock_msg = Clock()
-        sim.start(time.monotonic())
         start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag,
                                  stamp=lambda: self._stamp(sim.clock.t))
+        if self.start_hold is not None:
+            self._hold_at_zero(clock_msg)
+        sim.start(time.monotonic())
+
+        def poke():
+            self.pub_clock.publish(clock_msg)
+        first_hold = self.start_hold is not None
         while not rospy.is_shutdown():
             step = sim.step()
             for event, accepted, state in step.events:
                 rospy.loginfo('anafi_sim: %s %s, state now %s', event, 'accepted' if accepted else 'ignored', state)
             if step.clock and self.pub_clock is not None:
-                clock_msg.clock = rospy.Time.from_sec(step.t)
+                clock_msg.clock = sim_time(step.t)
                 self.pub_clock.publish(clock_msg)
+            if first_hold:              # lockstep: nodes polling for /clock > 0 start at the first step
+                first_hold = False
+                hold_until = time.monotonic() + FIRST_TICK_HOLD
+                while time.monotonic() < hold_until and not rospy.is_shutdown():
+                    time.sleep(0.01)
+                    poke()
+                sim.clock.resume(time.monotonic())
+            waited = sim.sync(step.t, poke)     # lockstep: the controller's command of the period at step.t
+            if waited is not None:
+                if not waited and not rospy.is_shutdown():
+                    rospy.logwarn_throttle(5.0, 'anafi_sim: lockstep: no command within %g s wall at t = %.3f s '
+                                           '(%d timeouts)' % (sim.lockstep.timeout, step.t, sim.lockstep.timeouts))
+                sim.clock.resume(time.monotonic())
             if step.sample is not None:
                 self._publish_truth(step.sample, self._stamp(step.t))
             if step.estimate is not None:
@@ -175,6 +244,10 @@ class AnafiSimNode(object):
             delay = sim.pace(time.monotonic())
             if delay > 0.0:
                 time.sleep(delay)
+        if sim.lockstep is not None:
+            r = sim.lockstep.report()
+            rospy.loginfo('anafi_sim: lockstep: %d periods waited, %d timeouts, %d times silent; wait mean %.4f s, '
+                          'max %.3f s wall', r.waits, r.timeouts, r.disarms, r.wait_wall_mean, r.wait_wall_max)
         self.server.stop()
 
 

@@ -3,7 +3,8 @@
 
     experiment.py run --controller pid|mpc|pid_single|pkg.mod:Class --scenario NAME|PATH [--seed S]
                       [--wind X,Y[,Z]] [--gust STD] [--gust-vertical STD] [--gust-tau S]
-                      [--param KEY=VALUE ...] [--schedule KEY=VALUE ...] [--state-source estimate|truth]
+                      [--param KEY=VALUE ...] [--schedule KEY=VALUE ...] [--sync-schedule]
+                      [--state-source estimate|truth]
                       [--engine inprocess|ros] [--no-plot] --out DIR
         -> DIR/<scenario>_<controller>.yaml (the evaluator's summary), .csv (reference log), .png; one
            'RESULT ...' line on stdout (exit 0 when the summary is final).
@@ -31,25 +32,20 @@ import yaml
 from anafi_sim import paths
 from anafi_sim.experiments import report
 from anafi_sim.experiments.engine import CONTROLLERS, make_schedule, wind_settings
-from anafi_sim.experiments.runs import batch, make_task, result_line, run_task, task_name
-from anafi_sim.experiments.sweep import GROUPS, load_spec, run_sweep
+from anafi_sim.experiments.runs import SYNC_SCHEDULE, batch, make_task, result_line, run_task, task_name
+from anafi_sim.experiments.sweep import GROUPS, load_spec, run_sweep, unflatten
 from anafi_sim.experiments.trajectory import list_scenarios
 
 
 def _key_values(items, what):
     """['a=1', 'loop.Kp=2'] -> nested dict with YAML-parsed values."""
-    out = {}
+    pairs = []
     for item in items or []:
         key, sep, text = item.partition('=')
         if not sep or not key:
             raise ValueError('%s must be KEY=VALUE, got %r' % (what, item))
-        value = yaml.safe_load(text)
-        node = out
-        parts = key.split('.')
-        for part in parts[:-1]:
-            node = node.setdefault(part, {})
-        node[parts[-1]] = value
-    return out
+        pairs.append((key, yaml.safe_load(text)))
+    return unflatten(pairs)
 
 
 def _wind(args):
@@ -87,6 +83,8 @@ def cmd_run(args):
     wind = _wind(args)
     params = _key_values(args.param, '--param')
     schedule = _key_values(args.schedule, '--schedule')
+    if args.sync_schedule:
+        schedule = dict(SYNC_SCHEDULE, **schedule)
     make_schedule(schedule)
     os.makedirs(args.out, exist_ok=True)
     task = make_task(args.scenario, args.controller, seed=args.seed, wind=wind, params=params or None,
@@ -187,6 +185,9 @@ def parser():
                      help='controller parameter (mpc: mpc.yaml keys, e.g. r=0.1; pid: LOOP.PARAM, e.g. x_outer.Kp=1)')
     run.add_argument('--schedule', action='append', metavar='KEY=VALUE',
                      help='engine schedule override (anafi_sim.experiments.engine.DEFAULT_SCHEDULE)')
+    run.add_argument('--sync-schedule', action='store_true',
+                     help='the schedule of a ROS run with experiment.launch sync:=true (runs.SYNC_SCHEDULE; '
+                          '--schedule wins)')
     run.add_argument('--state-source', default='estimate', choices=('estimate', 'truth'))
     run.add_argument('--name', default=None, help='run name (default SCENARIO_CONTROLLER)')
     run.add_argument('--engine', default='inprocess', choices=('inprocess', 'ros'))

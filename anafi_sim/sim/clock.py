@@ -12,9 +12,15 @@ too.
 - ``SimClock``: the simulated Anafi's loop: physics steps of 1/rate s of simulation time paced at
   ``rtf`` x real time, which steps publish telemetry / the estimate / /clock, and the achieved rates;
 - ``ScaledSteps``: variable steps of simulated time from wall-time gaps (the kinematic world: rtf x the
-  gap, capped).
+  gap, capped);
+- ``Lockstep`` and ``StartHold``: the simulated Anafi's lockstep mode (``~sync``): at each control period
+  wait (wall time, bounded) for the controller's command of that period before simulation time goes on;
+  before the first step, hold simulation time at 0 until the graph's nodes are up (so every node's timers
+  start in phase with 0).
 """
 import collections
+import threading
+import time
 
 MAX_LAG = 0.25
 """s of wall time behind schedule before the simulated Anafi's pacing re-anchors (counted)."""
@@ -81,6 +87,11 @@ class Pacer(object):
         self._anchor = wall
         self.cycles = 0
 
+    def resume(self, wall):
+        """Continue from wall time ``wall`` after a deliberate pause (a lockstep wait): no catching up, not
+        counted as a re-anchor."""
+        self._anchor = wall - self.cycles * self.period
+
     def wait(self, wall):
         """One cycle done at wall time ``wall``: seconds to sleep before the next one (0 when late)."""
         self.cycles += 1
@@ -141,6 +152,10 @@ class SimClock(object):
         """Seconds to sleep after the step just done, at wall time ``wall`` (0 when behind)."""
         return self.pacer.wait(wall)
 
+    def resume(self, wall):
+        """Pace on from wall time ``wall`` after a lockstep wait (``Pacer.resume``)."""
+        self.pacer.resume(wall)
+
     def report(self, wall):
         """PacingReport since the previous report (or the start), at wall time ``wall``."""
         k = self.k
@@ -172,6 +187,156 @@ class ScaledSteps(object):
             self.overruns += 1
             return self.max_step
         return dt
+
+
+POKE_PERIOD = 0.005
+"""s of wall time between repeats of the held /clock tick while the lockstep waits."""
+
+LockstepReport = collections.namedtuple('LockstepReport', 'state waits timeouts disarms wait_wall_max '
+                                                        'wait_wall_mean')
+"""Lockstep figures since the start: state ('waiting for the first command', 'lockstep' or 'free-running:
+controller silent'), waits (control periods waited for), timeouts, disarms (times the controller fell silent
+for max_missed periods), longest and mean wait [s wall]."""
+
+
+class Lockstep(object):
+    """Lockstep of the simulated Anafi with a controller (``~sync``): thread-safe, wall-clock waits.
+
+    The controller commands every ``period`` s of simulation time and stamps each command with the ROS
+    time of its cycle (``header.stamp``: the /clock tick its timer fired on). ``on_command(stamp)`` (any
+    thread, after the command is queued) records it. The first command arms the lockstep; from then on
+    the period's command is due at the first physics tick t >= last + period - dt / 2 (last: stamp of the
+    previous period's command); ``due(t)`` says so and ``wait()`` blocks until a command newer than
+    ``last`` arrives (True) or ``timeout`` s of wall time passed (False, counted: the period goes on
+    without a command, the firmware's behaviour applies). After ``max_missed`` timeouts in a row the
+    controller is taken for silent (failsafe, dead node): free-running until its next command re-arms.
+    ``close()`` ends any wait (shutdown).
+    """
+
+    def __init__(self, period, dt, timeout=1.0, max_missed=5):
+        if not period > 0 or not dt > 0 or not timeout > 0 or not max_missed >= 1:
+            raise ValueError('need period, dt, timeout > 0 and max_missed >= 1, got %r, %r, %r, %r'
+                             % (period, dt, timeout, max_missed))
+        self.period, self.dt, self.timeout, self.max_missed = float(period), float(dt), float(timeout), int(max_missed)
+        self._cond = threading.Condition()
+        self.armed = False
+        self.closed = False
+        self.last = None          # stamp of the command that ended the previous period [s sim]
+        self.newest = None        # newest command stamp received [s sim]
+        self.missed = 0           # timeouts in a row
+        self.waits = self.timeouts = self.disarms = 0
+        self.wait_wall_max = self.wait_wall_sum = 0.0
+
+    def on_command(self, stamp):
+        """A command stamped ``stamp`` [s sim] was received (and queued for the next step)."""
+        with self._cond:
+            stamp = float(stamp)
+            if self.newest is None or stamp > self.newest:
+                self.newest = stamp
+            if not self.armed:
+                self.armed = True
+                self.last = stamp
+                self.missed = 0
+            self._cond.notify_all()
+
+    def due(self, t):
+        """True when the step that ended at simulation time ``t`` [s] must wait for the period's command."""
+        with self._cond:
+            return self.armed and not self.closed and t >= self.last + self.period - 0.5 * self.dt
+
+    def _arrived(self):
+        return self.newest is not None and self.newest > self.last + 0.5 * self.dt
+
+    def wait(self, poke=None, clock=time.monotonic):
+        """Block until the period's command arrived (True) or the wall time-out (False, counted).
+
+        ``poke()`` is called every ``POKE_PERIOD`` s of wall time while waiting: the node publishes the
+        same /clock tick again, because rospy.sleep under /use_sim_time can miss the one notification of
+        a tick (it checks the time outside the lock it waits on, then waits up to 0.5 s) and, with the
+        clock stopped, its timer would fire up to 0.5 s late."""
+        with self._cond:
+            start = clock()
+            deadline = start + self.timeout
+            while not self._arrived() and not self.closed:
+                remaining = deadline - clock()
+                if remaining <= 0.0:
+                    break
+                self._cond.wait(min(remaining, POKE_PERIOD) if poke is not None else remaining)
+                if poke is not None and not self._arrived():
+                    poke()
+            waited = clock() - start
+            self.waits += 1
+            self.wait_wall_sum += waited
+            self.wait_wall_max = max(self.wait_wall_max, waited)
+            if self._arrived():
+                self.last = self.newest
+                self.missed = 0
+                return True
+            if self.closed:
+                return False
+            self.timeouts += 1
+            self.missed += 1
+            self.last += self.period
+            if self.missed >= self.max_missed:
+                self.armed = False
+                self.disarms += 1
+            return False
+
+    def close(self):
+        """End waits for good (shutdown)."""
+        with self._cond:
+            self.closed = True
+            self._cond.notify_all()
+
+    def report(self):
+        """``LockstepReport`` since the start."""
+        with self._cond:
+            if self.armed:
+                state = 'lockstep'
+            elif self.disarms:
+                state = 'free-running: controller silent'
+            else:
+                state = 'waiting for the first command'
+            mean = self.wait_wall_sum / self.waits if self.waits else 0.0
+            return LockstepReport(state, self.waits, self.timeouts, self.disarms, self.wait_wall_max, mean)
+
+
+class StartHold(object):
+    """Simulation time held at 0 until the graph is up: ``ready(wall, count)`` with the number of /clock
+    subscribers is True once that number is >= 1 and has not changed for ``settle`` s of wall time, or
+    ``timeout`` s after the first call (``timed_out`` then True). Nodes that create their timers while time
+    is 0 run them in phase with 0 (rospy.Timer and rospy.Rate count periods from their creation)."""
+
+    def __init__(self, settle=3.0, timeout=60.0):
+        if not settle >= 0 or not timeout > 0:
+            raise ValueError('need settle >= 0 and timeout > 0, got %r, %r' % (settle, timeout))
+        self.settle, self.timeout = float(settle), float(timeout)
+        self.start = self.changed = None
+        self.count = None
+        self.timed_out = False
+
+    def ready(self, wall, count):
+        """True when simulation time may start, at wall time ``wall`` [s] with ``count`` /clock subscribers."""
+        if self.start is None:
+            self.start = wall
+        if count != self.count:
+            self.count, self.changed = count, wall
+        if wall - self.start >= self.timeout:
+            self.timed_out = True
+            return True
+        return count >= 1 and wall - self.changed >= self.settle
+
+
+def lockstep_values(report):
+    """(key, text) pairs of a LockstepReport for /diagnostics."""
+    return [
+        ('lockstep', report.state),
+        ('lockstep periods waited', str(report.waits)),
+        ('lockstep timeouts (period went on without a command)', str(report.timeouts)),
+        ('lockstep controller silent (free-running)', str(report.disarms)),
+        ('lockstep wait max [s wall]', '%.3f' % report.wait_wall_max),
+        ('lockstep wait mean [s wall]', '%.4f' % report.wait_wall_mean),
+    ]
 
 
 def report_values(report):

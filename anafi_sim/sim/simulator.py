@@ -8,12 +8,14 @@ Stage: piloting command -> **simulated drone** -> (telemetry server, bridge-like
 (``anafi_sim.sim.drone_model``) and the drone's own estimate (``anafi_sim.sim.state_estimate``) on a
 ``anafi_sim.sim.clock.SimClock``, sends the decimated ground truth to the telemetry server, and says
 what the node publishes after each step (``Step``). ``health(wall)`` sums it up for /diagnostics.
+With a ``anafi_sim.sim.clock.Lockstep`` (``~sync``), ``sync(t)`` after a step waits for the controller's
+command of the control period when one is due (commands carry their stamps: ``on_command(..., stamp=)``).
 """
 import collections
 import math
 
 from anafi_sim.sim.bridge import bridge_estimate
-from anafi_sim.sim.clock import report_values
+from anafi_sim.sim.clock import lockstep_values, report_values
 from anafi_sim.sim.drone_model import FLYING
 
 Step = collections.namedtuple('Step', 't events sample estimate state clock')
@@ -33,10 +35,11 @@ class SimulatedAnafi(object):
     """Steps an ``AnafiModel`` and its ``StateEstimate`` on a ``SimClock``.
 
     Piloting commands are mapped to PCMD percents with the model's ``PilotingMapping`` (the bridge's);
-    server: the ``TelemetryServer`` the ground truth goes to (None: none); auto_takeoff: take off at 0 s.
+    server: the ``TelemetryServer`` the ground truth goes to (None: none); auto_takeoff: take off at 0 s;
+    lockstep: a ``Lockstep`` (None: free-running on the clock's pacing).
     """
 
-    def __init__(self, model, estimate, clock, server=None, auto_takeoff=True, max_commands=1000):
+    def __init__(self, model, estimate, clock, server=None, auto_takeoff=True, max_commands=1000, lockstep=None):
         self.model, self.estimate, self.clock = model, estimate, clock
         self.server = server
         self.auto_takeoff = auto_takeoff
@@ -46,17 +49,23 @@ class SimulatedAnafi(object):
         self.bad_commands = 0
         self._bad_reported = 0
         self._last_state = None
+        self.lockstep = lockstep
+        self._timeouts_reported = 0
 
     # ------------------------------------------------------------ inputs (any thread)
-    def on_command(self, roll_deg, pitch_deg, yaw_rate_deg, gaz):
-        """A piloting command (ROS units); False when refused (non-finite), counted."""
+    def on_command(self, roll_deg, pitch_deg, yaw_rate_deg, gaz, stamp=None):
+        """A piloting command (ROS units) of the controller's cycle at ``stamp`` [s sim] (None: unknown);
+        False when refused (non-finite), counted. Either way it answers the lockstep's period."""
         values = (roll_deg, pitch_deg, yaw_rate_deg, gaz)
-        if not all(math.isfinite(v) for v in values):
+        ok = all(math.isfinite(v) for v in values)
+        if ok:
+            self.commands_received += 1
+            self.commands.append(self.model.mapping.to_pcmd(*values))
+        else:
             self.bad_commands += 1
-            return False
-        self.commands_received += 1
-        self.commands.append(self.model.mapping.to_pcmd(*values))
-        return True
+        if self.lockstep is not None and stamp is not None and math.isfinite(stamp) and stamp > 0.0:
+            self.lockstep.on_command(stamp)
+        return ok
 
     def on_event(self, event):
         """'takeoff' or 'land', applied before the next step."""
@@ -104,6 +113,16 @@ class SimulatedAnafi(object):
             state = self._last_state = model.state
         return Step(t, applied, sample, estimate, state, tick.clock)
 
+    def sync(self, t, poke=None):
+        """Lockstep after the step that ended at ``t`` [s sim]: None when nothing is due (or no lockstep),
+        else whether the period's command came before the wall time-out (blocks; ``poke()``: repeat /clock,
+        see ``Lockstep.wait``). Publish /clock at ``t`` before, the step's outputs after (the controller's
+        cycle at ``t`` sees the messages of the steps before it, as the in-process engine schedules it)."""
+        lockstep = self.lockstep
+        if lockstep is None or not lockstep.due(t):
+            return None
+        return lockstep.wait(poke)
+
     def pace(self, wall):
         """Seconds to sleep after a step at wall time ``wall`` (real-time pacing)."""
         return self.clock.pace(wall)
@@ -114,7 +133,15 @@ class SimulatedAnafi(object):
         report = self.clock.report(wall)
         model = self.model
         problems = []
-        if report.achieved_rate < WANTED_RATE_FRACTION * report.wanted_rate:
+        lockstep = self.lockstep.report() if self.lockstep is not None else None
+        if lockstep is not None:     # the controller sets the pace: no wanted rate
+            if lockstep.timeouts > self._timeouts_reported:
+                problems.append('%d lockstep timeouts (periods without the command)'
+                                % (lockstep.timeouts - self._timeouts_reported))
+            self._timeouts_reported = lockstep.timeouts
+            if lockstep.disarms and not self.lockstep.armed:
+                problems.append('lockstep: controller silent, free-running')
+        elif report.achieved_rate < WANTED_RATE_FRACTION * report.wanted_rate:
             problems.append('physics %.0f Hz of wall time, wanted %.0f' % (report.achieved_rate, report.wanted_rate))
         bad = self.bad_commands
         if bad > self._bad_reported:
@@ -135,6 +162,8 @@ class SimulatedAnafi(object):
             ('commands received', str(self.commands_received)),
             ('bad commands (non-finite, ignored)', str(bad)),
         ]
+        if lockstep is not None:
+            values += lockstep_values(lockstep)
         server = self.server
         if server is not None:
             values += [

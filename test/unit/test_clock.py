@@ -1,8 +1,11 @@
 """anafi_sim.sim.clock: decimation, real-time pacing, overruns / re-anchors and achieved rates on a fake wall clock."""
+import threading
+
 import pytest
 
 from anafi_sim.experiments import monitor
-from anafi_sim.sim.clock import MAX_LAG, Pacer, Periodic, ScaledSteps, SimClock, report_values
+from anafi_sim.sim.clock import (MAX_LAG, Lockstep, Pacer, Periodic, ScaledSteps, SimClock, StartHold, lockstep_values,
+                                 report_values)
 
 
 def run(clock, wall, steps, cost=lambda k: 0.0):
@@ -162,3 +165,102 @@ def test_scaled_steps_scale_cap_and_count():
     assert s.step(1.0) == 0.1 and s.overruns == 1
     with pytest.raises(ValueError):
         ScaledSteps(0.0, 0.1)
+
+
+# ------------------------------------------------------------------ lockstep
+def test_pacer_resume_continues_without_catching_up_or_counting():
+    p = Pacer(0.01, max_lag=0.25)
+    p.start(0.0)
+    assert p.wait(0.0) == pytest.approx(0.01)
+    p.resume(5.0)                       # a 5 s lockstep wait
+    assert p.wait(5.0) == pytest.approx(0.01)
+    assert (p.overruns, p.reanchors) == (0, 0)
+
+
+def test_lockstep_waits_only_once_armed_and_at_the_period_tick():
+    lock = Lockstep(0.1, 0.005, timeout=0.05)
+    assert not lock.due(10.0)                        # no command yet: free-running
+    lock.on_command(0.2)                             # arms; the next command is due 0.1 s later
+    assert not lock.due(0.295)
+    assert lock.due(0.3)
+    assert not lock.wait()                           # nothing newer than 0.2 came: time-out
+    assert (lock.timeouts, lock.missed) == (1, 1)
+    assert not lock.due(0.395) and lock.due(0.4)     # the period went on without the command
+    lock.on_command(0.4)
+    assert lock.wait()                               # already there: no wait
+    assert lock.last == pytest.approx(0.4) and lock.missed == 0
+    assert lock.report().state == 'lockstep' and lock.report().waits == 2
+
+
+def test_lockstep_takes_the_period_of_the_stamps_not_of_arrival():
+    lock = Lockstep(0.1, 0.005, timeout=0.05)
+    lock.on_command(0.105)                           # a timer that fired one tick late once
+    lock.on_command(0.2)                             # then back in phase, before the sim got to 0.205
+    assert lock.due(0.205) and lock.wait()
+    assert lock.last == pytest.approx(0.2)
+    assert lock.due(0.3) and not lock.due(0.295)
+
+
+def test_lockstep_wait_ends_when_the_command_arrives_from_another_thread():
+    lock = Lockstep(0.1, 0.005, timeout=30.0)
+    lock.on_command(1.0)
+    pokes = []
+    sender = threading.Timer(0.05, lock.on_command, args=(1.1,))
+    sender.start()
+    assert lock.wait(poke=lambda: pokes.append(1))   # well before the 30 s time-out
+    sender.join()
+    assert lock.timeouts == 0 and lock.report().wait_wall_max < 30.0
+    assert pokes                                     # /clock repeated while waiting
+
+
+def test_lockstep_disarms_after_max_missed_and_rearms_on_the_next_command():
+    lock = Lockstep(0.1, 0.005, timeout=0.01, max_missed=3)
+    lock.on_command(1.0)
+    t = 1.1
+    for _ in range(3):
+        assert lock.due(t) and not lock.wait()
+        t += 0.1
+    assert not lock.due(t) and not lock.due(t + 10.0)   # silent controller: the world goes on
+    report = lock.report()
+    assert (report.timeouts, report.disarms, report.state) == (3, 1, 'free-running: controller silent')
+    lock.on_command(5.0)
+    assert lock.due(5.1) and lock.report().state == 'lockstep'
+
+
+def test_lockstep_close_ends_a_wait_without_counting_a_timeout():
+    lock = Lockstep(0.1, 0.005, timeout=30.0)
+    lock.on_command(1.0)
+    closer = threading.Timer(0.05, lock.close)
+    closer.start()
+    assert not lock.wait()
+    closer.join()
+    assert lock.timeouts == 0 and not lock.due(1.1)
+
+
+def test_lockstep_refuses_bad_settings():
+    for args in ((0.0, 0.005), (0.1, 0.0), (0.1, 0.005, 0.0), (0.1, 0.005, 1.0, 0)):
+        with pytest.raises(ValueError):
+            Lockstep(*args)
+
+
+def test_lockstep_values_name_every_figure():
+    lock = Lockstep(0.1, 0.005, timeout=0.01)
+    values = dict(lockstep_values(lock.report()))
+    assert values['lockstep'] == 'waiting for the first command'
+    assert values['lockstep timeouts (period went on without a command)'] == '0'
+
+
+def test_start_hold_waits_for_the_subscribers_to_settle():
+    hold = StartHold(settle=2.0, timeout=60.0)
+    assert not hold.ready(0.0, 0)
+    assert not hold.ready(5.0, 0)          # nobody listens yet
+    assert not hold.ready(5.5, 3)
+    assert not hold.ready(7.0, 4)          # still coming up
+    assert not hold.ready(8.9, 4)
+    assert hold.ready(9.0, 4) and not hold.timed_out
+
+
+def test_start_hold_gives_up_after_its_timeout():
+    hold = StartHold(settle=2.0, timeout=10.0)
+    assert not hold.ready(0.0, 0)
+    assert hold.ready(10.0, 0) and hold.timed_out

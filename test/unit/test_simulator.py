@@ -112,3 +112,63 @@ def test_health_values_and_warnings():
     health = sim.health(3.0)
     assert not health.warning and health.message in (FLYING, 'flying, hovering (no piloting command)')
     assert 'telemetry port' not in dict(simulator().health(1.0).values)   # no server: no telemetry values
+
+
+# ------------------------------------------------------------------ lockstep (~sync)
+def lockstep_simulator(timeout=0.01):
+    from anafi_sim.sim.clock import Lockstep
+    mapping = PilotingMapping()
+    model = AnafiModel(load_model_params(), mapping=mapping, seed=0)
+    lock = Lockstep(0.1, 0.005, timeout=timeout, max_missed=100)
+    sim = SimulatedAnafi(model, StateEstimate(model.params),
+                         SimClock(200.0, 1.0, telemetry_rate=100.0, estimate_rate=30.0, publish_clock=True),
+                         lockstep=lock)
+    sim.start(0.0)
+    return sim, lock
+
+
+def test_without_lockstep_sync_never_waits():
+    sim = simulator()
+    step = sim.step()
+    assert sim.sync(step.t) is None
+    assert sim.on_command(1.0, 0.0, 0.0, 0.0, stamp=0.1)      # a stamp without lockstep is just ignored
+
+
+def test_lockstep_waits_at_the_period_of_the_stamped_commands():
+    sim, lock = lockstep_simulator()
+    assert all(sim.sync(sim.step().t) is None for _ in range(40))   # not armed: no command yet
+    sim.on_command(2.0, 0.0, 0.0, 0.0, stamp=0.2)            # the controller's cycle at 0.2 s
+    waited = []
+    for _ in range(20):                                      # 0.205 .. 0.3 s
+        step = sim.step()
+        waited.append((round(step.t, 3), sim.sync(step.t)))
+    due = [(t, w) for t, w in waited if w is not None]
+    assert due == [(0.3, False)]                             # due at 0.3 s, no command: timed out
+    sim.on_command(2.0, 0.0, 0.0, 0.0, stamp=0.4)
+    while sim.clock.t < 0.395:
+        assert sim.sync(sim.step().t) is None
+    step = sim.step()
+    assert round(step.t, 3) == 0.4 and sim.sync(step.t) is True
+    values = dict(sim.health(1.0).values)
+    assert values['lockstep periods waited'] == '2'
+    assert values['lockstep timeouts (period went on without a command)'] == '1'
+
+
+def test_a_refused_command_still_answers_the_lockstep_period():
+    sim, lock = lockstep_simulator()
+    sim.on_command(0.0, 0.0, 0.0, 0.0, stamp=1.0)
+    assert not sim.on_command(float('nan'), 0.0, 0.0, 0.0, stamp=1.1)
+    assert lock.newest == pytest.approx(1.1) and sim.bad_commands == 1
+
+
+def test_lockstep_timeouts_are_a_warning_and_the_wanted_rate_is_not():
+    sim, lock = lockstep_simulator()
+    sim.on_command(0.0, 0.0, 0.0, 0.0, stamp=0.005)
+    steps(sim, 40)
+    assert not sim.health(1.0).warning                        # slow on the wall clock: the controller's pace
+    t = sim.step().t
+    while sim.sync(t) is None:
+        t = sim.step().t
+    health = sim.health(2.0)
+    assert health.warning and 'lockstep timeouts' in health.message
+    assert not sim.health(3.0).warning                        # reported once

@@ -35,7 +35,13 @@ Readings of the paper that needed a decision (all tested in test/unit/test_mpc.p
 * State bounds (Table 1) are imposed on x_1..x_N, not on x_0: x_0 = x-bar is the measurement, and bounding
   it would make the QP infeasible whenever the measured speed exceeds a limit (e.g. a gust pushes v_z to
   2.05 m/s) although the drone can still be brought back within the limits. Only finite bounds produce
-  constraint rows (infinite bounds stay infinite, i.e. they are simply absent).
+  constraint rows (infinite bounds stay infinite, i.e. they are simply absent). Beyond |a_max| dt over the
+  limit it would still be infeasible, so the measured velocity is clipped into +-v_max before it enters x_0
+  (as the authors' code did; ``MpcResult.velocity_clipped``).
+* Numerics (not the formulation): the QP variables are x~ = D^-1 (x - shift) (positions relative to the drone,
+  cumulative errors / ``cum_scale``), OSQP polishes, and with ``verify`` a solution whose polishing failed is
+  re-solved cold at ``verify_eps``: with eps 1e-3 and a warm start far from the new problem (a waypoint jump)
+  OSQP reported 'solved' on u_0 off by up to 1.2 m/s^2 (test_mpc.py compares with the exact optimum).
 * x-bar = [wp_x, x, wp_y, y, wp_z, z, wp_vx, vx, wp_vy, vy, wp_vz, vz, 0, 0, 0, 0, 0, 0] and z-bar as eq.
   (15): each solve starts with zero cumulative errors, as eq. (15) and the paper's behaviour imply.
   ``carry_cumulative_errors=True`` instead starts each solve from cum = sum over previous solves of the
@@ -92,12 +98,16 @@ DEFAULT_PARAMS = {
     'vz_step': 5,               # v_z command taken from x_pred[vz_step]
     'carry_cumulative_errors': False,
     'rebuild_every_cycle': False,
-    'accept_inaccurate': False,  # treat OSQP 'solved inaccurate' as ok
+    'accept_inaccurate': True,  # treat OSQP 'solved inaccurate' as ok (the authors' code did)
+    'paper_timing': False,      # solve with the inputs of the previous call (the authors' node), see solve()
+    'cum_scale': 30.0,          # QP variable of the cumulative errors = cum / cum_scale (1 = unscaled)
     'eps_abs': 1e-3,
     'eps_rel': 1e-3,
     'max_iter': 4000,
     'warm_start': True,
-    'polish': False,
+    'polish': True,
+    'verify': True,             # polish failed -> re-solve cold with verify_eps (wrong warm starts)
+    'verify_eps': 1e-5,         # eps_abs = eps_rel of the cold re-solve
     'verbose': False,
 }
 
@@ -282,10 +292,11 @@ class MpcResult(object):
     """Outcome of one solve. When ``ok`` is False the caller must hover; u0 and vz_command are then 0."""
 
     __slots__ = ('ok', 'status', 'iterations', 'solve_time', 'setup_time', 'run_time', 'u0', 'x_pred',
-                 'z_ref', 'vz_command', 'u_pred')
+                 'z_ref', 'vz_command', 'u_pred', 'inputs', 'delayed', 'velocity_clipped', 'inaccurate', 'resolved')
 
     def __init__(self, ok=False, status='', iterations=0, solve_time=float('nan'), setup_time=0.0,
-                 run_time=0.0, u0=(0.0, 0.0, 0.0), x_pred=None, z_ref=None, vz_command=0.0, u_pred=None):
+                 run_time=0.0, u0=(0.0, 0.0, 0.0), x_pred=None, z_ref=None, vz_command=0.0, u_pred=None,
+                 inputs=None, delayed=False, velocity_clipped=False, inaccurate=False, resolved=False):
         self.ok = ok                  # bool: solution usable
         self.status = status          # OSQP status string or reason of failure
         self.iterations = iterations  # ADMM iterations
@@ -297,6 +308,12 @@ class MpcResult(object):
         self.z_ref = z_ref            # (N+1, 18) reference trajectory or None
         self.vz_command = vz_command  # [m/s] x_pred[vz_step, 11]
         self.u_pred = u_pred          # (N, 3) predicted inputs or None
+        self.inputs = inputs          # (drone_pos, drone_vel, wp_pos, wp_vel) the QP was solved with (vel
+                                      # unclipped), or None
+        self.delayed = delayed        # True: inputs are those of the previous call (paper_timing)
+        self.velocity_clipped = velocity_clipped  # the measured velocity was clipped into +-v_max for x_0
+        self.inaccurate = inaccurate  # OSQP said 'solved inaccurate' (accepted with accept_inaccurate)
+        self.resolved = resolved      # verify: the warm-started solution was not verified, re-solved cold
 
     def __repr__(self):
         return 'MpcResult(ok=%r, status=%r, iterations=%r, u0=%r, vz_command=%r)' % (
@@ -336,6 +353,17 @@ class CumulativeErrorMpc(object):
         self.carry_cumulative_errors = bool(p['carry_cumulative_errors'])
         self.rebuild_every_cycle = bool(p['rebuild_every_cycle'])
         self.accept_inaccurate = bool(p['accept_inaccurate'])
+        self.paper_timing = bool(p['paper_timing'])
+        self.verify = bool(p['verify'])
+        self._verify_eps = float(p['verify_eps'])
+        if not (math.isfinite(self._verify_eps) and self._verify_eps > 0.0):
+            raise ValueError('verify_eps must be positive, got %r' % (p['verify_eps'],))
+        cs = float(p['cum_scale'])
+        if not (math.isfinite(cs) and cs > 0.0):
+            raise ValueError('cum_scale must be a positive number, got %r' % (p['cum_scale'],))
+        self._scale = np.ones(NX)
+        self._scale[12:] = cs
+        self._pending = None
         self._settings = _osqp_settings(p)
         self.A = state_matrix(dt)
         self.B = input_matrix(dt)
@@ -375,7 +403,8 @@ class CumulativeErrorMpc(object):
                                   vals['q_cum_vel_terminal'], vals['r'])
         self._p.update(vals)
         if self._solver is not None:
-            pdiag = cost_diagonal(self.Q, self.Q_N, self.R, self._N)
+            self._scaled_qp_data()
+            pdiag = cost_diagonal(self._Qs, self._QNs, self.R, self._N)
             try:
                 self._solver.update(Px=pdiag)
                 self.qp.P.data[:] = pdiag
@@ -397,6 +426,7 @@ class CumulativeErrorMpc(object):
             if (np.isfinite(self.x_max).tolist(), np.isfinite(self.u_max).tolist()) != old_pattern:
                 self._setup()
             else:
+                self._scaled_qp_data()
                 self._bounds_into(self.qp)
 
     def set_horizon(self, N):
@@ -416,54 +446,100 @@ class CumulativeErrorMpc(object):
         """Reference trajectory z_0..z_N (N+1, 18) of a waypoint (eq. 3, 8, 15)."""
         return reference_trajectory(initial_reference(wp_pos, wp_vel), self.A_r, self._N)
 
+    def reset_timing(self):
+        """Forget the inputs held for the next solve (paper_timing): the next solve uses its own inputs."""
+        self._pending = None
+
     def solve(self, drone_pos, drone_vel, wp_pos, wp_vel):
-        """One MPC cycle from the drone state and the waypoint (ENU, m and m/s). Never raises on bad input."""
+        """One MPC cycle from the drone state and the waypoint (ENU, m and m/s). Never raises on bad input.
+
+        ``paper_timing``: the QP is solved with the inputs of the previous call (the authors' node solved the
+        QP prepared in the previous cycle and only then loaded the newest state and waypoint), and these
+        inputs are kept for the next call; the first call after construction or ``reset_timing()`` uses its
+        own inputs. The measured velocity is clipped into +-v_max before it enters x_0 (as the authors' code
+        did), so a fast start never makes the QP infeasible.
+        """
         t0 = time.perf_counter()
         try:
             vecs = [np.asarray(v, dtype=float).reshape(3) for v in (drone_pos, drone_vel, wp_pos, wp_vel)]
         except (TypeError, ValueError):
+            self._pending = None
             return MpcResult(status='invalid input (need four 3-vectors)', run_time=time.perf_counter() - t0)
         if not all(np.all(np.isfinite(v)) for v in vecs):
+            self._pending = None
             return MpcResult(status='non-finite input', run_time=time.perf_counter() - t0)
+        delayed = False
+        if self.paper_timing:
+            pending, self._pending = self._pending, vecs
+            if pending is not None:
+                vecs, delayed = pending, True
         dp, dv, wp, wv = vecs
+        vel = np.clip(dv, self.x_min[list(DRONE_VEL)], self.x_max[list(DRONE_VEL)])
+        clipped = bool(np.any(vel != dv))
         cum0 = self._cum.copy() if self.carry_cumulative_errors else np.zeros(6)
-        x_bar = initial_state(dp, dv, wp, wv, cum0)
+        x_bar = initial_state(dp, vel, wp, wv, cum0)
         Z = self.reference(wp, wv)
         if self.carry_cumulative_errors:
             # x_1* cumulative entries = cum_0 + (ref_0 - drone_0): the measured error accumulated per cycle
             self._cum = self.A[12:].dot(x_bar)
+        # the QP in the drone-centred, scaled variables (see _scaled_qp_data): same problem, better numbers
+        shift = np.zeros(NX)
+        shift[list(REF_POS)] = dp
+        shift[list(DRONE_POS)] = dp
+        xs = (x_bar - shift) / self._scale
+        Zs = (Z - shift) / self._scale
         setup_time = 0.0
+        result = MpcResult(z_ref=Z, inputs=tuple(v.copy() for v in vecs), delayed=delayed,
+                           velocity_clipped=clipped)
         try:
             if self.rebuild_every_cycle:
-                solver, qp, setup_time = self._build_and_setup(x_bar, Z)
+                solver, qp, setup_time = self._build_and_setup(xs, Zs)
             else:
                 solver, qp = self._solver, self.qp
-                qp.q = linear_cost(self.Q, self.Q_N, Z)
-                qp.l[:NX] = -x_bar
-                qp.u[:NX] = -x_bar
+                qp.q = linear_cost(self._Qs, self._QNs, Zs)
+                qp.l[:NX] = -xs
+                qp.u[:NX] = -xs
                 solver.update(q=qp.q, l=qp.l, u=qp.u)
             res = solver.solve(raise_error=False) if _OSQP_1X else solver.solve()
+            if self.verify and int(getattr(res.info, 'status_polish', 0)) != 1:
+                # the ADMM iterate did not lead to an exact (polished) solution: with a warm start far from
+                # the new problem OSQP can report 'solved' on a clearly wrong answer -> cold, tighter re-solve
+                first_iter = int(getattr(res.info, 'iter', 0))
+                first_time = float(getattr(res.info, 'solve_time', 0.0))
+                self._reset_warm_start()
+                solver.update_settings(eps_abs=self._verify_eps, eps_rel=self._verify_eps)
+                try:
+                    res = solver.solve(raise_error=False) if _OSQP_1X else solver.solve()
+                finally:
+                    solver.update_settings(eps_abs=self._settings['eps_abs'], eps_rel=self._settings['eps_rel'])
+                result.resolved = True
+                extra_iter, extra_time = first_iter, first_time
+            else:
+                extra_iter, extra_time = 0, 0.0
         except Exception as exc:  # solver refused: hover, keep running
             self._reset_warm_start()
-            return MpcResult(status='solver error: %s' % (exc,), z_ref=Z, setup_time=setup_time,
-                             run_time=time.perf_counter() - t0)
+            result.status = 'solver error: %s' % (exc,)
+            result.setup_time = setup_time
+            result.run_time = time.perf_counter() - t0
+            return result
         info = res.info
         status = str(info.status)
-        iterations = int(getattr(info, 'iter', 0))
-        solve_time = float(getattr(info, 'solve_time', float('nan')))
+        result.status = status
+        result.iterations = int(getattr(info, 'iter', 0)) + extra_iter
+        result.solve_time = float(getattr(info, 'solve_time', float('nan'))) + extra_time
+        result.setup_time = setup_time
         accepted = ('solved', 'solved inaccurate') if self.accept_inaccurate else ('solved',)
-        result = MpcResult(status=status, iterations=iterations, solve_time=solve_time, setup_time=setup_time,
-                           z_ref=Z)
         if status.lower() in accepted and res.x is not None:
             sol = np.array(res.x, dtype=float, copy=True)
             n_x = NX * (self._N + 1)
             if sol.shape == (qp.n_var,) and np.all(np.isfinite(sol)):
-                result.x_pred = sol[:n_x].reshape(self._N + 1, NX)
+                result.x_pred = sol[:n_x].reshape(self._N + 1, NX) * self._scale + shift
                 result.u_pred = sol[n_x:].reshape(self._N, NU)
-                # clipped to the limits: OSQP meets bounds only within its tolerance (eps_rel * |cum|)
+                # clipped to the limits: OSQP meets bounds only within its tolerance
                 result.u0 = tuple(float(a) for a in np.clip(result.u_pred[0], self.u_min, self.u_max))
                 result.vz_command = float(np.clip(result.x_pred[self._vz_step, VZ_INDEX],
                                                   self.x_min[VZ_INDEX], self.x_max[VZ_INDEX]))
+                result.inaccurate = status.lower() != 'solved'
                 result.ok = True
             else:
                 result.status = status + ' (non-finite solution)'
@@ -503,16 +579,30 @@ class CumulativeErrorMpc(object):
         """Write the current limits into the bound rows of ``qp`` (same finiteness pattern)."""
         N, bx, bu = qp.N, qp.bounded_states, qp.bounded_inputs
         i = qp.n_eq
-        for lo, hi, idx in ((self.x_min, self.x_max, bx), (self.u_min, self.u_max, bu)):
+        d = self._scale
+        for lo, hi, idx in ((self.x_min / d, self.x_max / d, bx), (self.u_min, self.u_max, bu)):
             n = N * idx.size
             qp.l[i:i + n] = np.clip(np.tile(lo[idx], N), -OSQP_INFTY, OSQP_INFTY)
             qp.u[i:i + n] = np.clip(np.tile(hi[idx], N), -OSQP_INFTY, OSQP_INFTY)
             i += n
 
+    def _scaled_qp_data(self):
+        """A, B, Q, Q_N, x_min, x_max of the QP variables x~ = D^-1 (x - shift), D = diag(1 x12, cum_scale
+        x6) and shift = the drone's measured position in every position slot (the problem is translation
+        invariant: only differences ref - drone enter the cumulative errors and the cost). Same optimum in
+        u; x = D x~ + shift. Keeps the QP's numbers O(error) instead of O(position) and O(N error)."""
+        d = self._scale
+        self._As = self.A * d[None, :] / d[:, None]
+        self._Bs = self.B / d[:, None]
+        self._Qs = self.Q * np.outer(d, d)
+        self._QNs = self.Q_N * np.outer(d, d)
+        return self._As, self._Bs, self._Qs, self._QNs, self.x_min / d, self.x_max / d
+
     def _build_and_setup(self, x_bar, Z):
+        """Build and set up the QP; ``x_bar``, ``Z`` in the scaled, drone-centred variables."""
         t = time.perf_counter()
-        qp = build_qp(self.A, self.B, self.Q, self.Q_N, self.R, self._N, self.x_min, self.x_max,
-                      self.u_min, self.u_max, x_bar, Z)
+        As, Bs, Qs, QNs, xmin, xmax = self._scaled_qp_data()
+        qp = build_qp(As, Bs, Qs, QNs, self.R, self._N, xmin, xmax, self.u_min, self.u_max, x_bar, Z)
         solver = osqp.OSQP()
         solver.setup(qp.P, qp.q, qp.A, qp.l, qp.u, **self._settings)
         self.qp = qp

@@ -15,7 +15,13 @@ Wraps ``anafi_control.mpc.CumulativeErrorMpc`` (position/velocity, eqs. 1-15) an
   ``result`` is the MpcResult. Besides the gate's keys: solver not solved (infeasible, max iterations, ...)
   -> solver_failed; a non-finite output -> bad_output.
 
-A hover cycle resets the yaw PID (no stale integral/derivative history) and the carried cumulative errors.
+``paper_timing`` (mpc.yaml; see mpc.CumulativeErrorMpc.solve): u_0* and v_z come from the state and
+waypoint of the previous cycle, the rotation into the stability axes uses the newest heading (the authors'
+node converts at publication time). The measured velocity is clipped into +-v_max for x_0. Counters besides
+the contract's: solved_inaccurate (accepted OSQP 'solved inaccurate'), velocity_clipped, cold_resolves
+(verify: warm-started solution re-solved cold), waypoint_jumps, reconfigurations.
+
+A hover cycle resets the yaw PID, the held inputs of paper_timing (no stale integral/derivative history) and the carried cumulative errors.
 With ``carry_cumulative_errors`` (off by default, see mpc.py) the carried cumulative errors are also reset
 when the clock jumps back and when the waypoint jumps, i.e. when a new waypoint lies farther than
 ``cum_reset_distance`` [m] from where the previous one would be by now at its own velocity.
@@ -38,7 +44,7 @@ RECONFIGURABLE = ('q_cum', 'q_cum_terminal', 'q_cum_vel', 'q_cum_vel_terminal', 
                   'v_max_x', 'v_max_y', 'v_max_z', 'a_max', 'N', 'carry_cumulative_errors')
 
 #: counters of MpcTracking besides the contract's (contract.COUNTER_NAMES)
-EXTRA_COUNTERS = ('waypoint_jumps', 'reconfigurations')
+EXTRA_COUNTERS = ('waypoint_jumps', 'reconfigurations', 'solved_inaccurate', 'velocity_clipped', 'cold_resolves')
 
 #: defaults of the tracking parameters (= anafi_sim/config/mpc.yaml, checked by test/unit/test_mpc_defaults.py)
 DEFAULTS = {
@@ -145,6 +151,10 @@ class MpcTracking(Controller):
         s = self.state
         wp = np.asarray(inputs.waypoint, dtype=float)
         result = self.mpc.solve(s.position, s.velocity, wp[:3], wp[3:6])
+        for flag, counter in (('inaccurate', 'solved_inaccurate'), ('velocity_clipped', 'velocity_clipped'),
+                              ('resolved', 'cold_resolves')):
+            if getattr(result, flag):
+                self.counters[counter] += 1
         if not result.ok:
             return hover_output(SOLVER_FAILED, ': %s' % (result.status,), result)
         try:
@@ -157,9 +167,11 @@ class MpcTracking(Controller):
         self.yaw_pid.reset()
         self.yaw_rate = 0.0
         self.mpc.reset_cumulative_errors()
+        self.mpc.reset_timing()
 
     def _clock_jumped(self):
         self.mpc.reset_cumulative_errors()
+        self.mpc.reset_timing()
 
     # ----------------------------------------------------------------- configuration
 

@@ -8,7 +8,9 @@ a waypoint on a circle (r = 10 m, 3 m/s) and static waypoints jumping between (0
 load hits both alike:
 
 * ``setup once``: OSQP set up once, per cycle update(q, l, u) and warm start (the default);
-* ``rebuild``: the whole QP built and set up from scratch every cycle (as the paper's code rebuilt P).
+* ``rebuild``: the whole QP built and set up from scratch every cycle (as the paper's code rebuilt P);
+* ``old numerics``: setup once with the settings before the robustness fix (no polish, no verification,
+  unscaled cumulative errors, ``OLD_NUMERICS``), to show the price of the fix side by side.
 
 Times: ``solve`` = OSQP info.solve_time, ``cycle`` = wall time of CumulativeErrorMpc.solve() (vector
 updates, setup if any, solve, result extraction). Prints a table and writes benchmarks/results/mpc.md.
@@ -27,6 +29,10 @@ import scipy
 
 from anafi_control.mpc import CumulativeErrorMpc
 from anafi_sim.harness import cpu_model
+
+#: the numerics before the robustness fix (wrong answers after waypoint jumps, see test_mpc.py)
+OLD_NUMERICS = {'polish': False, 'verify': False, 'cum_scale': 1.0, 'accept_inaccurate': False}
+NAMES = ('setup once', 'old numerics', 'rebuild')
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -116,19 +122,20 @@ def main():
     ap.add_argument('--no-write', action='store_true', help='do not write benchmarks/results/mpc.md')
     args = ap.parse_args()
 
-    all_rows = {'setup once': [], 'rebuild': []}
+    all_rows = dict((name, []) for name in NAMES)
     lines = [HEADER, SEP]
     for i, scenario in enumerate(SCENARIOS):
         loops = {'setup once': Loop(CumulativeErrorMpc(), scenario, seed=i),
+                 'old numerics': Loop(CumulativeErrorMpc(OLD_NUMERICS), scenario, seed=i),
                  'rebuild': Loop(CumulativeErrorMpc({'rebuild_every_cycle': True}), scenario, seed=i)}
         for _ in range(args.cycles):
-            for name in ('setup once', 'rebuild'):
+            for name in NAMES:
                 loops[name].step()
         for name, loop in loops.items():
             all_rows[name].extend(loop.rows)
             lines.append(fmt_row(name, scenario, stats(loop.rows)))
     totals = dict((name, stats(rows)) for name, rows in all_rows.items())
-    for name in ('setup once', 'rebuild'):
+    for name in NAMES:
         lines.append(fmt_row('**%s**' % name, 'all', totals[name]))
     a, b = totals['setup once'], totals['rebuild']
     ratio = ('rebuild / setup once: cycle p50 x%.2f, cycle p99 x%.2f, cycle mean x%.2f, cycle CPU p50 x%.2f, '
@@ -136,6 +143,10 @@ def main():
                  b['cycle_p50'] / a['cycle_p50'], b['cycle_p99'] / a['cycle_p99'],
                  b['cycle_mean'] / a['cycle_mean'], b['cpu_p50'] / a['cpu_p50'], b['cpu_p99'] / a['cpu_p99'],
                  b['setup_p50']))
+    o = totals['old numerics']
+    ratio += ('\n- setup once (robust numerics) / old numerics: cycle p50 x%.2f, cycle p99 x%.2f, cycle CPU p50 '
+              'x%.2f, cycle CPU p99 x%.2f' % (a['cycle_p50'] / o['cycle_p50'], a['cycle_p99'] / o['cycle_p99'],
+                                             a['cpu_p50'] / o['cpu_p50'], a['cpu_p99'] / o['cpu_p99']))
     target = 'target p99 < 5 ms (cycle, setup once): %s (%.3f ms)' % (
         'met' if a['cycle_p99'] < 5.0 else 'NOT met', a['cycle_p99'])
     machine = ('CPU: %s, %d logical cores; Python %s; osqp %s; numpy %s; scipy %s' % (

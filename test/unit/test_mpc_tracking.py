@@ -143,14 +143,49 @@ def test_non_finite_input_hovers_then_recovers(which):
 
 
 def test_solver_failure_hovers_then_recovers():
-    tr = MpcTracking()
-    # |v_z| = 4 m/s cannot be brought within 2 m/s in one step with |a_z| <= 5 m/s^2: infeasible
-    _ready(tr, vel=(0.0, 0.0, 4.0))
+    tr = MpcTracking({'max_iter': 1})          # OSQP stops unsolved
+    _ready(tr)
     out = tr.cycle(0.0)
     assert not out.ok and out.key == 'solver_failed' and out.command is None
     assert out.reason.startswith('solver: ') and out.result is not None and not out.result.ok
+    tr.reconfigure({'N': 20})
+    tr.mpc._settings['max_iter'] = 4000
+    tr.mpc._solver.update_settings(max_iter=4000)
     tr.on_state(0.05, (0, 0, 1), LEVEL, (0, 0, 0))
     assert tr.cycle(0.1).ok and tr.counters['solver_failed'] == 1
+
+
+def test_fast_start_gives_a_real_command_not_hover():
+    tr = MpcTracking()
+    _ready(tr, vel=(0.0, 0.0, 4.0))             # |v_z| = 4 m/s > 2 m/s: clipped into x_0, not infeasible
+    out = tr.cycle(0.0)
+    assert out.ok and out.command is not None and out.result.velocity_clipped
+    assert tr.counters['velocity_clipped'] == 1 and tr.counters['hover'] == 0
+    assert out.command[1] > 5.0                 # still flies towards the waypoint ahead
+
+
+def test_paper_timing_commands_come_from_the_previous_cycle():
+    paper, now = MpcTracking({'paper_timing': True}), MpcTracking()
+    states = [((0, 0, 1), (0, 0, 0)), ((0.2, 0.1, 1.2), (1.0, 0.5, 0.5)), ((0.5, 0.2, 1.5), (2.0, 0.8, 1.0))]
+    wps = [WP, WP, (-3.0, 4.0, 6.0, 0.0, 0.0, 0.0, 0.0)]
+    prev = None
+    for k, ((pos, vel), wp) in enumerate(zip(states, wps)):
+        t = 0.1 * k
+        for tr in (paper, now):
+            tr.on_waypoint(t, wp)
+            tr.on_state(t, pos, LEVEL, vel)
+        op, on = paper.cycle(t), now.cycle(t)
+        assert op.ok and on.ok
+        if prev is not None:     # state and waypoint given before cycle k-1, not the newest ones
+            assert op.result.delayed
+            np.testing.assert_allclose(op.result.inputs[0], states[k - 1][0])
+            np.testing.assert_allclose(op.command, prev.command, atol=0.05)
+            assert abs(op.command[1] - on.command[1]) > 0.5
+        prev = on
+    paper.cycle(10.0)            # stale -> silent: the held inputs are dropped
+    paper.on_waypoint(10.1, WP)
+    paper.on_state(10.1, (0, 0, 1), LEVEL, (0, 0, 0))
+    assert not paper.cycle(10.1).result.delayed
 
 
 # ----------------------------------------------------------------------------- yaw

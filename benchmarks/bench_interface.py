@@ -9,7 +9,7 @@ Parts (``--parts``, default all):
 * ``interface`` (interface_ros.py, interface_stream.py): a ``TelemetryServer`` hosted here is fed at
   ``--rate`` Hz by a wall-paced thread with samples stamped with their wall time of generation; our own
   roscore on a free port; the real ``interface_node.py`` with ``~telemetry_command`` = the stand-in CLI
-  ``tlm_data_logger.py -r 0`` pointed at that server; we subscribe ``/anafi/sphinx/drone_data`` and, over
+  ``tlm_data_logger.py -r 0`` pointed at that server; we subscribe ``/anafi/ground_truth/drone_data`` and, over
   ``--duration`` s, record header.stamp - generation (generation -> publish) and receipt wall time -
   generation (generation -> ROS message received), the published rate, and the CPU time (user+sys,
   psutil) of the node and its CLI child.

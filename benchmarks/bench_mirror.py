@@ -3,7 +3,7 @@
 
 One run, our own roscore on a free port, one kinematic world (the stand-in for Gazebo) running at
 ``--world-rate`` Hz without ground plane, and a synthetic ground truth published here at ``--rate`` Hz on
-``/bench/ground_truth/odom`` (+ gimbal angles on ``/bench/sphinx/drone_data``), stamped with the wall time
+``/bench/ground_truth/odom`` (+ gimbal angles on ``/bench/ground_truth/drone_data``), stamped with the wall time
 of publication. Sample number k is encoded in the pose (x = k * 1 mm, zero twist, so the world does not
 extrapolate it). The real ``gazebo_mirror_node.py`` is then run in each mode, the modes interleaved over
 ``--rounds`` rounds (same world, same source; ``--duration`` s per mode in total, warm-up per segment):
@@ -62,7 +62,7 @@ class Source(threading.Thread):
         self.rospy, self.Odometry, self.DroneData = rospy, Odometry, DroneData
         self.period = 1.0 / rate
         self.odom = rospy.Publisher('/bench/ground_truth/odom', Odometry, queue_size=10, tcp_nodelay=True)
-        self.data = rospy.Publisher('/bench/sphinx/drone_data', DroneData, queue_size=10, tcp_nodelay=True)
+        self.data = rospy.Publisher('/bench/ground_truth/drone_data', DroneData, queue_size=10, tcp_nodelay=True)
         self.stamps = {}
         self.k = 0
         self.running = True

@@ -70,7 +70,7 @@ def bench_ros(parts, duration, rate, tcp_nodelay, log):
         cli = '%s %s -r 0' % (sys.executable, CLI_SCRIPT)
 
         ours_rx, paper_rx = Recorder(), Recorder()
-        rospy.Subscriber('/anafi/sphinx/drone_data', DroneData, ours_rx, queue_size=1000, tcp_nodelay=tcp_nodelay)
+        rospy.Subscriber('/anafi/ground_truth/drone_data', DroneData, ours_rx, queue_size=1000, tcp_nodelay=tcp_nodelay)
         rospy.set_param('/anafi/interface/telemetry_command', '%s inet:127.0.0.1:%d' % (cli, port))
         rospy.set_param('/anafi/interface/rate', float(rate))
         node_env = dict(env, ROS_NAMESPACE='/anafi')

@@ -1,9 +1,43 @@
 #!/usr/bin/env bash
 # The main job (run inside env.bash by `make demo`): a private ROS master on a free port, then the
-# tracking demo (the mirrored Anafi following a circle; CONTROLLER=mpc|pid). DEMO_LAUNCH/DEMO_ARGS override.
+# tracking demo (the mirrored Anafi following a circle; CONTROLLER=mpc|pid|preview_mpc). DEMO_LAUNCH/DEMO_ARGS override.
+#
+# roslaunch ends the demo with a red "REQUIRED process [...] has died!" even when the experiment monitor
+# (the required node) finished its job and exited cleanly. Its output goes through a filter that says
+# which it was: green "[demo] finished" for a clean end, a red line naming the REQUIRED node and how it
+# died otherwise (then the exit status is 1).
 set -euo pipefail
 port=$(python -c 'from anafi_sim.harness import free_port; print(free_port())')
 export ROS_MASTER_URI="http://127.0.0.1:$port"
 export ROS_HOSTNAME=127.0.0.1
 echo "[demo] ROS master at $ROS_MASTER_URI"
-exec roslaunch anafi_sim ${DEMO_LAUNCH:-demo.launch} ${DEMO_ARGS:-controller:=${CONTROLLER:-mpc}}
+set +e
+# shellcheck disable=SC2086
+roslaunch anafi_sim ${DEMO_LAUNCH:-demo.launch} ${DEMO_ARGS:-controller:=${CONTROLLER:-mpc}} 2>&1 \
+    | python -u -c '
+import re, sys
+RED, GREEN, OFF = "\033[1;31m", "\033[1;32m", "\033[0m"
+ESC = re.compile(r"\x1b\[[0-9;]*m")
+required, status = None, 0
+for line in sys.stdin:
+    plain = ESC.sub("", line)
+    m = re.search(r"REQUIRED process \[(.+?)\] has died!", plain)
+    if m:
+        required = m.group(1).rsplit("-", 1)[0]      # "anafi/experiment_monitor-9" -> node name
+        continue
+    if required is not None and plain.strip():
+        if "finished cleanly" in plain:
+            sys.stdout.write("%s[demo] finished: the required node %s ended the launch cleanly%s\n"
+                             % (GREEN, required, OFF))
+        else:
+            sys.stdout.write("%s[demo] FAILED: the REQUIRED node %s died (%s); see its log above%s\n"
+                             % (RED, required, plain.strip(), OFF))
+            status = 1
+        required = None
+        continue
+    sys.stdout.write(line)
+sys.exit(status)
+'
+codes=("${PIPESTATUS[@]}")
+if [ "${codes[1]}" != 0 ]; then exit "${codes[1]}"; fi
+exit "${codes[0]}"

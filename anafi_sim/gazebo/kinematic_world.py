@@ -413,7 +413,7 @@ class KinematicWorld(object):
         if not name:
             return self._reject('SpawnModel: Failure - empty model name and no name in model_xml')
         if name in self._models:
-            return self._reject('SpawnModel: Failure - model name %s already exist.' % name)
+            return self._reject('SpawnModel: Failure - entity already exists.')      # gazebo_ros's words
         if not frames.is_finite(*(tuple(position) + tuple(orientation))):
             return self._reject('SpawnModel: Failure - initial_pose is not finite')
         frame = self._frame(reference_frame)
@@ -440,14 +440,13 @@ class KinematicWorld(object):
         """Teleport a model and set its velocity to the commanded twist (all in ``reference_frame``)."""
         model = self._models.get(name)
         if model is None:
-            return self._reject('SetModelState: model [%s] does not exist' % name)
+            return self._reject('SetModelState: model does not exist')
         values = tuple(position) + tuple(orientation) + tuple(linear) + tuple(angular)
         if len(values) != 13 or not frames.is_finite(*values):
             return self._reject('SetModelState: Failure - pose or twist of [%s] is not finite' % name)
         frame = self._frame(reference_frame)
         if frame is None:
-            return self._reject('SetModelState: specified reference frame entity [%s] does not exist'
-                                % reference_frame)
+            return self._reject('SetModelState: specified reference frame entity does not exist')
         model.position, model.orientation = self._to_world_pose(frame, position, orientation)
         if model.description.is_static:
             model.linear, model.angular = np.zeros(3), np.zeros(3)

@@ -9,15 +9,28 @@ Diagnostics: ``diagnostic_status`` builds one DiagnosticStatus (values stored as
 ``LEVELS``; ``start_diagnostics_thread`` publishes them every period of WALL time (1 s in most nodes),
 so a node still reports when /clock stops.
 
+Master restart (issue 14): rospy cannot re-register a running node with a new ROS master (publishers,
+subscribers, services and parameters are lost and never come back), so ``run_node`` watches the master
+(``MasterWatch``: its pid and ``/run_id``, polled every ``MASTER_POLL`` s of wall time from a daemon thread).
+When a different master answers at the same URI the node puts its private parameters (and
+``/use_sim_time``) back on the new master where they are missing, logs one FATAL line and exits with
+``MASTER_RESTART_EXIT``, so that roslaunch's ``respawn="true"`` starts it again against the new master
+with the parameters it had. A master that is only gone (not yet back) changes nothing: the connections
+between nodes keep working.
+
 Also: ``log_lines`` (a core's (level, text) log lines), ``wait_for_clock`` (until /clock runs under
 /use_sim_time), ``run_until_interrupted`` (the run() of nodes that clean up through ROS on SIGINT /
 SIGTERM). Default topic names: ``anafi_sim.ros.topics``.
 """
+import os
 import signal
+import socket
 import sys
 import threading
 import time
+import xmlrpc.client
 
+import rosgraph
 import rospy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
@@ -116,13 +129,125 @@ def start_diagnostics_thread(period, make_statuses, pub, stamp=None, first=None)
     return thread
 
 
+# ------------------------------------------------------------------ master restart
+#: exit code of a node that saw the ROS master restart (EX_TEMPFAIL: try again; roslaunch respawns it)
+MASTER_RESTART_EXIT = 75
+MASTER_POLL = 1.0      # [s] wall time between two looks at the master
+MASTER_TIMEOUT = 2.0   # [s] of one XML-RPC call to the master
+EXIT_GRACE = 5.0       # [s] for the node to end after rospy.signal_shutdown, then it is ended hard
+
+
+class MasterWatch(object):
+    """Tells a restarted ROS master from one that is only gone (pure: the caller asks the master).
+
+    ``update(identity)`` with the master's identity ((pid, run_id), or None when it does not answer):
+    'ok' (the first master seen, or the same one), 'gone' (no answer) or 'restarted' (another master answers
+    now: a new pid or run id); 'restarted' stays once seen. ``describe()``: old -> new, for the log line."""
+
+    def __init__(self):
+        self.first = None       # identity of the master the node registered with
+        self.current = None
+        self.restarted = False
+        self.outages = 0        # polls without an answer
+
+    def update(self, identity):
+        if identity is None:
+            self.outages += 1
+            return 'restarted' if self.restarted else 'gone'
+        self.current = identity
+        if self.first is None:
+            self.first = identity
+        elif identity != self.first:
+            self.restarted = True
+        return 'restarted' if self.restarted else 'ok'
+
+    def describe(self):
+        (p0, r0), (p1, r1) = self.first, self.current
+        return 'pid %s -> %s, run_id %s -> %s' % (p0, p1, r0 or '?', r1 or '?')
+
+
+class _TimeoutTransport(xmlrpc.client.Transport):
+    def __init__(self, timeout):
+        xmlrpc.client.Transport.__init__(self)
+        self.timeout = timeout
+
+    def make_connection(self, host):
+        conn = xmlrpc.client.Transport.make_connection(self, host)
+        conn.timeout = self.timeout
+        return conn
+
+
+def master_identity(uri, caller, timeout=MASTER_TIMEOUT):
+    """(pid, run_id) of the ROS master at ``uri`` (run_id None when unset), or None when it does not answer."""
+    proxy = xmlrpc.client.ServerProxy(uri, transport=_TimeoutTransport(timeout))
+    try:
+        code, _, pid = proxy.getPid(caller)
+        if code != 1:
+            return None
+        code, _, run_id = proxy.getParam(caller, '/run_id')
+    except (OSError, socket.error, xmlrpc.client.Error):
+        return None
+    return pid, (run_id if code == 1 else None)
+
+
+def saved_params():
+    """{name: value} of the node's parameters to put back on a restarted master: its private namespace and
+    /use_sim_time (as set now)."""
+    saved = {}
+    for name in (rospy.get_name(), '/use_sim_time'):
+        try:
+            if rospy.has_param(name):
+                saved[name] = rospy.get_param(name)
+        except (rospy.ROSException, OSError, socket.error):
+            pass
+    return saved
+
+
+def restore_params(saved):
+    """Put ``saved`` parameters back where the (new) master lacks them; names put back."""
+    done = []
+    for name, value in sorted(saved.items()):
+        try:
+            if not rospy.has_param(name):
+                rospy.set_param(name, value)
+                done.append(name)
+        except (rospy.ROSException, OSError, socket.error):
+            pass
+    return done
+
+
+def start_master_watch(saved, period=MASTER_POLL, exit_code=MASTER_RESTART_EXIT, grace=EXIT_GRACE):
+    """Daemon thread: on a master restart (``MasterWatch``) restore ``saved`` params, log FATAL, shut rospy
+    down and end the process with ``exit_code`` (hard after ``grace`` s). Returns the MasterWatch."""
+    watch = MasterWatch()
+    uri = rosgraph.get_master_uri()
+    caller = rospy.get_name()
+
+    def loop():
+        while not rospy.is_shutdown():
+            if watch.update(master_identity(uri, caller)) == 'restarted':
+                put_back = restore_params(saved)
+                rospy.logfatal('%s: the ROS master at %s restarted (%s); rospy cannot register again with it: '
+                               'exiting with code %d so that roslaunch respawns the node%s', caller, uri,
+                               watch.describe(), exit_code,
+                               ' (parameters put back: %s)' % ', '.join(put_back) if put_back else '')
+                rospy.signal_shutdown('ROS master restarted')
+                time.sleep(grace)           # run_node exits with exit_code once run() returns
+                os._exit(exit_code)
+            time.sleep(period)
+    thread = threading.Thread(target=loop, name='master_watch', daemon=True)
+    thread.start()
+    return watch
+
+
 # ------------------------------------------------------------------ start-up
-def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), **init_args):
+def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch_master=True, **init_args):
     """init_node(name, **init_args), then ``factory().run()``.
 
     An exception of ``fatal_errors`` from ``factory`` (a bad parameter: ParamError is a ValueError) is
     logged with rospy.logfatal and ends the process with ``fatal_exit_code``. What ``run()`` returns is
-    the exit status: None (default) or True -> 0, False -> 1, an int -> that code.
+    the exit status: None (default) or True -> 0, False -> 1, an int -> that code. ``watch_master``: exit
+    with ``MASTER_RESTART_EXIT`` when the ROS master restarts (see the module doc).
     """
     rospy.init_node(name, **init_args)
     try:
@@ -132,7 +257,10 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), **ini
         if init_args.get('disable_signals'):
             rospy.signal_shutdown('bad parameters')
         sys.exit(fatal_exit_code)
+    watch = start_master_watch(saved_params()) if watch_master else None
     result = node.run()
+    if watch is not None and watch.restarted:
+        sys.exit(MASTER_RESTART_EXIT)
     if result is None or result is True:
         return
     sys.exit(1 if result is False else int(result))

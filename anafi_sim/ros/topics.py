@@ -21,7 +21,8 @@ SIM_TRUTH = 'sim/truth'                 # nav_msgs/Odometry: the simulator's gro
 
 # --- the paper's Interface (interface_node.py) ----------------------------------------------------------
 GROUND_TRUTH = 'ground_truth/odom'      # nav_msgs/Odometry, twist in the body frame
-DRONE_DATA = 'sphinx/drone_data'        # anafi_sim/DroneData: every telemetry value
+SPHINX_DATA = 'sphinx/drone_data'       # sphinx_with_gazebo/Sphinx: the reference implementation's type and name
+DRONE_DATA = 'ground_truth/drone_data'  # anafi_sim/DroneData: every telemetry value, with a header
 
 # --- control and experiments ----------------------------------------------------------------------------
 WAYPOINT = 'position_control/waypoint'  # anafi_sim/Waypoint: the controllers' input

@@ -1,5 +1,9 @@
 """Message types that stand in for packages we must not ship (no rospy import).
 
+``olympe_bridge/PilotingCommand`` (anafi_ros's piloting command) and ``sphinx_with_gazebo/Sphinx`` (the
+reference implementation's telemetry message on ``/<drone>/sphinx/drone_data``, no header; definition and
+md5 from ``shared/interfaces/sphinx_telemetry.md``).
+
 ``olympe_bridge`` (anafi_ros) is not installable here, and a workspace
 package of that name would shadow the real one on a machine that has it.
 So the real type is imported when it exists, and otherwise built at run time
@@ -26,6 +30,15 @@ float32 yaw
 float32 gaz
 """ + _HEADER
 
+SPHINX_TYPE = 'sphinx_with_gazebo/Sphinx'
+SPHINX_MD5 = '85390efb41e38eee13815912075e2a5a'
+#: field names in the reference implementation's order (all float64 except timeStamp, float32)
+SPHINX_FIELDS = ('velXABC', 'velYABC', 'velZABC', 'angVelXABC', 'angVelYABC', 'angVelZABC',
+                 'velXENU', 'velYENU', 'velZENU', 'posX', 'posY', 'posZ', 'attitudeX', 'attitudeY', 'attitudeZ',
+                 'timeStamp', 'accXABC', 'accYABC', 'accZABC', 'angAccXABC', 'angAccYABC', 'angAccZABC',
+                 'gimbalPitchMotorAngle', 'gimbalRollMotorAngle')
+SPHINX_DEFINITION = ''.join('%s %s\n' % ('float32' if f == 'timeStamp' else 'float64', f) for f in SPHINX_FIELDS)
+
 _cache = {}
 
 
@@ -46,3 +59,8 @@ def load_message_class(type_name, definition):
 def piloting_command_class():
     """``olympe_bridge/PilotingCommand`` (md5 38956f4c725541081234f467b900164a)."""
     return load_message_class(PILOTING_COMMAND_TYPE, PILOTING_COMMAND_DEFINITION)
+
+
+def sphinx_class():
+    """``sphinx_with_gazebo/Sphinx`` (md5 85390efb41e38eee13815912075e2a5a)."""
+    return load_message_class(SPHINX_TYPE, SPHINX_DEFINITION)

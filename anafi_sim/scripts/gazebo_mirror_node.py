@@ -11,7 +11,7 @@ and the world-loss rule, shared with the airship node). Runs in /<drone>:
 - on every ground_truth/odom sample (nav_msgs/Odometry, twist in the body frame) sends both model states
   (gazebo_msgs/ModelState, pose and world-frame twist), at most ~rate per second, on the asynchronous
   <gazebo_namespace>/set_model_state TOPIC, or with ~use_service the paper's per-cycle synchronous
-  set_model_state SERVICE call; the camera pose uses the gimbal angles of sphinx/drone_data;
+  set_model_state SERVICE call; the camera pose uses the gimbal angles of ground_truth/drone_data;
 - never forwards non-finite or stale (~stale_timeout) samples; when the input goes stale the models
   are held (zero twist) so the world does not extrapolate them away;
 - detects a Gazebo restart (spawn service endpoint changed or gone, or a model missing from

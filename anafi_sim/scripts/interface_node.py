@@ -8,7 +8,10 @@ and checks them (anafi_sim.interface.ground_truth.GroundTruthInterface), and pub
 each accepted sample at once, from the reader thread (all publishers are
 queued, so ROS I/O never blocks the reader):
 
-- sphinx/drone_data (anafi_sim/DroneData): every telemetry value;
+- sphinx/drone_data (sphinx_with_gazebo/Sphinx, the reference implementation's type and md5, built at
+  run time by anafi_sim.ros.wire_types unless installed; no header): every telemetry value, so the
+  reference implementation's nodes (its Gazebo mirror, its controllers) read ours unchanged;
+- ground_truth/drone_data (anafi_sim/DroneData): the same values with a header (stamp, frame_id);
 - ground_truth/odom (nav_msgs/Odometry): ~frame_id -> <drone>/base_link,
   twist in the body frame;
 - /tf, one TFMessage per sample: ~frame_id -> <drone>/stability_axes
@@ -43,6 +46,7 @@ from anafi_sim.interface.supervisor import ProcessSupervisor
 MAX_LINE = 4096
 from anafi_sim.msg import DroneData
 from anafi_sim.ros import conversions, topics
+from anafi_sim.ros.wire_types import SPHINX_FIELDS, sphinx_class
 from anafi_sim.ros.node import diagnostics_publisher, health_status, private_params, run_node, \
     start_diagnostics_thread
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, TelemetryParser
@@ -97,6 +101,8 @@ class InterfaceNode(object):
         self.last_publish_error = ''
         base = params['topic_base']
         self.pub_data = rospy.Publisher(base + topics.DRONE_DATA, DroneData, queue_size=50)
+        self.sphinx_class = sphinx_class()
+        self.pub_sphinx = rospy.Publisher(base + topics.SPHINX_DATA, self.sphinx_class, queue_size=50)
         self.pub_odom = rospy.Publisher(base + topics.GROUND_TRUTH, Odometry, queue_size=50)
         self.pub_diag = diagnostics_publisher()
         self.tf = tf2_ros.TransformBroadcaster()
@@ -198,8 +204,11 @@ class InterfaceNode(object):
                       _transform(stamp, self.stability_axes, self.base_link, t_bl, q_bl),
                       _transform(stamp, self.base_link, self.camera, t_cam, q_cam)]
 
+        sphinx = self.sphinx_class(**dict((f, getattr(d, f)) for f in SPHINX_FIELDS))
+
         self.pub_odom.publish(o)
         self.pub_data.publish(d)
+        self.pub_sphinx.publish(sphinx)
         self.tf.sendTransform(transforms)
 
     # -- diagnostics (the glue's thread, wall clock) -------------------------------------

@@ -68,7 +68,9 @@ class TestExperiment(unittest.TestCase):
         info = self.load_yaml(base + '.run.yaml')
         self.assertEqual(info.get('state'), 'final', 'monitor: %s' % info)
         self.assertGreater(info['scenario_sim_s'], 9.0)
+        # the simulator's rtf (experiment.launch default 2) is a ceiling: simulation time never runs faster
         self.assertGreater(info['achieved_rtf'], 0.0)
+        self.assertLessEqual(info['achieved_rtf'], 2.0 * 1.05)
 
         summary = self.load_yaml(base + '.yaml')
         self.assertEqual(summary.get('state'), 'final')
@@ -80,7 +82,12 @@ class TestExperiment(unittest.TestCase):
                                 '%s %s = %r' % (source, key, res.get(key)))
             self.assertGreater(res['n_valid'], 40)                 # 4 s of the estimate at 30 Hz
             self.assertLessEqual(res['e_mu'], res['e_max'])
-        self.assertLess(summary['estimate']['e_mu'], 2.0)
+        # after only 3 s of settling both controllers still lag the target in phase on the r = 1 m circle
+        # (measured 2026-11-23: MPC e_mu 0.66 m, PID 1.24 m, i.e. 40 and 77 deg behind), so e_mu cannot tell a
+        # follower from a drone parked at the centre (1 m): it only bounds a lost drone (opposite phase: 2 m);
+        # the geometric checks below show that the drone flies the circle
+        self.assertLess(summary['estimate']['e_mu'], 1.6)
+        self.assertLess(summary['truth']['e_mu'], 1.6)
         w = summary['window']
         self.assertAlmostEqual(w[1] - w[0], 4.0, delta=0.2)
 
@@ -97,6 +104,14 @@ class TestExperiment(unittest.TestCase):
         inside = [v for t, v in zip(log.time, log.columns['x_sphinx']) if w[0] <= t <= w[1]]
         self.assertGreater(len(inside), 100, 'rows in the measured window')
         self.assertTrue(all(math.isfinite(v) for v in inside), 'x_sphinx missing in the measured window')
+        # and the drone flies the circle (centre (0, 0), r = 1 m, 1 rad/s): on its radius, going round
+        xy = [(x, y) for t, x, y in zip(log.time, log.columns['x_sphinx'], log.columns['y_sphinx'])
+              if w[0] <= t <= w[1] and math.isfinite(x) and math.isfinite(y)]
+        radii = [math.hypot(x, y) for x, y in xy]
+        self.assertTrue(0.5 < sum(radii) / len(radii) < 1.8, 'mean radius %.2f m' % (sum(radii) / len(radii)))
+        angles = [math.atan2(y, x) for x, y in xy]
+        turned = sum(abs(math.atan2(math.sin(b - a), math.cos(b - a))) for a, b in zip(angles, angles[1:]))
+        self.assertGreater(turned, 2.0, 'turned %.2f rad in the 4 s window (1 rad/s expected)' % turned)
 
         import rosbag
         with rosbag.Bag(base + '.bag') as bag:

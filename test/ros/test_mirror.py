@@ -97,7 +97,7 @@ class Recorder(object):
         self.latest_world = {}
         self.diag = {}
         rospy.Subscriber('/%s/ground_truth/odom' % DRONE, Odometry, self.on_odom, tcp_nodelay=True)
-        rospy.Subscriber('/%s/sphinx/drone_data' % DRONE, DroneData, self.on_data, tcp_nodelay=True)
+        rospy.Subscriber('/%s/ground_truth/drone_data' % DRONE, DroneData, self.on_data, tcp_nodelay=True)
         rospy.Subscriber('/gazebo/set_model_state', gazebo_types.model_state_class(), self.on_set,
                          tcp_nodelay=True, queue_size=200)
         rospy.Subscriber('/gazebo/model_states', gazebo_types.model_states_class(), self.on_states,

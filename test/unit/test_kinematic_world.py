@@ -45,7 +45,7 @@ def test_spawn_get_delete_and_duplicate_name():
     assert state.position == pytest.approx((1.0, 2.0, 3.0))
     assert state.orientation == pytest.approx((0.0, 0.0, 0.0, 1.0))  # normalised
     dup = world.spawn('anafi', box_robot(gravity=0))
-    assert not dup.success and dup.status_message == 'SpawnModel: Failure - model name anafi already exist.'
+    assert not dup.success and dup.status_message == 'SpawnModel: Failure - entity already exists.'
     assert world.names() == ['anafi']
     assert world.delete('anafi').success
     assert world.names() == []

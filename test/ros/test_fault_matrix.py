@@ -1,0 +1,525 @@
+#!/usr/bin/env python3
+"""rostest: the fault matrix (issue 14). Each fault is injected into a running graph with a flying drone.
+
+The graph runs on a private ROS master of this test (so that the master itself can be restarted, the last
+case): sim.launch (simulated Anafi + interface) + mpc.launch whose state comes through this test
+(``fault/odom``, a relay of drone/odom that the test can corrupt or stop) + a second interface in
+/garbage whose telemetry command prints garbage, a malformed number and a 10 kB line before the real tool.
+Wall clock, rtf 1, about 3 min.
+
+For each fault (``FAULTS``): the drone flies along x at about 3 m/s (a moving waypoint); the fault is
+injected; checked: the diagnostic level and message of the node concerned, the counter, that the drone
+stops (speed < ``STOP_SPEED`` within ``STOP_TIME``, no farther than 1.2 x the firmware brake from the same
+speed -- measured in the first case, the controller killed -- plus the speed x the detection delay), and
+the recovery (time until the node reports OK / tracking again after the fault is removed). The observed
+matrix is written to test_results/fault_matrix.json; ``tools/fault_table.py`` turns it into the table of
+docs/reliability.md (``test/unit/test_fault_table.py`` checks that the table lists exactly ``FAULTS``).
+"""
+import json
+import math
+import os
+import shutil
+import signal
+import sys
+import tempfile
+import threading
+import time
+import unittest
+
+import psutil
+import rospy
+import rostest
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
+from std_msgs.msg import String
+
+from anafi_sim import harness, paths
+from anafi_sim.msg import Waypoint
+from anafi_sim.ros.wire_types import piloting_command_class
+
+DRONE = 'anafi'
+NAN = float('nan')
+SPEED = 3.0          # [m/s] flight speed before a fault
+STOP_SPEED = 0.3     # [m/s] "stopped"
+STOP_TIME = 12.0     # [s] to stop
+STEADY = 2.0        # [s] of steady flight before a fault
+RECOVERY_TIME = 10.0  # [s] to report OK again once the fault is removed
+RESULTS = os.path.join(paths.package_dir(), 'test_results', 'fault_matrix.json')
+
+#: (name, fault injected, expected) -- the rows of the table in docs/reliability.md (same order)
+FAULTS = (
+    ('controller_killed', 'mpc_controller killed (SIGKILL) in flight',
+     'no command: the firmware brake stops the drone (the reference distance); roslaunch respawns the node'),
+    ('nan_waypoint', 'NaN waypoints at 10 Hz', 'HOLD: WARN "holding position: non-finite waypoint", '
+     'rejected_waypoints grows, the drone stops'),
+    ('stale_waypoint', 'waypoints stop', 'HOLD after waypoint_timeout (1 s): WARN "holding position: stale '
+     'waypoint", the drone stops'),
+    ('far_waypoint', 'a waypoint 1 km away', 'HOLD: WARN "holding position: waypoint outside the geofence", '
+     'rejected_geofence grows, the drone stops'),
+    ('nan_state', 'NaN state (odometry) at 30 Hz', 'SILENT: WARN "no command, firmware hover brake: '
+     'non-finite state", rejected_states grows, no command, the firmware brake stops the drone'),
+    ('stale_state', 'state stops', 'SILENT after state_timeout (0.5 s): WARN "no command, firmware hover brake: '
+     'stale state", no command, the drone stops'),
+    ('cli_killed', 'telemetry CLI killed (SIGKILL)', 'restarted at once (process restarts grows, last exit '
+     'code -9), OK again; the controller (on the drone\'s estimate) keeps tracking'),
+    ('cli_hung', 'telemetry CLI stopped (SIGSTOP: no output, no exit)', 'interface ERROR (stale), the CLI is '
+     'killed and restarted after restart_timeout (process hangs grows), OK again'),
+    ('telemetry_garbage', 'garbage, a malformed number (1_000) and a 10 kB line in the telemetry',
+     'lines counted (parse malformed, process oversize lines), dropped; samples flow: OK'),
+    ('master_restart', 'ROS master killed and restarted on the same port', 'every node exits (code 75) and is '
+     'respawned with its parameters; new publishers reach the controller again'),
+)
+
+LAUNCH = """<launch>
+  <param name="/use_sim_time" value="false"/>
+  <include file="$(find anafi_sim)/anafi_sim/launch/sim.launch">
+    <arg name="drone_name" value="{drone}"/>
+    <arg name="telemetry_port" value="{port}"/>
+  </include>
+  <include file="$(find anafi_sim)/anafi_sim/launch/mpc.launch">
+    <arg name="drone_name" value="{drone}"/>
+    <arg name="state_topic" value="fault/odom"/>
+    <arg name="output" value="log"/>
+  </include>
+  <group ns="garbage">
+    <node pkg="anafi_sim" type="interface_node.py" name="interface" output="log" respawn="true">
+      <rosparam command="load" file="$(find anafi_sim)/anafi_sim/config/interface.yaml"/>
+      <param name="drone_name" value="garbage"/>
+      <param name="telemetry_command" value="sh -c 'printf &quot;garbage line\\nomniscient_anafi.worldPosition.x : 1_000\\n&quot;; head -c 10000 /dev/zero | tr &quot;\\\\0&quot; x; echo; exec $(find anafi_sim)/anafi_sim/scripts/tlm_data_logger.py -r 0 inet:127.0.0.1:{port}'"/>
+    </node>
+  </group>
+</launch>
+"""
+
+
+class Graph(object):
+    """The test's view of the graph: state relay (with faults), waypoints, speed, diagnostics, commands."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.diag = {}            # status name -> (wall time, level, message, {key: value})
+        self.truth = []           # (wall time, x, y, z)
+        self.commands = []        # wall times of drone/rpyt
+        self._state_mode = 'relay'  # relay | nan | off (the relay process, RELAY)
+        self.wp_mode = 'off'       # off | track | nan | far | stop
+        self.track = None          # (t0, x0, y0, direction)
+        self.pub_mode = rospy.Publisher('/%s/fault/mode' % DRONE, String, queue_size=1, latch=True)
+        self.pub_wp = rospy.Publisher('/%s/position_control/waypoint' % DRONE, Waypoint, queue_size=10)
+        rospy.Subscriber('/%s/sim/truth' % DRONE, Odometry, self.on_truth, queue_size=1, tcp_nodelay=True)
+        rospy.Subscriber('/diagnostics', DiagnosticArray, self.on_diag, queue_size=50)
+        rospy.Subscriber('/%s/drone/rpyt' % DRONE, piloting_command_class(), self.on_cmd, queue_size=50)
+        self.timer = rospy.Timer(rospy.Duration(0.1), self.publish_waypoint)
+
+    @property
+    def state_mode(self):
+        return self._state_mode
+
+    @state_mode.setter
+    def state_mode(self, mode):
+        self._state_mode = mode
+        self.pub_mode.publish(String(mode))
+
+    def on_truth(self, msg):
+        p = msg.pose.pose.position
+        with self.lock:
+            self.truth.append((time.time(), p.x, p.y, p.z))
+            del self.truth[:-3000]
+
+    def on_diag(self, msg):
+        now = time.time()
+        with self.lock:
+            for s in msg.status:
+                self.diag[s.name] = (now, s.level, s.message, dict((kv.key, kv.value) for kv in s.values))
+
+    def on_cmd(self, _msg):
+        with self.lock:
+            self.commands.append(time.time())
+            del self.commands[:-500]
+
+    def publish_waypoint(self, _event):
+        mode = self.wp_mode
+        if mode in ('off', 'stop'):
+            return
+        w = Waypoint()
+        if mode == 'nan':
+            w.x = w.y = w.z = NAN
+        elif mode == 'far':
+            w.x, w.y, w.z = 1000.0, 0.0, 3.0
+        else:
+            t0, x0, y0, d = self.track
+            t = time.time() - t0
+            w.x, w.y, w.z = x0 + d * SPEED * t, y0, 3.0
+            w.vx = d * SPEED
+        self.pub_wp.publish(w)
+
+    # -- queries
+    def position(self):
+        with self.lock:
+            return self.truth[-1][1:] if self.truth else None
+
+    def speed(self, window=0.3):
+        """Horizontal + vertical speed [m/s] from the truth positions over the last ``window`` s."""
+        with self.lock:
+            pts = list(self.truth)
+        if len(pts) < 2:
+            return None
+        t1 = pts[-1][0]
+        older = [p for p in pts if p[0] <= t1 - window]
+        if not older:
+            return None
+        a, b = older[-1], pts[-1]
+        return math.sqrt(sum((b[i] - a[i]) ** 2 for i in (1, 2, 3))) / (b[0] - a[0])
+
+    def status(self, suffix, since=0.0):
+        with self.lock:
+            for name, entry in self.diag.items():
+                if (name.endswith(suffix) or name.startswith(suffix + ':')) and entry[0] >= since:
+                    return entry
+        return None
+
+    def command_rate(self, window=1.0):
+        now = time.time()
+        with self.lock:
+            return sum(1 for t in self.commands if t > now - window) / window
+
+
+def counter(entry, key):
+    try:
+        return int(float(entry[3][key]))
+    except (TypeError, KeyError, ValueError):
+        return None
+
+
+class TestFaultMatrix(unittest.TestCase):
+    rows = []
+    direction = 1.0
+
+    @classmethod
+    def setUpClass(cls):
+        cls.workdir = tempfile.mkdtemp(prefix='fault_matrix_')
+        cls.procs = harness.Processes(cls.workdir, grace=10.0)
+        cls.uri, cls.env = harness.private_master(cls.procs, os.path.join(cls.workdir, 'ros_home'),
+                                                  os.path.join(cls.workdir, 'log'), join=True)
+        cls.port = int(cls.uri.rsplit(':', 1)[1])
+        launch = os.path.join(cls.workdir, 'faults.launch')
+        with open(launch, 'w') as f:
+            f.write(LAUNCH.format(drone=DRONE, port=harness.free_port()))
+        cls.procs.start('roslaunch', ['roslaunch', '--port', str(cls.port), launch], cls.env)
+        # the controller's state comes through this relay, a process of its own (this one is busy measuring)
+        cls.procs.start('relay', [sys.executable, '-c', RELAY.format(drone=DRONE)], cls.env)
+        rospy.init_node('fault_matrix', anonymous=True)
+        cls.g = Graph()
+        ok = harness.wait_for(lambda: cls.g.status('/%s/mpc_controller' % DRONE) is not None
+                              and cls.g.position() is not None, 90.0, 0.2)
+        if not ok:
+            raise RuntimeError('graph did not come up:\n' + cls.procs.log_tail('roslaunch', 40))
+        cls.brake = None   # (speed, distance) of the firmware brake (controller killed)
+
+    @classmethod
+    def tearDownClass(cls):
+        try:
+            os.makedirs(os.path.dirname(RESULTS), exist_ok=True)
+            with open(RESULTS, 'w') as f:
+                json.dump({'faults': [name for name, _, _ in FAULTS], 'rows': cls.rows,
+                           'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, f, indent=1)
+        finally:
+            cls.procs.stop_all()
+            shutil.rmtree(cls.workdir, ignore_errors=True)
+
+    # -- helpers
+    def fly(self, timeout=40.0):
+        """Fly along +-x until the speed is >= 0.8 SPEED; the speed reached."""
+        g = self.g
+        g.state_mode = 'relay'
+        pos = None
+        harness.require(lambda: g.position() is not None, 10.0, 'truth')
+        pos = g.position()
+        TestFaultMatrix.direction = -self.direction
+        g.track = (time.time(), pos[0], pos[1], self.direction)
+        g.wp_mode = 'track'
+        steady = [None]
+
+        def flying():       # within 35 % of SPEED for STEADY s: the attitude is about level, as in every case
+            now, v = time.time(), g.speed() or 0.0
+            if abs(v - SPEED) > 0.35 * SPEED:
+                steady[0] = None
+            elif steady[0] is None:
+                steady[0] = now
+            return steady[0] is not None and now - steady[0] >= STEADY
+        harness.require(flying, timeout, 'the drone flying steadily at %.1f m/s' % SPEED,
+                        lambda: 'speed %s, controller %s' % (g.speed(), g.status('/%s/mpc_controller' % DRONE)))
+        return g.speed()
+
+    def wait_stop(self, t_fault, pos0):
+        """(seconds, farthest horizontal distance [m]) until the drone stopped."""
+        g = self.g
+        far = [0.0]
+
+        def stopped():
+            p = g.position()
+            far[0] = max(far[0], math.hypot(p[0] - pos0[0], p[1] - pos0[1]))
+            return time.time() - t_fault > 1.0 and (g.speed() or 9.0) < STOP_SPEED
+        harness.require(stopped, STOP_TIME, 'the drone stopped', lambda: 'speed %s' % g.speed())
+        return time.time() - t_fault, far[0]
+
+    def record(self, name, observed, stop=None, recovery=None, ok=True):
+        TestFaultMatrix.rows.append({'name': name, 'observed': observed, 'stop': stop, 'recovery': recovery,
+                                     'ok': ok})
+
+    def controller(self, since):
+        return self.g.status('/%s/mpc_controller' % DRONE, since)
+
+    def wait_controller(self, since, predicate, timeout, what):
+        entry = [None]
+
+        def check():
+            entry[0] = self.controller(since)
+            return entry[0] is not None and predicate(entry[0])
+        harness.require(check, timeout, what, lambda: 'last diagnostic %s' % (entry[0],))
+        return entry[0]
+
+    def recover(self, t_fixed):
+        """Seconds until the controller tracks again (OK 'tracking' diagnostic, 1 Hz) after the fault is removed
+        (a fresh moving waypoint from where the drone is)."""
+        g = self.g
+        g.state_mode = 'relay'
+        pos = g.position()
+        g.track = (time.time(), pos[0], pos[1], self.direction)
+        g.wp_mode = 'track'
+        e = self.wait_controller(t_fixed, lambda e: e[1] == 0 and 'tracking' in e[2], RECOVERY_TIME + 25.0,
+                                 'controller tracking again')
+        return e[0] - t_fixed
+
+    def bound(self, speed, delay):
+        v0, d0 = self.brake
+        return 1.2 * d0 * (speed / v0) ** 2 + speed * delay + 0.5
+
+    def hold_case(self, name, mode, message, counter_key, delay):
+        g = self.g
+        v = self.fly()
+        before = counter(self.controller(0.0), counter_key) if counter_key else None
+        pos0, t0 = g.position(), time.time()
+        g.wp_mode = mode
+        secs, dist = self.wait_stop(t0, pos0)
+        e = self.wait_controller(t0 + delay, lambda e: message in e[2], 5.0, message)
+        self.assertEqual(e[1], 1, e)                                   # WARN
+        self.assertIn('holding position', e[2])
+        self.assertGreater(g.command_rate(), 5.0, 'HOLD keeps commanding')
+        if counter_key:
+            self.assertGreater(counter(e, counter_key), before, e)
+        bound = self.bound(v, delay)
+        self.assertLess(dist, bound, '%s: %.1f m from %.1f m/s > bound %.1f m' % (name, dist, v, bound))
+        t_fixed = time.time()
+        rec = self.recover(t_fixed)
+        self.record(name, 'WARN "%s"; %s; commands %.0f Hz' % (e[2], '%s %d -> %d' % (
+            counter_key, before, counter(e, counter_key)) if counter_key else 'stopped',
+            g.command_rate()), '%.1f m from %.1f m/s in %.1f s (bound %.1f m)' % (dist, v, secs, bound), rec)
+
+    def silent_case(self, name, mode, message, counter_key, delay):
+        g = self.g
+        v = self.fly()
+        before = counter(self.controller(0.0), counter_key)
+        pos0, t0 = g.position(), time.time()
+        g.state_mode = mode
+        secs, dist = self.wait_stop(t0, pos0)
+        e = self.wait_controller(t0 + delay, lambda e: message in e[2], 5.0, message)
+        self.assertEqual(e[1], 1, e)
+        self.assertIn('no command, firmware hover brake', e[2])
+        self.assertEqual(g.command_rate(), 0.0, 'SILENT sends nothing')
+        self.assertGreater(counter(e, counter_key), before, e)
+        bound = self.bound(v, delay)
+        self.assertLess(dist, bound, '%s: %.1f m from %.1f m/s > bound %.1f m' % (name, dist, v, bound))
+        g.state_mode = 'relay'
+        rec = self.recover(time.time())
+        self.record(name, 'WARN "%s"; %s %d -> %d; commands 0 Hz' % (e[2], counter_key, before,
+                                                                   counter(e, counter_key)),
+                    '%.1f m from %.1f m/s in %.1f s (bound %.1f m)' % (dist, v, secs, bound), rec)
+
+    # -- the matrix, in the order of FAULTS
+    def test_01_controller_killed(self):
+        g = self.g
+        v = self.fly()
+        old = harness.node_pid('/%s/mpc_controller' % DRONE, self.uri)
+        pos0, t0 = g.position(), time.time()
+        os.kill(old, signal.SIGKILL)
+        secs, dist = self.wait_stop(t0, pos0)
+        self.assertEqual(g.command_rate(), 0.0)
+        TestFaultMatrix.brake = (v, dist)
+        new = [None]
+        harness.require(lambda: new.__setitem__(0, harness.node_pid('/%s/mpc_controller' % DRONE, self.uri))
+                        or (new[0] not in (None, old)), 20.0, 'the controller respawned')
+        rec = self.recover(t0)
+        self.record('controller_killed', 'no command (0 Hz); respawned (pid %d -> %d)' % (old, new[0]),
+                    '%.1f m from %.1f m/s in %.1f s (firmware brake: the reference)' % (dist, v, secs), rec)
+
+    def test_02_nan_waypoint(self):
+        self.hold_case('nan_waypoint', 'nan', 'non-finite waypoint', 'rejected_waypoints', 0.2)
+
+    def test_03_stale_waypoint(self):
+        # detected waypoint_timeout (1 s) after the last waypoint, at the next 10 Hz cycle
+        self.hold_case('stale_waypoint', 'stop', 'stale waypoint', 'stale_waypoint', 1.1)
+
+    def test_04_far_waypoint(self):
+        self.hold_case('far_waypoint', 'far', 'waypoint outside the geofence', 'rejected_geofence', 0.2)
+
+    def test_05_nan_state(self):
+        self.silent_case('nan_state', 'nan', 'non-finite state', 'rejected_states', 0.2)
+
+    def test_06_stale_state(self):
+        # detected state_timeout (0.5 s) after the last state sample (30 Hz: up to 1/30 s old when the relay
+        # stops), at the next 10 Hz cycle
+        self.silent_case('stale_state', 'off', 'stale state', 'stale_state', 0.65)
+
+    def _interface(self, since=0.0):
+        return self.g.status('/%s/interface' % DRONE, since)
+
+    def test_07_cli_killed(self):
+        g = self.g
+        self.fly()
+        iface = psutil.Process(harness.node_pid('/%s/interface' % DRONE, self.uri))
+        cli = iface.children()[0]
+        before = self._interface()
+        t0 = time.time()
+        cli.kill()
+        ok = [None]
+
+        def back():      # a new process, samples published again, OK (diagnostics at 1 Hz: an ERROR may not show)
+            ok[0] = self._interface(t0)
+            return ok[0] is not None and ok[0][1] == 0 and ok[0][3]['process pid'] != str(cli.pid) and \
+                counter(ok[0], 'samples published') > counter(before, 'samples published')
+        harness.require(back, RECOVERY_TIME, 'interface publishing again with a new process', lambda: str(ok[0]))
+        self.assertEqual(counter(ok[0], 'process restarts'), counter(before, 'process restarts') + 1, ok[0])
+        self.assertEqual(ok[0][3]['process last exit code'], '-9', ok[0])
+        self.assertEqual(self.controller(t0)[2], 'tracking', 'the controller flies on the estimate')
+        self.record('cli_killed', 'process restarts %d -> %d (last exit code -9); OK again "%s" with pid %s; the '
+                    'controller keeps tracking' % (counter(before, 'process restarts'), counter(ok[0], 'process restarts'),
+                                                   ok[0][2], ok[0][3]['process pid']),
+                    'not needed (the drone keeps tracking at %.1f m/s)' % g.speed(), ok[0][0] - t0)
+
+    def test_07b_cli_hung(self):
+        g = self.g
+        self.fly()
+        iface = psutil.Process(harness.node_pid('/%s/interface' % DRONE, self.uri))
+        cli = iface.children()[0]
+        before = self._interface()
+        t0 = time.time()
+        cli.suspend()                    # SIGSTOP: prints nothing, does not exit
+        err = [None]
+
+        def error_seen():
+            err[0] = self._interface(t0)
+            return err[0] is not None and err[0][1] == 2
+        harness.require(error_seen, 5.0, 'interface ERROR while the CLI hangs', lambda: str(err[0]))
+        ok = [None]
+
+        def back():
+            ok[0] = self._interface(err[0][0])
+            return ok[0] is not None and ok[0][1] == 0
+        harness.require(back, RECOVERY_TIME, 'interface OK after the hang', lambda: str(ok[0]))
+        self.assertEqual(counter(ok[0], 'process hangs'), counter(before, 'process hangs') + 1, ok[0])
+        self.assertNotEqual(ok[0][3]['process pid'], str(cli.pid))
+        self.assertEqual(self.controller(t0)[2], 'tracking', 'the controller flies on the estimate')
+        self.record('cli_hung', 'ERROR "%s"; process hangs %d -> %d (killed after restart_timeout 2 s), OK again'
+                    % (err[0][2], counter(before, 'process hangs'), counter(ok[0], 'process hangs')),
+                    'not needed (the drone keeps tracking)', ok[0][0] - t0)
+
+    def test_08_telemetry_garbage(self):
+        g = self.g
+        e = [None]
+
+        def flowing():
+            e[0] = g.status('/garbage/interface')
+            return e[0] is not None and e[0][1] == 0 and (counter(e[0], 'process oversize lines') or 0) >= 1
+        harness.require(flowing, 20.0, 'the garbage interface OK with counted lines', lambda: str(e[0]))
+        malformed = counter(e[0], 'parse malformed')
+        oversize = counter(e[0], 'process oversize lines')
+        starts = counter(e[0], 'process starts')     # each start of the command prints the garbage once
+        self.assertEqual(oversize, starts, e[0])
+        self.assertGreaterEqual(malformed, 2 * starts, e[0])     # 'garbage line' + '1_000'
+        self.assertGreater(counter(e[0], 'samples published'), 100, e[0])
+        self.record('telemetry_garbage', 'OK "%s"; per start of the command (%d): parse malformed %d, process '
+                    'oversize lines %d; samples published %s' % (e[0][2], starts, malformed, oversize,
+                                                                 e[0][3]['samples published']), 'not needed', None)
+
+    def test_09_master_restart(self):
+        g = self.g
+        self.fly()
+        pids = dict((n, harness.node_pid(n, self.uri)) for n in ('/%s/mpc_controller' % DRONE,
+                                                                  '/%s/interface' % DRONE, '/%s/anafi_sim' % DRONE))
+        t0 = time.time()
+        self.procs.stop('roscore')
+        time.sleep(2.0)
+        core = self.procs.start('roscore', ['roscore', '-p', str(self.port)], self.env)
+        harness.require(lambda: harness.master_pid(self.uri) is not None, 30.0, 'the new master')
+        del core
+        new = {}
+
+        def respawned():
+            for n, old in pids.items():
+                p = harness.node_pid(n, self.uri)
+                if p is None or p == old:
+                    return False
+                new[n] = p
+            return True
+        harness.require(respawned, 60.0, 'every node respawned on the new master',
+                        lambda: '%s\n%s' % (new, self.procs.log_tail('roslaunch', 30)))
+        t_back = time.time()
+        # this process cannot register again either: a fresh probe process publishes waypoints and reads
+        # the controller's diagnostics on the new master
+        probe = PROBE.format(drone=DRONE)
+        out = harness.start([sys.executable, '-c', probe], env=self.env)
+        rc = out.wait(90.0)
+        self.assertEqual(rc, 0, 'probe: the controller did not track a new waypoint publisher on the new master')
+        recovery = time.time() - t0
+        self.record('master_restart', 'nodes exited (75) and respawned: %s; a new waypoint publisher reaches the '
+                    'controller (OK tracking)' % ', '.join('%s %d -> %d' % (n.rsplit('/', 1)[1], pids[n], new[n])
+                                                          for n in sorted(new)),
+                    'the respawned simulator starts a new flight', recovery)
+        del t_back, g
+
+
+RELAY = """
+import rospy
+from nav_msgs.msg import Odometry
+from std_msgs.msg import String
+rospy.init_node('fault_relay')
+mode = ['relay']
+pub = rospy.Publisher('/{drone}/fault/odom', Odometry, queue_size=10, tcp_nodelay=True)
+def relay(msg):
+    if mode[0] == 'off':
+        return
+    if mode[0] == 'nan':
+        msg.pose.pose.position.x = float('nan')
+    pub.publish(msg)
+rospy.Subscriber('/{drone}/fault/mode', String, lambda m: mode.__setitem__(0, m.data))
+rospy.Subscriber('/{drone}/drone/odom', Odometry, relay, queue_size=10, tcp_nodelay=True)
+rospy.spin()
+"""
+
+PROBE = """
+import sys, time, rospy
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
+from std_msgs.msg import String
+from anafi_sim.msg import Waypoint
+rospy.init_node('fault_probe', anonymous=True)
+state = {{'ok': False}}
+relay = rospy.Publisher('/{drone}/fault/odom', Odometry, queue_size=10)
+rospy.Subscriber('/{drone}/drone/odom', Odometry, relay.publish)
+def diag(msg):
+    for s in msg.status:
+        if s.name.endswith('/{drone}/mpc_controller') and s.level == 0 and 'tracking' in s.message:
+            state['ok'] = True
+rospy.Subscriber('/diagnostics', DiagnosticArray, diag)
+pub = rospy.Publisher('/{drone}/position_control/waypoint', Waypoint, queue_size=10)
+end = time.time() + 80
+while time.time() < end and not state['ok']:
+    w = Waypoint(); w.x, w.y, w.z = 0.0, 0.0, 3.0
+    pub.publish(w)
+    time.sleep(0.1)
+sys.exit(0 if state['ok'] else 1)
+"""
+
+
+if __name__ == '__main__':
+    rostest.rosrun('anafi_sim', 'fault_matrix', TestFaultMatrix, sys.argv)

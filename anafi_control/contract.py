@@ -28,6 +28,8 @@ come) is a ``Controller``:
   ``result`` is the implementation's detail (MpcResult, RelativeState) or None. A cycle never raises.
   ``ok`` True may still carry None while an implementation warms up (a PID loop's first computation).
   ``COMMAND_RATE`` (None = every cycle) is the rate at which the node sends ``last.command`` (not None).
+* ``on_reference(t, samples)`` (optional, ``PREVIEW`` True): the upcoming reference over the horizon
+  (``ReferenceSample``s); the default ignores it, so controllers without a preview are unchanged.
 * ``health()``: level (``LEVEL_*`` = diagnostic_msgs levels), message and values (counters) of the last cycle.
 
 Input gate (``InputGate``, the one rule set, also used by the distributed PID relative-state node): the
@@ -103,6 +105,10 @@ CycleOutput = collections.namedtuple('CycleOutput', ['command', 'ok', 'reason', 
 CycleOutput.__doc__ = ('One cycle: command (roll deg, pitch deg, yaw rate deg/s, gaz m/s) or None (send nothing); '
                        'ok False -> key/reason say why and command is the failsafe (hold command or None); '
                        'result = the implementation\'s detail or None.')
+
+ReferenceSample = collections.namedtuple('ReferenceSample', ['t', 'position', 'velocity', 'acceleration', 'yaw'])
+ReferenceSample.__doc__ = ('One sample of a reference preview: time t [s], position [m], velocity [m/s], '
+                           'acceleration [m/s^2] (world ENU 3-tuples), yaw [deg] world.')
 
 Inputs = collections.namedtuple('Inputs', ['pos', 'vel', 'yaw', 'waypoint'])
 Inputs.__doc__ = ('Drone position [m], world velocity [m/s] (ENU tuples), heading [rad], waypoint '
@@ -378,6 +384,9 @@ class Controller(object):
     RATE = 10.0
     COMMAND_RATE = None
     COUNTERS = ()
+    #: True: the controller tracks a reference preview (``on_reference``); the node / engine then subscribes
+    #: to the trajectory generator's preview (trajectory_msgs/MultiDOFJointTrajectory, command/trajectory)
+    PREVIEW = False
 
     def __init__(self, state_timeout=0.5, waypoint_timeout=1.0, twist_frame='child', limits=None):
         self.gate = InputGate(state_timeout, waypoint_timeout, twist_frame, self.COUNTERS, self._clock_jumped,
@@ -396,6 +405,12 @@ class Controller(object):
     def on_waypoint(self, t, waypoint):
         """Store a waypoint (x, y, z, vx, vy, vz, yaw_deg) received at ``t`` [s]; False if refused."""
         return self.gate.on_waypoint(t, waypoint)
+
+    def on_reference(self, t, samples):
+        """Optional hook: the upcoming reference received at ``t`` [s], a sequence of ``ReferenceSample``
+        (time [s], position [m], velocity [m/s], acceleration [m/s^2] world ENU, yaw [deg]). The default
+        ignores it and returns False (controllers without a preview: PREVIEW False); True when taken."""
+        return False
 
     def cycle(self, t):
         """One cycle at time ``t`` [s]: CycleOutput (never raises on bad input); see the module doc."""

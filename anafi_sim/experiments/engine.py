@@ -67,6 +67,9 @@ relative_state_phase  0.0 s     pid_relative_state's timer (not recorded; its cy
                                 estimate's ticks)
 pid_command_phase     0.0 s     pid_command's timer: commands at 0/5 ms past every 100 ms in a recorded ROS
                                 run of circle_r1_v1 (distributed PID)
+preview_horizon       3.0 s     trajectory_generator.py ``~preview_horizon``: the preview (command/trajectory)
+                                published with every waypoint when a PREVIEW controller (preview_mpc) listens
+preview_step          0.05 s    trajectory_generator.py ``~preview_step``: its sample spacing
 ====================  ========  =============================================================================
 
 Known simplifications (numbers that round away in the summaries): the ground truth and estimate reach the
@@ -87,6 +90,7 @@ from anafi_control.mpc_tracking import DEFAULTS as MPC_TRACKING_DEFAULTS, MpcTra
 from anafi_control.pid import PidController
 from anafi_control.pid_framework import DEFAULTS as PID_DEFAULTS, LOOP_NAMES, PidTracking, make_config, \
     relative_state
+from anafi_control.preview_mpc import DEFAULTS as PREVIEW_DEFAULTS, PredictionModel, PreviewMpc
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler, input_topics, loop_inputs, loop_topics
 from anafi_sim import paths
 from anafi_sim.experiments.evaluation import LiveEvaluator
@@ -114,7 +118,7 @@ DEFAULT_SCHEDULE = collections.OrderedDict([
     ('ros_rtf', 2.0), ('message_latency', 0.0005), ('clock_latency', 0.0), ('mpc_latency', 0.0027),
     ('controller_latency', 0.0), ('pid_coalesce', 0.001), ('pid_latency', 0.0),
     ('controller_phase', 0.030), ('generator_phase', 0.080), ('relative_state_phase', 0.0),
-    ('pid_command_phase', 0.0),
+    ('pid_command_phase', 0.0), ('preview_horizon', 3.0), ('preview_step', 0.05),
 ])
 #: schedule keys in wall seconds of the ROS graph (times ``ros_rtf`` = simulation seconds)
 WALL_KEYS = ('monitor_period', 'message_latency', 'clock_latency', 'mpc_latency', 'controller_latency',
@@ -123,8 +127,9 @@ _RATE_KEYS = ('physics_rate', 'telemetry_rate', 'truth_rate', 'estimate_rate', '
               'relative_state_rate', 'pid_command_rate')
 
 #: controllers by name: 'mpc' (MpcTracking), 'pid' (the distributed PID graph, as pid.launch mode distributed),
-#: 'pid_single' (PidTracking in one node, pid.launch mode single); or 'package.module:Class' (a Controller)
-CONTROLLERS = ('mpc', 'pid', 'pid_single')
+#: 'pid_single' (PidTracking in one node, pid.launch mode single), 'preview_mpc' (PreviewMpc with
+#: preview_mpc.yaml, the calibrated model and the bridge limits of the run); or 'package.module:Class'
+CONTROLLERS = ('mpc', 'pid', 'pid_single', 'preview_mpc')
 
 #: wind keys (``Engine(wind={...})``) -> simulator settings (anafi_sim/config/sim.yaml)
 WIND_KEYS = collections.OrderedDict([('x', 'wind_x'), ('y', 'wind_y'), ('z', 'wind_z'),
@@ -156,7 +161,7 @@ def make_schedule(overrides=None):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise ValueError('schedule parameter %s must be a finite number, got %r' % (key, value))
         schedule[key] = value
-    for key in _RATE_KEYS + ('hold_period', 'monitor_period', 'ros_rtf', 'state_timeout', 'effort_timeout'):
+    for key in _RATE_KEYS + ('preview_step', 'hold_period', 'monitor_period', 'ros_rtf', 'state_timeout', 'effort_timeout'):
         if not schedule[key] > 0:
             raise ValueError('schedule parameter %s must be > 0, got %r' % (key, schedule[key]))
     for key in schedule:
@@ -239,6 +244,28 @@ def pid_config(overrides=None):
     return make_config(loops), waypoint_limits(config)
 
 
+def preview_config(overrides=None):
+    """The preview MPC's parameters as experiment.launch loads them (anafi_sim/config/preview_mpc.yaml) with
+    ``overrides``: (params for anafi_control.preview_mpc.PreviewMpc, limits kwargs)."""
+    config = _load_yaml(paths.config_path('preview_mpc.yaml'))
+    config.update(dict(overrides or {}))
+    node_only = ('state_topic', 'waypoint_topic', 'command_topic', 'frame_id', 'reference_topic')
+    params = dict((k, v) for k, v in config.items() if k in PREVIEW_DEFAULTS and k not in LIMIT_DEFAULTS)
+    unknown = sorted(k for k in config if k not in PREVIEW_DEFAULTS and k not in node_only)
+    if unknown:
+        raise ValueError('unknown preview_mpc parameter(s) %s' % ', '.join(unknown))
+    return params, waypoint_limits(config)
+
+
+def preview_factory(params, model_params, mapping):
+    """A no-argument callable building the PreviewMpc with preview_mpc.yaml (+ ``params``), the prediction model
+    of ``model_params`` (anafi_model.yaml dict) and the bridge limits ``mapping`` (PilotingMapping kwargs)."""
+    config, limits = preview_config(params)
+    model = PredictionModel.from_params(model_params, mapping['max_tilt_deg'], mapping['max_vertical_speed'],
+                                        mapping['max_yaw_rate_deg'])
+    return lambda: PreviewMpc(model, config, **limits)
+
+
 def controller_factory(kind, params=None):
     """A no-argument callable building the contract.Controller ``kind`` ('mpc', 'pid_single' or
     'package.module:Class', built with ``params`` as keyword arguments) with its node's parameters."""
@@ -315,6 +342,8 @@ class ControllerNode(object):
         self.silent = 0           # command periods without a command (failsafe SILENT, warming up)
         world.topic(state_topic).subscribe(timing.wrap(self._on_state), world.delay)
         world.topic('position_control/waypoint').subscribe(timing.wrap(self._on_waypoint), world.delay)
+        if getattr(core, 'PREVIEW', False):
+            world.topic('command/trajectory').subscribe(timing.wrap(self._on_reference), world.delay)
         world.timer(rate, timing.wrap(self._on_cycle), phase)
         self.command_rate = command_rate
         if command_rate is not None:
@@ -325,6 +354,9 @@ class ControllerNode(object):
 
     def _on_waypoint(self, msg):
         self.core.on_waypoint(self.world.clock.now_s(), msg.values)
+
+    def _on_reference(self, msg):
+        self.core.on_reference(self.world.clock.now_s(), msg.values)
 
     def _on_cycle(self, now):
         out = self.core.cycle(to_s(now))
@@ -460,8 +492,9 @@ class Engine(object):
     """One experiment (see the module doc).
 
     scenario: a ``Scenario``, a scenario name or a YAML path; controller: 'mpc', 'pid' (distributed graph),
-    'pid_single', 'package.module:Class' (a contract.Controller built with ``controller_params`` as keyword
-    arguments) or a no-argument callable returning a Controller; controller_params: mpc -> mpc.yaml keys,
+    'pid_single', 'preview_mpc', 'package.module:Class' (a contract.Controller built with ``controller_params``
+    as keyword arguments) or a no-argument callable returning a Controller; controller_params: mpc -> mpc.yaml
+    keys, preview_mpc -> preview_mpc.yaml keys,
     pid / pid_single -> {loop: {pid param: value}}; seed: wind-gust seed (sim.yaml ``seed``: 0); wind: see
     ``wind_settings``; settings: more simulator settings (sim.yaml keys of the model); schedule: overrides of
     DEFAULT_SCHEDULE; model_params: the model dict (default anafi_model.yaml); state_source: 'estimate'
@@ -492,6 +525,8 @@ class Engine(object):
         elif controller == 'pid':
             self._factory = None
             self.pid_loops, self.pid_limits = pid_config(controller_params)
+        elif controller == 'preview_mpc':
+            self._factory = preview_factory(controller_params, self.model_params, self.mapping)
         else:
             self._factory = controller_factory(controller, controller_params)
         self.max_sim_time = float(max_sim_time) if max_sim_time is not None else self.scenario.duration + 120.0
@@ -524,6 +559,7 @@ class Engine(object):
         self.state_out.subscribe(self.monitor.on_drone_state)
         self.command_topic.subscribe(lambda m: self.monitor.on_command(m.values, m.stamp))
         self.start_topic = w.topic('trajectory_generator/command')
+        self.reference_topic = w.topic('command/trajectory')   # the generator's preview (PREVIEW controllers)
         self.hold = self.scenario.waypoint(0.0)
         self.last_hold = None
         w.timer(s['monitor_period'] * s['ros_rtf'], self._monitor_tick, period=True)
@@ -548,7 +584,7 @@ class Engine(object):
             if not isinstance(core, Controller):
                 raise ValueError('the controller factory returned %r, not a contract.Controller' % (core,))
             latency = w.latency['mpc_latency' if isinstance(core, MpcTracking) else 'controller_latency']
-            rate = core.RATE
+            rate = core.RATE    # PreviewMpc: its params' rate (an instance attribute)
             if isinstance(core, MpcTracking):
                 rate = mpc_config(self.controller_params)[3]
             self.controller_node = ControllerNode(w, core, rate, self.state_topic, s['controller_phase'], latency,
@@ -627,6 +663,9 @@ class Engine(object):
                 self.cpu_span[1] = self.timing.seconds
         if wp is not None:
             self.waypoint_topic.publish(Stamped(t, tuple(wp)))
+            if self.reference_topic.subscribers:    # a controller that takes a preview listens
+                self.reference_topic.publish(Stamped(t, gen.preview(t, self.schedule['preview_horizon'],
+                                                                    self.schedule['preview_step'])))
         if gen.state == DONE and self.evaluator.complete():
             self.world.loop.stop()
 

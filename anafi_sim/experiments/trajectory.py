@@ -104,6 +104,10 @@ class Constant(object):
     def __call__(self, t):
         return self.value, 0.0
 
+    def acceleration(self, t):
+        """0."""
+        return 0.0
+
     def period(self):
         """None: constant (compatible with any period)."""
         return None
@@ -121,6 +125,10 @@ class Ramp(object):
 
     def __call__(self, t):
         return self.start + self.speed * t, self.speed
+
+    def acceleration(self, t):
+        """0."""
+        return 0.0
 
     def period(self):
         """None when the speed is 0 (constant), else inf (never repeats)."""
@@ -143,6 +151,10 @@ class Sine(object):
         a = self.omega * t + self.phase
         return (self.offset + self.amplitude * math.sin(a),
                 self.amplitude * self.omega * math.cos(a))
+
+    def acceleration(self, t):
+        """-amplitude omega^2 sin(omega t + phase)."""
+        return -self.amplitude * self.omega * self.omega * math.sin(self.omega * t + self.phase)
 
     def period(self):
         """2 pi / |omega| [s]; None when constant (omega or amplitude 0)."""
@@ -178,6 +190,12 @@ def common_period(periods, max_multiple=64, rel_tol=1e-9):
     return None
 
 
+def _acceleration(component, t):
+    """A component's acceleration (0 for a custom component without ``acceleration``)."""
+    accel = getattr(component, 'acceleration', None)
+    return 0.0 if accel is None else float(accel(t))
+
+
 # ---------------------------------------------------------------- trajectories
 
 class PerAxis(object):
@@ -208,6 +226,11 @@ class PerAxis(object):
         return WaypointSample(x, y, z, vx, vy, vz, yaw)
 
     __call__ = sample
+
+    def acceleration(self, t):
+        """(ax, ay, az) [m/s^2] at ``t`` (the exact second derivative of the position)."""
+        t = float(t)
+        return tuple(_acceleration(self.axes[a], t) for a in ('x', 'y', 'z'))
 
     def position(self, t):
         """(x, y, z) [m] at ``t``."""
@@ -457,6 +480,17 @@ class Scenario(object):
             return self.start
         return self.trajectory.sample(state.trajectory_time)
 
+    def reference(self, t):
+        """(``WaypointSample``, acceleration (ax, ay, az) [m/s^2]) at scenario time ``t`` [s]: the waypoint of
+        ``waypoint(t)`` and its acceleration (0 while holding and after the end)."""
+        state = self.phase_at(t)
+        if state.index is None:
+            return self.final, (0.0, 0.0, 0.0)
+        if state.phase.hold:
+            return self.start, (0.0, 0.0, 0.0)
+        return (self.trajectory.sample(state.trajectory_time),
+                self.trajectory.acceleration(state.trajectory_time))
+
     def _final_waypoint(self):
         last = self.phases[-1]
         if last.hold:
@@ -681,6 +715,25 @@ class TrajectoryGenerator(object):
         if self.state in (DONE, STOPPED) and self.hold_when_idle:
             return self._hold, events
         return None, events
+
+    def preview(self, now, horizon, step):
+        """The upcoming reference: [(time [s, the clock of update()], (x, y, z), (vx, vy, vz), (ax, ay, az),
+        yaw_deg)] at now, now + step, ... up to now + ``horizon`` [s] inclusive, as ``update`` would publish
+        it at those times (hold phases, the end's hold included); [] when not running and not holding."""
+        if not (step > 0.0 and horizon >= 0.0):
+            raise ValueError('preview needs step > 0 and horizon >= 0, got %r, %r' % (step, horizon))
+        n = int(math.floor(horizon / step + 1e-9)) + 1
+        now = float(now)
+        out = []
+        if self.state == RUNNING:
+            for i in range(n):
+                t = now + i * step
+                wp, acc = self.scenario.reference(t - self.t0)
+                out.append((t, (wp.x, wp.y, wp.z), (wp.vx, wp.vy, wp.vz), tuple(acc), wp.yaw))
+        elif self.state in (DONE, STOPPED) and self.hold_when_idle and self._hold is not None:
+            h = self._hold
+            out = [(now + i * step, (h.x, h.y, h.z), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), h.yaw) for i in range(n)]
+        return out
 
     def phase_name(self, now):
         """Name of the phase at ``now`` ('' when not running)."""

@@ -4,7 +4,12 @@
 Stage: controllers -> piloting command. ``~controller`` picks the implementation (``anafi_control.contract``):
 ``mpc`` = the paper's MPC (``anafi_control.mpc_tracking.MpcTracking``, run as node ``mpc_controller`` by
 mpc.launch), ``pid`` = the paper's PID framework in one process (``anafi_control.pid_framework.PidTracking``,
-node ``pid_framework``, pid.launch mode single). Every 1/~rate s of ROS time one ``cycle``; the command goes
+node ``pid_framework``, pid.launch mode single), ``preview_mpc`` = the preview MPC beyond the paper
+(``anafi_control.preview_mpc.PreviewMpc``, node ``preview_mpc_controller``, preview_mpc.launch; it also takes
+the trajectory generator's preview, ~reference_topic command/trajectory, trajectory_msgs/
+MultiDOFJointTrajectory, and publishes preview_mpc/{predicted,reference}_path and preview_mpc/stats; its
+parameters: anafi_sim/config/preview_mpc.yaml, ~model_file, ~max_tilt_deg, ~max_vertical_speed,
+~max_yaw_rate_deg; cfg/PreviewMpc.cfg). Every 1/~rate s of ROS time one ``cycle``; the command goes
 out every cycle, or every 1/~command_rate s for a controller with a command rate (pid: cycles 30 Hz,
 commands 10 Hz).
 
@@ -48,7 +53,13 @@ from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, RECONFIGURABLE, MpcTracking,
                                         predicted_positions, reference_positions)
 from anafi_control.pid_framework import DEFAULTS as PID_DEFAULTS, LOOP_NAMES, PidTracking
+from anafi_control.preview_mpc import DEFAULTS as PREVIEW_DEFAULTS, RECONFIGURABLE as PREVIEW_RECONFIGURABLE, \
+    PredictionModel, PreviewMpc
+from anafi_control.contract import ReferenceSample
+from anafi_control.frames import yaw_from_quaternion
 from anafi_sim.cfg import MpcConfig
+from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG
+from anafi_sim.sim.drone_model import DEFAULT_MODEL_FILE, load_model_params
 from anafi_sim.msg import MpcStats
 from anafi_sim.ros import topics
 from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
@@ -215,8 +226,120 @@ class PidAdapter(Adapter):
             ('%s effort' % loop, '%g' % fw.efforts[loop]) for loop in LOOP_NAMES]
 
 
+def reference_samples(msg):
+    """trajectory_msgs/MultiDOFJointTrajectory -> [contract.ReferenceSample] (first transform of each point:
+    time = header.stamp + time_from_start [s], translation, linear velocity and acceleration, yaw [deg] of
+    the rotation; a missing velocity / acceleration is zero)."""
+    t0 = msg.header.stamp.to_sec()
+    out = []
+    for point in msg.points:
+        tf = point.transforms[0]
+        v = point.velocities[0].linear if point.velocities else None
+        a = point.accelerations[0].linear if point.accelerations else None
+        r = tf.rotation
+        out.append(ReferenceSample(t0 + point.time_from_start.to_sec(),
+                                   (tf.translation.x, tf.translation.y, tf.translation.z),
+                                   (v.x, v.y, v.z) if v is not None else (0.0, 0.0, 0.0),
+                                   (a.x, a.y, a.z) if a is not None else (0.0, 0.0, 0.0),
+                                   math.degrees(yaw_from_quaternion(r.x, r.y, r.z, r.w))))
+    return out
+
+
+class PreviewAdapter(MpcAdapter):
+    """The preview MPC: preview_mpc.yaml parameters, the prediction model of ~model_file (anafi_model.yaml) and
+    the bridge limits (~max_tilt_deg, ~max_vertical_speed, ~max_yaw_rate_deg), the reference preview on
+    ~reference_topic (trajectory_msgs/MultiDOFJointTrajectory, default command/trajectory), dynamic_reconfigure
+    (cfg/PreviewMpc.cfg), preview_mpc/stats (anafi_sim/MpcStats) and preview_mpc/{predicted,reference}_path."""
+    label = 'preview_mpc'
+    controller_class = PreviewMpc
+
+    def build(self, p):
+        params = dict((k, rospy.get_param('~' + k)) for k in PREVIEW_DEFAULTS if rospy.has_param('~' + k))
+        for k in ('geofence_radius', 'min_altitude', 'max_altitude', 'max_waypoint_jump'):
+            params.pop(k, None)
+        model = PredictionModel.from_params(load_model_params(p.string('model_file', '') or DEFAULT_MODEL_FILE),
+                                            p.positive('max_tilt_deg', MAX_TILT_DEG),
+                                            p.positive('max_vertical_speed', MAX_VERTICAL_SPEED),
+                                            p.positive('max_yaw_rate_deg', MAX_YAW_RATE_DEG))
+        self.frame_id = p.ros_name('frame_id', 'world')
+        self.reference_topic = p.ros_name('reference_topic', 'command/trajectory')
+        return PreviewMpc(model, params, limits=waypoint_limits(p))
+
+    def setup(self):
+        from trajectory_msgs.msg import MultiDOFJointTrajectory
+        from anafi_sim.cfg import PreviewMpcConfig
+        core = self.node.core
+        self.pub_pred = rospy.Publisher('preview_mpc/predicted_path', Path, queue_size=2)
+        self.pub_ref = rospy.Publisher('preview_mpc/reference_path', Path, queue_size=2)
+        self.pub_stats = rospy.Publisher('preview_mpc/stats', MpcStats, queue_size=10)
+        rospy.Subscriber(self.reference_topic, MultiDOFJointTrajectory, self._on_reference, queue_size=2)
+        self.reconfigure_server = Server(PreviewMpcConfig, self._on_reconfigure)
+        rospy.loginfo('%s: N=%d, dt=%.3f s, preview on %s', self.label, core.N, core.dt,
+                      rospy.resolve_name(self.reference_topic))
+
+    def _on_reference(self, msg):
+        try:
+            samples = reference_samples(msg)
+        except (IndexError, AttributeError):
+            samples = None
+        with self.node.lock:
+            ok = self.node.core.on_reference(rospy.get_time(), samples)
+        if not ok:
+            rospy.logwarn_throttle(5.0, '%s: unusable preview refused (%d so far)' % (
+                rospy.get_name(), self.node.core.counters['rejected_previews']))
+
+    def _on_reconfigure(self, config, level):
+        core = self.node.core
+        with self.node.lock:
+            try:
+                applied = core.reconfigure(dict((k, config[k]) for k in PREVIEW_RECONFIGURABLE))
+            except ValueError as err:
+                rospy.logerr('%s: reconfiguration refused (%s)', self.label, err)
+                applied = core.config()
+        for k in PREVIEW_RECONFIGURABLE:
+            config[k] = applied[k]
+        return config
+
+    def cycle_info(self):
+        core = self.node.core
+        return core.counters['cycles'], core.counters['hover'], core.N, core.dt
+
+    def after_cycle(self, out, stamp, info, started):
+        cycles, hovers, horizon, dt = info
+        res = out.result
+        if self.pub_pred.get_num_connections():
+            self.pub_pred.publish(self._path(None if res is None else res.predicted, stamp, dt))
+        if self.pub_ref.get_num_connections():
+            self.pub_ref.publish(self._path(None if res is None else res.reference, stamp, dt))
+        s = MpcStats()
+        s.header.stamp = stamp
+        s.header.frame_id = self.frame_id
+        s.ok = out.ok
+        s.status = res.status if (out.ok and res is not None) else out.reason
+        if res is not None:
+            s.iterations = res.iterations
+            s.solve_time = res.solve_time if math.isfinite(res.solve_time) else 0.0
+            s.setup_time, s.run_time = res.setup_time, res.run_time
+            s.acceleration.x, s.acceleration.y, s.acceleration.z = res.u0
+            s.vz_command = res.vz_command
+        s.horizon = horizon
+        s.cycles, s.hover_cycles = cycles, hovers
+        s.cycle_time = time.perf_counter() - started
+        self.pub_stats.publish(s)
+
+    def diagnostic_values(self):
+        core = self.node.core
+        res = core.last.result
+        values = [('previews', core.counters['previews']), ('preview cycles', core.counters['preview_cycles']),
+                  ('estimator cycles', core.counters['estimator_cycles'])]
+        if res is not None:
+            values += [('osqp_status', res.status), ('iterations', res.iterations), ('source', res.source),
+                       ('disturbance', '%.3f %.3f %.3f' % tuple(res.disturbance))]
+        return values
+
+
 #: ~controller -> adapter (the registry of controllers this node runs)
-ADAPTERS = {'mpc': MpcAdapter, 'pid': PidAdapter}
+ADAPTERS = {'mpc': MpcAdapter, 'pid': PidAdapter, 'preview_mpc': PreviewAdapter}
 
 
 class ControllerNode(object):

@@ -11,6 +11,10 @@ node's namespace (/<drone>/):
 - out trajectory/begin, trajectory/end (std_msgs/Header, latched): stamp =
   the exact start / end of the measured phase, frame_id = scenario name;
   trajectory/status (std_msgs/String, latched YAML: scenario, state, phase);
+- out ~preview_topic (default command/trajectory, trajectory_msgs/MultiDOFJointTrajectory, mav_control_rw's
+  name): with every waypoint, while someone subscribes, the upcoming reference from now to now +
+  ~preview_horizon s (3.0) every ~preview_step s (0.05): position, velocity, acceleration, yaw (the
+  preview MPC's reference, anafi_control/preview_mpc.py); header.stamp = now, frame ~frame_id;
 - in drone/state (std_msgs/String; ~wait_for_flying: start only once 'flying');
 - in ~command (std_msgs/String): 'start', 'stop', 'restart', 'switch NAME'
   (NAME = scenario name or YAML path); services ~start, ~stop
@@ -18,7 +22,7 @@ node's namespace (/<drone>/):
 
 Parameters: ~scenario (name, default circle_r2_v1) or ~scenario_file
 (path, wins), ~scenario_dir (default: the package's config/scenarios),
-~rate (10 Hz), ~autostart (true), ~wait_for_flying (true), ~start_timeout
+~rate (10 Hz), ~preview_topic, ~preview_horizon [s], ~preview_step [s], ~autostart (true), ~wait_for_flying (true), ~start_timeout
 (s of ROS time, 0 = wait forever), ~hold_when_idle (true: after the end or a
 stop keep publishing the last position with zero velocity), ~exit_when_done
 (false: true shuts the node down ~exit_delay s (1.0) after the scenario ends,
@@ -27,9 +31,15 @@ exit code 0; 1 when the drone never flew within ~start_timeout), ~frame_id
 """
 import threading
 
+import math
+
 import rospy
 import yaml
+from geometry_msgs.msg import Transform, Twist
 from std_msgs.msg import Header, String
+from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
+
+from anafi_control.frames import euler_to_quaternion
 
 from anafi_sim.experiments.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
                                               load_scenario)
@@ -74,6 +84,10 @@ class TrajectoryGeneratorNode(object):
         self.pub_begin = rospy.Publisher(topics.TRAJECTORY_BEGIN, Header, queue_size=2, latch=True)
         self.pub_end = rospy.Publisher(topics.TRAJECTORY_END, Header, queue_size=2, latch=True)
         self.pub_status = rospy.Publisher(topics.TRAJECTORY_STATUS, String, queue_size=5, latch=True)
+        self.preview_horizon = p.number('preview_horizon', 3.0, minimum=0.0)
+        self.preview_step = p.positive('preview_step', 0.05)
+        self.pub_preview = rospy.Publisher(p.string('preview_topic', 'command/trajectory'), MultiDOFJointTrajectory,
+                                           queue_size=2)
         rospy.Subscriber(topics.DRONE_STATE, String, self._on_state, queue_size=5)
         rospy.Subscriber('~command', String, self._on_command, queue_size=10)
         if Trigger is not None:
@@ -182,6 +196,30 @@ class TrajectoryGeneratorNode(object):
             msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz, msg.yaw = wp
             self.pub.publish(msg)
             self.published += 1
+            if self.pub_preview.get_num_connections():
+                with self.lock:
+                    samples = self.gen.preview(now, self.preview_horizon, self.preview_step)
+                self.pub_preview.publish(self.preview_message(now, samples))
+
+    def preview_message(self, now, samples):
+        """trajectory_msgs/MultiDOFJointTrajectory of the generator's preview samples (one transform per point)."""
+        traj = MultiDOFJointTrajectory()
+        traj.header.stamp = rospy.Time.from_sec(now)
+        traj.header.frame_id = self.frame_id
+        traj.joint_names = ['base_link']
+        for t, p, v, a, yaw in samples:
+            point = MultiDOFJointTrajectoryPoint()
+            tf = Transform()
+            tf.translation.x, tf.translation.y, tf.translation.z = p
+            q = euler_to_quaternion(0.0, 0.0, math.radians(yaw))
+            tf.rotation.x, tf.rotation.y, tf.rotation.z, tf.rotation.w = q
+            vel, acc = Twist(), Twist()
+            vel.linear.x, vel.linear.y, vel.linear.z = v
+            acc.linear.x, acc.linear.y, acc.linear.z = a
+            point.transforms, point.velocities, point.accelerations = [tf], [vel], [acc]
+            point.time_from_start = rospy.Duration.from_sec(t - now)
+            traj.points.append(point)
+        return traj
 
     def run(self):
         start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)

@@ -1,0 +1,461 @@
+"""A fleet of Anafis in one world: fleet YAML -> per-drone settings -> the generated launch file (pure, no ROS).
+
+Stage: experiments (on top of the trajectory scenarios, the model follower and the mirror's model names).
+``fleet_launcher.py`` (started by launch/fleet.launch) uses it: ``load_fleet`` reads and checks a fleet file
+(anafi_sim/config/fleets/*.yaml) or builds ``drones:=N`` identical drones in a row, ``drone_scenario`` gives
+each drone its scenario shifted by its offset (written next to the generated launch file), ``launch_xml`` the
+roslaunch XML that includes the per-drone launch files (sim.launch, spawn_anafi.launch, mpc.launch /
+pid.launch, sphinx_gazebo.launch) once per drone namespace. Units: m, deg for yaw; world ENU frame.
+
+Fleet file schema (every key optional except ``drones`` unless ``drones:=N`` is given)::
+
+    name: three_circles             # default: the file name
+    description: text
+    defaults: {controller: mpc, scenario: circle_r2_v1}   # every drone's settings unless it sets its own
+    row: {spacing: 6.0, axis: y}    # drones:=N -> anafi1..anafiN, drone i at (i - 1) * spacing along axis
+    drones:
+      - name: anafi1                # a ROS name: namespace, tf prefix, models <name> and <name>_camera
+        source: sim                 # sim (stand-in, default) | sphinx (the real Sphinx drone: at most one)
+        start: {x: 0, y: 0, yaw: 0} # take-off point [m, deg]; default (offset x, offset y, 0)
+        controller: mpc             # mpc | pid (the paper's 8 nodes) | pid_single | none
+        # exactly one of:
+        scenario: circle_r2_v1      # name in config/scenarios or a path, shifted by offset
+        waypoint: [3, 2, 5, 0]      # a static target x, y, z [m], yaw [deg], shifted by offset
+        target: {model: airship, offset_frame: heading, yaw_mode: heading}   # follow a Gazebo model
+        offset: [0, 0, 0]           # scenario / waypoint: world shift [m]; target: the follower's offset
+        telemetry_port: 9061        # default: a free port chosen at launch (Sphinx's own: 9060)
+        telemetry_command: "tlm-data-logger -r 0 inet:127.0.0.1:9060"   # source sphinx only
+"""
+import collections
+import copy
+import math
+import os
+import re
+from xml.sax.saxutils import quoteattr
+
+import yaml
+
+from anafi_sim import paths
+from anafi_sim.experiments.model_follower import OFFSET_FRAMES, YAW_MODES
+from anafi_sim.experiments.trajectory import SCENARIO_DIR, scenario_from_dict, scenario_path
+from anafi_sim.gazebo.mirror import model_names
+
+FLEET_DIR = paths.config_path('fleets')
+"""Directory of the shipped fleet files (anafi_sim/config/fleets)."""
+
+SOURCES = ('sim', 'sphinx')
+CONTROLLERS = ('mpc', 'pid', 'pid_single', 'none')
+DRONE_KEYS = ('name', 'source', 'start', 'controller', 'scenario', 'waypoint', 'target', 'offset',
+              'telemetry_port', 'telemetry_command')
+DEFAULT_KEYS = tuple(k for k in DRONE_KEYS if k not in ('name', 'start', 'telemetry_port'))
+FLEET_KEYS = ('name', 'description', 'defaults', 'row', 'drones')
+TARGET_KEYS = ('model', 'offset_frame', 'yaw_mode', 'yaw_offset')
+RESERVED_MODELS = ('ground_plane', 'airship')
+NAME_RE = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+WAYPOINT_DURATION = 3600.0   # s, the measured phase of a static waypoint target
+MIN_SEPARATION = 1.0         # m, closest allowed take-off points
+
+Drone = collections.namedtuple('Drone', 'name source start controller scenario waypoint target offset '
+                                        'telemetry_port telemetry_command')
+Drone.__doc__ = ('One drone of a fleet: name, source (sim | sphinx), start (x, y [m], yaw [deg]), controller, '
+                 'scenario (name or path, or None), waypoint ((x, y, z [m], yaw [deg]) or None), target (dict '
+                 'model, offset_frame, yaw_mode, yaw_offset, or None), offset (3 floats [m]), telemetry_port '
+                 '(int or None = choose at launch), telemetry_command (sphinx source; \'\' = the interface\'s '
+                 'default).')
+
+Fleet = collections.namedtuple('Fleet', 'name description drones')
+
+
+def _number(value, what):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError('%s must be a finite number, got %r' % (what, value))
+    return float(value)
+
+
+def _vector(value, n, what):
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise ValueError('%s must be a list of %d numbers, got %r' % (what, n, value))
+    return tuple(_number(v, '%s[%d]' % (what, i)) for i, v in enumerate(value))
+
+
+def _check_keys(d, allowed, what):
+    if not isinstance(d, dict):
+        raise ValueError('%s must be a mapping, got %r' % (what, d))
+    unknown = sorted(str(k) for k in set(d) - set(allowed))
+    if unknown:
+        raise ValueError('%s: unknown field(s) %s (allowed: %s)' % (what, ', '.join(unknown), ', '.join(allowed)))
+
+
+def _start(value, offset, what):
+    if value is None:
+        return (offset[0], offset[1], 0.0)
+    if isinstance(value, dict):
+        _check_keys(value, ('x', 'y', 'yaw'), what)
+        return tuple(_number(value.get(k, 0.0), '%s.%s' % (what, k)) for k in ('x', 'y', 'yaw'))
+    if isinstance(value, (list, tuple)) and len(value) in (2, 3):
+        s = _vector(list(value), len(value), what)
+        return (s[0], s[1], s[2] if len(s) == 3 else 0.0)
+    raise ValueError('%s must be {x, y, yaw} or [x, y(, yaw)] [m, deg], got %r' % (what, value))
+
+
+def drone_from_dict(d, what='drone'):
+    """A checked ``Drone`` from its mapping (defaults already merged in)."""
+    _check_keys(d, DRONE_KEYS, what)
+    name = d.get('name')
+    if not isinstance(name, str) or not NAME_RE.match(name):
+        raise ValueError('%s: name must be a ROS name ([A-Za-z][A-Za-z0-9_]*), got %r' % (what, name))
+    what = 'drone %s' % name
+    source = d.get('source', 'sim')
+    if source not in SOURCES:
+        raise ValueError('%s: source must be one of %s, got %r' % (what, ', '.join(SOURCES), source))
+    controller = d.get('controller', 'mpc')
+    if controller not in CONTROLLERS:
+        raise ValueError('%s: controller must be one of %s, got %r' % (what, ', '.join(CONTROLLERS), controller))
+    offset = _vector(d.get('offset', [0.0, 0.0, 0.0]), 3, what + ': offset')
+    kinds = [k for k in ('scenario', 'waypoint', 'target') if d.get(k) is not None]
+    if len(kinds) != 1:
+        raise ValueError('%s: give exactly one of scenario, waypoint, target (got %s)'
+                         % (what, ', '.join(kinds) or 'none'))
+    scenario = waypoint = target = None
+    if kinds[0] == 'scenario':
+        scenario = d['scenario']
+        if not isinstance(scenario, str) or not scenario:
+            raise ValueError('%s: scenario must be a scenario name or a path, got %r' % (what, scenario))
+    elif kinds[0] == 'waypoint':
+        w = d['waypoint']
+        if not isinstance(w, (list, tuple)) or len(w) not in (3, 4):
+            raise ValueError('%s: waypoint must be [x, y, z(, yaw)] [m, deg], got %r' % (what, w))
+        w = _vector(list(w), len(w), what + ': waypoint')
+        waypoint = w + ((0.0,) if len(w) == 3 else ())
+    else:
+        t = d['target']
+        _check_keys(t, TARGET_KEYS, what + ': target')
+        model = t.get('model')
+        if not isinstance(model, str) or not model:
+            raise ValueError('%s: target.model must be a model name, got %r' % (what, model))
+        frame = t.get('offset_frame', 'heading')
+        yaw_mode = t.get('yaw_mode', 'heading')
+        if frame not in OFFSET_FRAMES:
+            raise ValueError('%s: target.offset_frame must be one of %s' % (what, ', '.join(OFFSET_FRAMES)))
+        if yaw_mode not in YAW_MODES:
+            raise ValueError('%s: target.yaw_mode must be one of %s' % (what, ', '.join(YAW_MODES)))
+        target = {'model': model, 'offset_frame': frame, 'yaw_mode': yaw_mode,
+                  'yaw_offset': _number(t.get('yaw_offset', 0.0), what + ': target.yaw_offset')}
+    port = d.get('telemetry_port')
+    if port is not None and (isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535):
+        raise ValueError('%s: telemetry_port must be an integer in [1, 65535], got %r' % (what, port))
+    command = d.get('telemetry_command', '')
+    if not isinstance(command, str):
+        raise ValueError('%s: telemetry_command must be a string, got %r' % (what, command))
+    if command and source != 'sphinx':
+        raise ValueError('%s: telemetry_command is for source sphinx only (the stand-in gets its own)' % what)
+    start = _start(d.get('start'), offset, what + ': start')
+    return Drone(name, source, start, controller, scenario, waypoint, target, offset, port, command)
+
+
+def row_drones(defaults, count, spacing=6.0, axis='y', prefix='anafi'):
+    """``count`` drone mappings anafi1..anafiN from ``defaults``, drone i shifted by (i - 1) * spacing [m]
+    along ``axis`` (added to the defaults' offset)."""
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise ValueError('drones must be an integer >= 1, got %r' % (count,))
+    spacing = _number(spacing, 'row.spacing')
+    if axis not in ('x', 'y'):
+        raise ValueError("row.axis must be 'x' or 'y', got %r" % (axis,))
+    base = _vector(defaults.get('offset', [0.0, 0.0, 0.0]), 3, 'defaults.offset')
+    out = []
+    for i in range(count):
+        shift = [0.0, 0.0, 0.0]
+        shift['xy'.index(axis)] = i * spacing
+        d = dict(copy.deepcopy(defaults), name='%s%d' % (prefix, i + 1))
+        d['offset'] = [b + s for b, s in zip(base, shift)]
+        out.append(d)
+    return out
+
+
+def fleet_from_dict(data, name='fleet', drones=0, what=None):
+    """A checked ``Fleet`` from the mapping of a fleet file; ``drones`` > 0: that many drones in a row
+    (``row_drones`` from the file's defaults) instead of its drone list."""
+    what = what or 'fleet %s' % name
+    try:
+        _check_keys(data, FLEET_KEYS, 'fleet file')
+        defaults = data.get('defaults') or {}
+        _check_keys(defaults, DEFAULT_KEYS, 'defaults')
+        if drones:
+            row = data.get('row') or {}
+            _check_keys(row, ('spacing', 'axis'), 'row')
+            entries = row_drones(defaults, drones, row.get('spacing', 6.0), row.get('axis', 'y'))
+        else:
+            entries = data.get('drones')
+            if not isinstance(entries, list) or not entries:
+                raise ValueError('drones must be a non-empty list (or give drones:=N)')
+            entries = [dict(copy.deepcopy(defaults), **e) if isinstance(e, dict) else e for e in entries]
+        fleet = Fleet(str(data.get('name', name)), str(data.get('description', '')),
+                      tuple(drone_from_dict(e, 'drone %d' % (i + 1)) for i, e in enumerate(entries)))
+        check_fleet(fleet)
+        return fleet
+    except ValueError as e:
+        raise ValueError('%s: %s' % (what, e))
+
+
+def check_fleet(fleet, min_separation=MIN_SEPARATION):
+    """ValueError when drones would clash: names / Gazebo models / ports taken twice, more than one Sphinx
+    drone (Sphinx simulates one), take-off points closer than ``min_separation`` [m]."""
+    models = {}
+    for drone in fleet.drones:
+        for model in model_names(drone.name):
+            if model in RESERVED_MODELS:
+                raise ValueError('drone %s: model name %s is taken by the scene' % (drone.name, model))
+            if model in models:
+                raise ValueError('drones %s and %s: both need the Gazebo model %s'
+                                 % (models[model], drone.name, model))
+            models[model] = drone.name
+    ports = [d.telemetry_port for d in fleet.drones if d.telemetry_port is not None]
+    if len(set(ports)) != len(ports):
+        raise ValueError('telemetry ports given twice: %s' % sorted(p for p in ports if ports.count(p) > 1))
+    if sum(1 for d in fleet.drones if d.source == 'sphinx') > 1:
+        raise ValueError('at most one drone can come from Sphinx (it simulates one Anafi)')
+    for i, a in enumerate(fleet.drones):
+        for b in fleet.drones[i + 1:]:
+            gap = math.hypot(a.start[0] - b.start[0], a.start[1] - b.start[1])
+            if gap < min_separation:
+                raise ValueError('drones %s and %s take off %.2f m apart (< %.1f m)'
+                                 % (a.name, b.name, gap, min_separation))
+
+
+def fleet_path(name_or_path):
+    """Path of a fleet file given a path or a name in ``FLEET_DIR``."""
+    if os.sep in name_or_path or name_or_path.endswith(('.yaml', '.yml')):
+        return name_or_path
+    return os.path.join(FLEET_DIR, name_or_path + '.yaml')
+
+
+def load_fleet(name_or_path, drones=0):
+    """``fleet_from_dict`` of a fleet file (path or name in ``FLEET_DIR``); errors name the file and field."""
+    path = fleet_path(name_or_path)
+    if not os.path.isfile(path):
+        raise ValueError('no fleet file %s' % path)
+    with open(path) as f:
+        try:
+            data = yaml.safe_load(f)
+        except yaml.YAMLError as e:
+            raise ValueError('%s: not valid YAML: %s' % (path, e))
+    return fleet_from_dict(data, os.path.splitext(os.path.basename(path))[0], drones, what=path)
+
+
+# ---------------------------------------------------------------------------------------- scenarios
+def _shift_component(c, dv):
+    if isinstance(c, (int, float)) and not isinstance(c, bool):
+        return c + dv
+    c = dict(c)
+    key = {'constant': 'value', 'ramp': 'start', 'sine': 'offset'}.get(c.get('type'))
+    if key is None:
+        raise ValueError('cannot shift axis component %r' % (c,))
+    c[key] = c.get(key, 0.0) + dv
+    return c
+
+
+def offset_trajectory_dict(traj, offset):
+    """The trajectory mapping of a scenario moved by ``offset`` (dx, dy, dz) [m] in the world frame."""
+    traj = copy.deepcopy(traj)
+    kind = traj.get('type') if isinstance(traj, dict) else None
+    key = {'static': 'position', 'line': 'start', 'circle': 'centre', 'vertical': 'centre'}.get(kind)
+    if key is not None:
+        traj[key] = [float(v) + o for v, o in zip(traj[key], offset)]
+    elif kind == 'per_axis':
+        for axis, o in zip('xyz', offset):
+            traj[axis] = _shift_component(traj.get(axis, 0.0), o)
+    else:
+        raise ValueError('cannot shift a trajectory of type %r' % (kind,))
+    return traj
+
+
+def offset_scenario_dict(data, offset):
+    """A scenario mapping moved by ``offset`` [m]: trajectory and an explicit start point."""
+    data = copy.deepcopy(data)
+    data['trajectory'] = offset_trajectory_dict(data['trajectory'], offset)
+    start = data.get('start')
+    if isinstance(start, dict):
+        start = dict(start)
+        for axis, o in zip('xyz', offset):
+            start[axis] = start.get(axis, 0.0) + o
+        data['start'] = start
+    elif isinstance(start, (list, tuple)):
+        data['start'] = [float(v) + o for v, o in zip(start[:3], offset)] + list(start[3:])
+    return data
+
+
+def drone_scenario(drone, scenario_dir=None):
+    """The scenario mapping drone ``drone`` flies (its scenario or static waypoint, shifted by its offset),
+    checked by the trajectory module (ValueError); None for a model target."""
+    if drone.target is not None:
+        return None
+    if drone.scenario is not None:
+        path = scenario_path(drone.scenario, scenario_dir or SCENARIO_DIR)
+        if not os.path.isfile(path):
+            raise ValueError('drone %s: no scenario file %s' % (drone.name, path))
+        with open(path) as f:
+            data = yaml.safe_load(f)
+        data.setdefault('name', os.path.splitext(os.path.basename(path))[0])
+    else:
+        x, y, z, yaw = drone.waypoint
+        data = {'name': 'waypoint', 'start': 'trajectory',
+                'trajectory': {'type': 'static', 'position': [x, y, z], 'yaw': yaw},
+                'phases': [{'name': 'hold', 'duration': WAYPOINT_DURATION, 'measure': True}]}
+    data = offset_scenario_dict(data, drone.offset)
+    if any(drone.offset):
+        data['description'] = ('%s (shifted by %s m for %s)'
+                               % (data.get('description', ''), list(drone.offset), drone.name)).strip()
+    try:
+        scenario_from_dict(data, what='drone %s: scenario %s' % (drone.name, data.get('name')))
+    except ValueError as e:
+        raise ValueError(str(e))
+    return data
+
+
+# ---------------------------------------------------------------------------------------- launch XML
+LAUNCH = '$(find anafi_sim)/anafi_sim/launch/'
+
+
+def _arg(name, value):
+    return '    <arg name=%s value=%s/>' % (quoteattr(name), quoteattr(str(value)))
+
+
+def _param(name, value, indent='      '):
+    return '%s<param name=%s value=%s/>' % (indent, quoteattr(name), quoteattr(str(value)))
+
+
+def _include(launch, args, comment=None):
+    lines = ['  <!-- %s -->' % comment] if comment else []
+    lines.append('  <include file=%s>' % quoteattr(LAUNCH + launch))
+    lines += [_arg(k, v) for k, v in args]
+    lines.append('  </include>')
+    return lines
+
+
+def _fmt(v):
+    return repr(float(v))
+
+
+def drone_launch_lines(drone, port, scenario_file, options):
+    """The launch XML lines of one drone (see ``launch_xml`` for ``options``)."""
+    n = drone.name
+    out = ['', '  <!-- ======== %s: %s, controller %s, %s -->'
+           % (n, 'real Sphinx drone' if drone.source == 'sphinx' else 'simulated Anafi (stand-in)',
+              drone.controller, describe_task(drone))]
+    if drone.source == 'sim':
+        out += _include('sim.launch', [('drone_name', n), ('telemetry_port', port), ('use_sim_time', 'false'),
+                                       ('initial_x', _fmt(drone.start[0])), ('initial_y', _fmt(drone.start[1])),
+                                       ('initial_yaw', _fmt(math.radians(drone.start[2]))),
+                                       ('output', options['output'])])
+        if options['mirror'] == 'true':
+            out += _include('spawn_anafi.launch', [('drone_name', n), ('rate', _fmt(options['mirror_rate'])),
+                                                   ('output', options['output'])])
+    else:
+        args = [('drone_name', n), ('world', 'false'), ('use_sim_time', 'false'), ('mirror', options['mirror'])]
+        if drone.telemetry_command:
+            args.append(('telemetry_command', drone.telemetry_command))
+        out += _include('sphinx_gazebo.launch', args, 'the real Sphinx drone: its telemetry + mirror (no world)')
+    if drone.controller == 'mpc':
+        out += _include('mpc.launch', [('drone_name', n), ('output', options['output'])])
+    elif drone.controller in ('pid', 'pid_single'):
+        out += _include('pid.launch', [('drone_name', n), ('output', options['output']),
+                                       ('mode', 'single' if drone.controller == 'pid_single' else 'distributed')])
+    out.append('  <group ns=%s>' % quoteattr(n))
+    if drone.target is None:
+        out.append('    <node pkg="anafi_sim" type="trajectory_generator.py" name="trajectory_generator" '
+                   'output=%s>' % quoteattr(options['output']))
+        out.append(_param('scenario_file', scenario_file))
+        out.append(_param('autostart', 'true'))
+        out.append(_param('wait_for_flying', 'true'))
+        out.append('    </node>')
+    else:
+        t = drone.target
+        out.append('    <node pkg="anafi_sim" type="model_follower.py" name="model_follower" output=%s>'
+                   % quoteattr(options['output']))
+        out.append(_param('model_name', t['model']))
+        out.append('      <rosparam param="offset">%s</rosparam>' % list(drone.offset))
+        out.append(_param('offset_frame', t['offset_frame']))
+        out.append(_param('yaw_mode', t['yaw_mode']))
+        out.append(_param('yaw_offset', _fmt(t['yaw_offset'])))
+        out.append('    </node>')
+    if options['evaluate']:
+        base = os.path.join(options['out_dir'], n)
+        out.append('    <node pkg="anafi_sim" type="evaluator.py" name="evaluator" output="log">')
+        out.append(_param('name', '%s_%s' % (n, drone.controller)))
+        out.append(_param('publish_period', '5.0'))
+        out.append(_param('summary_file', base + '.yaml'))
+        out.append(_param('csv_file', base + '.csv'))
+        out.append(_param('csv_window', 'all'))
+        out.append('    </node>')
+    out.append('  </group>')
+    if options.get('rviz'):
+        out += _include('rviz.launch', [('drone_name', n), ('gui', 'false')],
+                        'rviz: model description, tf and markers (rviz itself is fleet.launch\'s)')
+    return out
+
+
+def describe_task(drone):
+    """What the drone flies, in words."""
+    shift = ' + offset %s m' % list(drone.offset) if any(drone.offset) else ''
+    if drone.scenario is not None:
+        return 'scenario %s%s' % (drone.scenario, shift)
+    if drone.waypoint is not None:
+        return 'waypoint %s%s' % (list(drone.waypoint), shift)
+    return 'follows model %s at offset %s m (%s frame)' % (drone.target['model'], list(drone.offset),
+                                                            drone.target['offset_frame'])
+
+
+def launch_xml(fleet, ports, scenario_files, out_dir, evaluate=True, mirror=True, mirror_rate=100.0,
+               output='log', source='', aggregator_file='', rviz=False):
+    """The roslaunch XML of every drone of ``fleet`` (the world is fleet.launch's): ``ports`` {name: telemetry
+    port}, ``scenario_files`` {name: path} (drones with a scenario or waypoint), ``out_dir`` for the
+    evaluators' files (``evaluate``), ``mirror`` (spawn_anafi.launch per drone at ``mirror_rate`` Hz),
+    ``output`` (screen | log) of the nodes; ``aggregator_file``: a YAML of ``aggregator_analyzers`` -> a
+    diagnostic_aggregator node with diagnostics_aggregator.yaml + it ('' = none); ``rviz``: rviz.launch
+    (gui false) per drone: robot description, robot_state_publisher, the markers on /visualisation/markers."""
+    options = {'evaluate': bool(evaluate), 'mirror': 'true' if mirror else 'false', 'mirror_rate': mirror_rate,
+               'output': output, 'out_dir': out_dir, 'rviz': bool(rviz)}
+    if output not in ('screen', 'log'):
+        raise ValueError('output must be screen or log, got %r' % (output,))
+    lines = ['<?xml version="1.0"?>',
+             '<!-- Generated by fleet_launcher.py%s: fleet %s, %d drone(s). Do not edit; edit the fleet file. -->'
+             % (' from ' + source if source else '', fleet.name, len(fleet.drones)),
+             '<launch>']
+    for drone in fleet.drones:
+        if drone.source == 'sim' and drone.name not in ports:
+            raise ValueError('drone %s: no telemetry port' % drone.name)
+        lines += drone_launch_lines(drone, ports.get(drone.name), scenario_files.get(drone.name), options)
+    if aggregator_file:
+        lines += ['', '  <!-- diagnostics by component and by drone (diagnostic_aggregator, ROS Noetic) -->',
+                  '  <node pkg="diagnostic_aggregator" type="aggregator_node" name="diagnostic_aggregator">',
+                  '    <rosparam command="load" file=%s/>'
+                  % quoteattr('$(find anafi_sim)/anafi_sim/config/diagnostics_aggregator.yaml'),
+                  '    <rosparam command="load" file=%s ns="analyzers"/>' % quoteattr(aggregator_file),
+                  '  </node>']
+    lines.append('</launch>')
+    return '\n'.join(lines) + '\n'
+
+
+# ---------------------------------------------------------------------------------------- diagnostics
+AGGREGATOR_CONFIG = paths.config_path('diagnostics_aggregator.yaml')
+DRONE_PATTERN = '[A-Za-z][A-Za-z0-9_]*'
+"""The drone-name part of the regexes in diagnostics_aggregator.yaml (replaced per drone)."""
+
+
+def aggregator_analyzers(fleet, config=None):
+    """diagnostic_aggregator ``analyzers`` grouping each drone's statuses: Drones/<name>/<component>, from the
+    component analyzers of diagnostics_aggregator.yaml (``config``: its mapping) with the drone part of each
+    regex (``DRONE_PATTERN``) replaced by the drone's name."""
+    if config is None:
+        with open(AGGREGATOR_CONFIG) as f:
+            config = yaml.safe_load(f)
+    components = config['analyzers']['components']['analyzers']
+    drones = {}
+    for drone in fleet.drones:
+        group = {}
+        for key, analyzer in components.items():
+            if DRONE_PATTERN not in analyzer['regex']:
+                raise ValueError('analyzer %s: its regex has no drone part %s' % (key, DRONE_PATTERN))
+            group[key] = dict(analyzer, regex=analyzer['regex'].replace(DRONE_PATTERN, re.escape(drone.name)))
+        drones[drone.name] = {'type': 'diagnostic_aggregator/AnalyzerGroup', 'path': drone.name, 'analyzers': group}
+    return {'drones': {'type': 'diagnostic_aggregator/AnalyzerGroup', 'path': 'Drones', 'analyzers': drones}}

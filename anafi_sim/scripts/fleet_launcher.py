@@ -1,0 +1,178 @@
+#!/usr/bin/env python3
+"""Fleet launcher node: a fleet file -> one launch file with every drone's includes -> roslaunch it (thin node).
+
+Stage: experiments (anafi_sim.experiments.fleet does the parsing, the checks and the XML). roslaunch cannot
+loop, so fleet.launch starts this node (required): it reads the fleet file ~fleet (or builds ~drones N drones
+in a row from its defaults), picks a free telemetry port for each simulated drone that has none, writes each
+drone's scenario shifted by its offset and the generated launch file into ~out_dir, and runs ``roslaunch``
+on that file (a child process in a session of its own, on the same master) until it ends or this node is
+stopped (SIGINT / SIGTERM: SIGINT to the child, which stops every drone's nodes; then SIGTERM, SIGKILL; the
+child also gets SIGINT from the kernel if this node is killed, so no drone is left running).
+Exits with the child's code; a bad fleet file or parameter: logfatal, exit code 2.
+
+Parameters: ~fleet (name in anafi_sim/config/fleets or a path; three_circles), ~drones (0: the file's list;
+N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
+~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false: rviz.launch per drone),
+~stop_timeout (30 s).
+
+Also a command-line tool, to see or check what a fleet file starts without starting it:
+
+    fleet_launcher.py FLEET [--drones N] [--out-dir DIR] [--evaluate true|false] [--mirror true|false]
+                      [--mirror-rate HZ] [--output log|screen] [--aggregator true|false] [--rviz true|false]
+                      (--print | --write-only)
+
+--print: the generated XML on stdout; --write-only: write the files and print the launch file's path (then
+e.g. ``roslaunch --nodes PATH``). A bad fleet file: one error line and exit code 2.
+"""
+import argparse
+import ctypes
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import yaml
+
+from anafi_sim.experiments.fleet import aggregator_analyzers, drone_scenario, fleet_path, launch_xml, load_fleet
+from anafi_sim.harness import free_port, stop
+
+DEFAULT_OUT_DIR = os.path.join(os.path.expanduser('~'), '.ros', 'anafi_fleet')
+OUTPUTS = ('log', 'screen')
+
+
+def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output, aggregator, log=sys.stderr.write,
+             rviz=False):
+    """Write the scenarios (and the aggregator groups) and the launch file into out_dir; its path."""
+    fleet = load_fleet(fleet_name, drones)
+    out_dir = os.path.abspath(os.path.expanduser(out_dir))
+    os.makedirs(out_dir, exist_ok=True)
+    ports, files = {}, {}
+    for drone in fleet.drones:
+        if drone.source == 'sim':
+            port = drone.telemetry_port
+            while port is None or port in ports.values():
+                port = free_port()
+            ports[drone.name] = port
+        scenario = drone_scenario(drone)
+        if scenario is not None:
+            files[drone.name] = os.path.join(out_dir, '%s.scenario.yaml' % drone.name)
+            with open(files[drone.name], 'w') as f:
+                yaml.safe_dump(scenario, f, default_flow_style=None, sort_keys=False)
+    aggregator_file = ''
+    if aggregator:
+        aggregator_file = os.path.join(out_dir, 'diagnostics_aggregator.yaml')
+        with open(aggregator_file, 'w') as f:
+            yaml.safe_dump(aggregator_analyzers(fleet), f, default_flow_style=False, sort_keys=False)
+    xml = launch_xml(fleet, ports, files, out_dir, evaluate=evaluate, mirror=mirror, mirror_rate=mirror_rate,
+                     output=output, source=fleet_path(fleet_name), aggregator_file=aggregator_file,
+                     rviz=rviz)
+    path = os.path.join(out_dir, 'fleet.launch')
+    with open(path, 'w') as f:
+        f.write(xml)
+    for drone in fleet.drones:
+        log('fleet %s: %s (%s, %s%s)\n' % (fleet.name, drone.name, drone.source, drone.controller,
+                                           ', telemetry port %d' % ports[drone.name] if drone.name in ports else ''))
+    return path
+
+
+# ------------------------------------------------------------------------------------ the node
+PR_SET_PDEATHSIG = 1
+
+
+def _child_setup():
+    """In the fleet's roslaunch before exec: a session of its own (signals to our group do not hit it twice),
+    and SIGINT from the kernel when this node dies (Linux prctl PR_SET_PDEATHSIG), so the drones stop even if
+    this node is killed."""
+    os.setsid()
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGINT)
+    except (OSError, AttributeError):   # not Linux: stopping relies on cleanup()
+        pass
+
+
+class FleetLauncherNode(object):
+    def __init__(self):
+        import rospy
+        from anafi_sim.ros.node import private_params
+        self.rospy = rospy
+        p = private_params()
+        self.stop_timeout = p.positive('stop_timeout', 30.0)
+        self.path = generate(p.string('fleet', 'three_circles', allow_empty=False),
+                             p.integer('drones', 0, minimum=0), p.string('out_dir', DEFAULT_OUT_DIR, allow_empty=False),
+                             p.flag('evaluate', True), p.flag('mirror', True), p.positive('mirror_rate', 100.0),
+                             p.choice('output', 'log', OUTPUTS), p.flag('aggregator', False),
+                             log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False))   # ValueError: fatal, exit 2
+        self.child = None
+        self.code = 0
+
+    def spin(self):
+        rospy = self.rospy
+        rospy.loginfo('fleet_launcher: roslaunch %s', self.path)
+        self.child = subprocess.Popen(['roslaunch', self.path], stdin=subprocess.DEVNULL, preexec_fn=_child_setup)
+        while not rospy.is_shutdown() and self.child.poll() is None:
+            time.sleep(0.2)
+        if self.child.poll() is not None:
+            self.code = self.child.returncode
+            rospy.logerr('fleet_launcher: the fleet\'s roslaunch ended (exit code %d)', self.code)
+
+    def cleanup(self):
+        # the parent roslaunch escalates SIGINT -> SIGTERM -> SIGKILL; keep stopping the fleet meanwhile (if
+        # we are killed, the child gets SIGINT from the kernel: _child_setup) instead of dying half-way
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, signal.SIG_IGN)
+        if self.child is not None and self.child.poll() is None:
+            left = stop(self.child, grace=self.stop_timeout)
+            if left:
+                self.rospy.logwarn('fleet_launcher: processes still alive after stopping: %s', left)
+
+    def run(self):
+        from anafi_sim.ros.node import run_until_interrupted
+        run_until_interrupted(self.spin, self.cleanup, 'fleet stopped')
+        return self.code
+
+
+# ------------------------------------------------------------------------------------ the tool
+def flag(text):
+    """A roslaunch boolean: true / false (any case), 1 / 0."""
+    value = {'true': True, '1': True, 'false': False, '0': False}.get(text.strip().lower())
+    if value is None:
+        raise argparse.ArgumentTypeError('expected true or false, got %r' % text)
+    return value
+
+
+def tool(argv):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument('fleet', help='fleet file (path, or a name in anafi_sim/config/fleets)')
+    ap.add_argument('--drones', type=int, default=0, help='N > 0: N drones in a row from the file\'s defaults')
+    ap.add_argument('--out-dir', default=DEFAULT_OUT_DIR)
+    ap.add_argument('--evaluate', type=flag, default=True, metavar='true|false')
+    ap.add_argument('--mirror', type=flag, default=True, metavar='true|false')
+    ap.add_argument('--mirror-rate', type=float, default=100.0, help='Hz')
+    ap.add_argument('--output', default='log', choices=OUTPUTS)
+    ap.add_argument('--aggregator', type=flag, default=False, metavar='true|false')
+    ap.add_argument('--rviz', type=flag, default=False, metavar='true|false')
+    what = ap.add_mutually_exclusive_group(required=True)
+    what.add_argument('--print', dest='print_only', action='store_true')
+    what.add_argument('--write-only', action='store_true')
+    args = ap.parse_args(argv)
+    try:
+        path = generate(args.fleet, args.drones, args.out_dir, args.evaluate, args.mirror, args.mirror_rate,
+                        args.output, args.aggregator, rviz=args.rviz)
+    except ValueError as error:
+        sys.stderr.write('fleet_launcher: %s\n' % error)
+        return 2
+    if args.print_only:
+        with open(path) as f:
+            sys.stdout.write(f.read())
+    else:
+        sys.stdout.write(path + '\n')
+    return 0
+
+
+if __name__ == '__main__':
+    argv = [a for a in sys.argv[1:] if not a.startswith('__')]   # roslaunch's __name:= / __log:=
+    if argv:
+        sys.exit(tool(argv))
+    from anafi_sim.ros.node import run_node
+    run_node('fleet_launcher', FleetLauncherNode, fatal_exit_code=2, disable_signals=True)

@@ -1,0 +1,142 @@
+#!/usr/bin/env python3
+"""rostest (fleet.test): three drones in one kinematic world, started by fleet.launch from fleet_three.yaml.
+
+1. /gazebo/model_states holds the 3 x 2 models of the fleet (<name>, <name>_camera), and no other drone model;
+2. each drone reaches its own waypoint (the fleet file's, shifted by its offset: ground truth within 0.3 m
+   and 10 deg, held for 2 s), and the world's model <name> is there too (the mirror of each drone moves its
+   own model);
+3. no topic of one drone's namespace reaches another drone's nodes: through the master's system state,
+   every node under /<a>/ publishes and subscribes only topics under /<a>/ or shared ones (/diagnostics,
+   /rosout, /tf, /tf_static, /clock, /gazebo/...), and every topic under /<a>/ has only /<a>/ nodes at
+   both ends; each drone's chain is complete (simulator, interface, mirror, controller, generator).
+"""
+import math
+import threading
+import time
+import unittest
+
+import rosgraph
+import rospy
+import rostest
+from nav_msgs.msg import Odometry
+
+from anafi_control.frames import yaw_from_quaternion
+from anafi_sim.experiments.fleet import drone_scenario, load_fleet
+from anafi_sim.harness import wait_for
+from anafi_sim.ros import gazebo_types
+
+SHARED = ('/diagnostics', '/rosout', '/rosout_agg', '/tf', '/tf_static', '/clock')
+REACH_DISTANCE = 0.3   # m
+REACH_YAW = 10.0       # deg
+HOLD = 2.0             # s within reach
+
+
+def namespace(name):
+    """'/anafi1/pid/x' -> 'anafi1'; '/gazebo' -> '' (root)."""
+    parts = name.strip('/').split('/')
+    return parts[0] if len(parts) > 1 else ''
+
+
+class FleetTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('test_fleet')
+        cls.fleet = load_fleet(rospy.get_param('~fleet'))
+        cls.names = [d.name for d in cls.fleet.drones]
+        cls.goals = {}
+        for drone in cls.fleet.drones:
+            s = drone_scenario(drone)['trajectory']
+            cls.goals[drone.name] = (tuple(s['position']), s['yaw'])
+        cls.lock = threading.Lock()
+        cls.truth = {}
+        cls.reached = {}
+        cls.models = None
+        for name in cls.names:
+            rospy.Subscriber('/%s/ground_truth/odom' % name, Odometry, cls.on_truth, callback_args=name,
+                             queue_size=5)
+        rospy.Subscriber('/gazebo/model_states', gazebo_types.model_states_class(), cls.on_models, queue_size=1)
+
+    @classmethod
+    def on_truth(cls, msg, name):
+        p = msg.pose.pose.position
+        q = msg.pose.pose.orientation
+        yaw = math.degrees(yaw_from_quaternion(q.x, q.y, q.z, q.w))
+        (gx, gy, gz), gyaw = cls.goals[name]
+        dist = math.sqrt((p.x - gx) ** 2 + (p.y - gy) ** 2 + (p.z - gz) ** 2)
+        dyaw = abs((yaw - gyaw + 180.0) % 360.0 - 180.0)
+        now = time.monotonic()
+        with cls.lock:
+            cls.truth[name] = (p.x, p.y, p.z, yaw)
+            if dist < REACH_DISTANCE and dyaw < REACH_YAW:
+                cls.reached.setdefault(name, now)
+            else:
+                cls.reached.pop(name, None)
+
+    @classmethod
+    def on_models(cls, msg):
+        with cls.lock:
+            cls.models = dict((n, (p.position.x, p.position.y, p.position.z)) for n, p in zip(msg.name, msg.pose))
+
+    def test_1_three_times_two_models_in_the_world(self):
+        expected = set(self.names) | set(n + '_camera' for n in self.names)
+        ok = wait_for(lambda: self.models is not None and expected <= set(self.models), 90.0, 0.2)
+        with self.lock:
+            models = dict(self.models or {})
+        self.assertTrue(ok, 'models in /gazebo/model_states: %s, expected %s' % (sorted(models), sorted(expected)))
+        self.assertEqual(set(models) - expected, {'ground_plane'})
+
+    def test_2_each_drone_reaches_its_own_waypoint(self):
+        def all_held():
+            now = time.monotonic()
+            with self.lock:
+                return all(now - self.reached.get(n, now) >= HOLD for n in self.names) and \
+                    len(self.reached) == len(self.names)
+        ok = wait_for(all_held, 120.0, 0.2)
+        with self.lock:
+            truth, models = dict(self.truth), dict(self.models or {})
+        self.assertTrue(ok, 'drones at %s, waypoints %s' % (truth, self.goals))
+        for name in self.names:
+            (gx, gy, gz), _ = self.goals[name]
+            mx, my, mz = models[name]
+            self.assertLess(math.sqrt((mx - gx) ** 2 + (my - gy) ** 2 + (mz - gz) ** 2), REACH_DISTANCE + 0.1,
+                            'model %s at %s, its waypoint %s' % (name, models[name], self.goals[name]))
+
+    def test_3_no_topic_crosses_namespaces(self):
+        master = rosgraph.Master('/test_fleet')
+        chain = ('anafi_sim', 'interface', 'gazebo_mirror', 'trajectory_generator')
+        want = set('/%s/%s' % (n, c) for n in self.names for c in chain)
+        self.assertTrue(wait_for(lambda: want <= set(rosgraph.names.ns_join('/', n) for n in self._nodes(master)),
+                                 30.0, 0.5), 'nodes: %s' % sorted(self._nodes(master)))
+        pubs, subs, _ = master.getSystemState()
+        ends = 0
+        for role, entries in (('publishes', pubs), ('subscribes', subs)):
+            for topic, nodes in entries:
+                t_ns = namespace(topic)
+                for node in nodes:
+                    if node == rospy.get_name():   # this test listens to every drone
+                        continue
+                    n_ns = namespace(node)
+                    if n_ns in self.names:
+                        ends += 1
+                        shared = topic in SHARED or topic.startswith('/gazebo/')
+                        self.assertTrue(t_ns == n_ns or shared,
+                                        '%s (drone %s) %s %s' % (node, n_ns, role, topic))
+                    if t_ns in self.names:
+                        self.assertEqual(n_ns if n_ns in self.names else t_ns, t_ns,
+                                         '%s of drone %s has %s node %s' % (topic, t_ns, role, node))
+                        self.assertNotEqual(n_ns, '', '%s of drone %s: root node %s %s it'
+                                            % (topic, t_ns, node, role))
+        self.assertGreater(ends, 20 * len(self.names))
+        for name in self.names:
+            controller = [n for n in self._nodes(master) if n.startswith('/%s/' % name)
+                          and n.rsplit('/', 1)[-1] in ('mpc_controller', 'pid_framework', 'pid_command')]
+            self.assertTrue(controller, 'no controller node in /%s' % name)
+
+    @staticmethod
+    def _nodes(master):
+        pubs, subs, srvs = master.getSystemState()
+        return set(n for entries in (pubs, subs, srvs) for _, nodes in entries for n in nodes)
+
+
+if __name__ == '__main__':
+    rostest.rosrun('anafi_sim', 'test_fleet', FleetTest)

@@ -35,6 +35,14 @@ from anafi_sim.experiments.engine import Engine
 from anafi_sim.experiments.reference_log import write_log
 from anafi_sim.experiments.trajectory import load_scenario
 
+SYNC_SCHEDULE = collections.OrderedDict([('controller_phase', 0.0), ('generator_phase', 0.005), ('mpc_latency', 0.0)])
+"""Engine schedule overrides (``anafi_sim.experiments.engine.DEFAULT_SCHEDULE``) of a ROS run in lockstep
+(experiment.launch sync:=true): simulation time is held at 0 while the nodes start, so the controllers'
+timers run at 0.1 s multiples (controller_phase 0; the distributed PID's timers are at phase 0 by default);
+the trajectory generator starts its loop on the first /clock tick, held for a second (one physics step,
+5 ms); the simulator waits at the controller's tick for its command and applies it from that tick on (no
+command latency in simulation time: mpc_latency 0)."""
+
 TASK_DEFAULTS = collections.OrderedDict([
     ('scenario', None), ('controller', 'mpc'), ('seed', None), ('wind', None), ('params', None),
     ('schedule', None), ('state_source', 'estimate'), ('name', None), ('out_dir', None), ('plot', False),

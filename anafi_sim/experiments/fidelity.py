@@ -1,0 +1,746 @@
+"""Fidelity of the stand-in: closed-loop replay of the shared Sphinx reference logs (pure, no ROS).
+
+Stage: experiments (on top of ``anafi_sim.experiments.engine``). For one reference log (format of
+shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenario>_<pid|mpc>``:
+
+1. ``replay_plan``: the log's waypoint stream as the 10 Hz stream the controller saw. The waypoint columns
+   change at 10 Hz (every other 20 Hz sample); each change becomes one generator tick (consecutive changes
+   counted in ticks, so a phase slip of the logger does not skip or repeat a waypoint). The log time of a
+   tick is the median of (change time - tick / rate) minus ``latency`` (default half a log sample: the
+   waypoint was published somewhere in the 50 ms before the logger first shows it). Rows that are all zero
+   (the static PID logs hold wp = (0, 0, 0) while the drone hovers at 1 m before the step: "no waypoint
+   yet") are replaced by the hover point (the logged estimate's first position and yaw). A log that starts
+   in motion (the straight lines: a steady-state segment) gets a lead-in: the first waypoint extrapolated
+   backwards at its own velocity for ``lead`` s, so the controller has settled on the moving target when
+   the log begins. The ``Scenario`` (``anafi_sim.experiments.trajectory``): hover at the start for
+   ``approach`` s, the lead-in, then the replay (zero-order hold of the ticks), measured.
+2. ``run_replay``: the scenario on the in-process engine (``anafi_sim.experiments.engine.Engine``) with the
+   log's controller and the given model / controller parameters / schedule, and the stand-in's estimate
+   (as a 20 Hz logger sees it on average, ``standin_log``) and ground truth (interpolated, 100 Hz)
+   resampled at the log's own sample times:
+   ``standin_log`` has the log's time and waypoint columns, so both are evaluated by the same function.
+3. ``cells``: e_mu and e_max against the estimate and against ground truth with
+   ``reference_log.tracking_error`` (the function the paper's Table 3 recomputation uses, garbage excluded);
+   in a log whose 3-D estimate error is all garbage (x_straight_2/3_pid: z_anafi wrapped at 16 bit, the drone
+   sank below the ground under it) the horizontal error is the cell for both sources (``horizontal_sources``). ``history_rms``: rms difference of the ground-truth roll, pitch and
+   vertical speed of the stand-in against Sphinx over the log (same time base: log time, t = 0 at the log's
+   first sample; the replay starts the motion at the same log time as the log).
+4. ``compare``: per cell the stand-in value, Sphinx's and their ratio; ``within`` a band.
+
+Variants (``Variant``): a model dict (``anafi_sim/config/anafi_model.yaml`` = effects off, the fitted one =
+effects on, or one effect at a time: ``effect_variants``), MPC parameters (e.g. ``paper_timing``), engine
+schedule overrides (timer phases). ``run_log_variants`` / ``replay_all`` run them side by side;
+``render_markdown`` writes docs/fidelity.md (benchmarks/fidelity.py is the command line);
+``plot_replay`` one figure per log (matplotlib Agg). ``table3_runs``: the paper's straight-line scenarios
+(Table 3) on the engine for a variant.
+
+Units: positions [m], velocities [m/s] (ENU world), attitude [rad], waypoint yaw [deg], time [s].
+"""
+import collections
+import glob
+import math
+import os
+import re
+
+import numpy as np
+
+from anafi_sim.experiments import report
+from anafi_sim.experiments.engine import Engine
+from anafi_sim.experiments.evaluation import interpolate
+from anafi_sim.experiments.reference_log import (COLUMNS, STATE_NAMES, WAYPOINT_COLUMNS, ReferenceLog, read_log,
+                                                 tracking_error)
+from anafi_sim.experiments.trajectory import Phase, Scenario, WaypointSample
+
+CONTROLLERS = ('pid', 'mpc')
+LOG_NAME = re.compile(r'^(?P<scenario>.+)_(?P<controller>pid|mpc)$')
+SOURCES = ('estimate', 'truth')
+STATS = ('e_mu', 'e_max')
+CELLS = tuple((s, k) for s in SOURCES for k in STATS)      # (source, stat), the order of every table
+SOURCE_COLUMN = {'estimate': 'anafi', 'truth': 'sphinx'}
+HISTORIES = ('roll', 'pitch', 'vz')                          # ground-truth histories compared by rms
+DEFAULT_RATE = 10.0          # Hz, the waypoint stream (the generator's rate in the logs)
+DEFAULT_LEAD = 20.0          # s, lead-in of a log that starts in motion (PID at 5 m/s settles in ~15 s)
+APPROACH_MOVING = 10.0       # s, hover at the line's start before the lead-in (climb from take-off to 7 m)
+APPROACH_STATIC = 5.0        # s, hover at the hover point before the log's own hover
+TAIL = 0.3                   # s, replay beyond the log's last sample (the evaluator needs an estimate after it)
+
+ReplayPlan = collections.namedtuple('ReplayPlan', 'log name controller scenario tick_log_time tick_tau '
+                                                  'scenario_offset ticks slips markers moving shift')
+ReplayPlan.__doc__ = ('How a log is replayed: log (ReferenceLog), name, controller (pid|mpc), scenario (Scenario), '
+                      'tick_log_time (log time [s] of tick 0), tick_tau (trajectory time [s] of tick 0), '
+                      'scenario_offset (scenario time [s] of log time 0), ticks (number of waypoint changes '
+                      'replayed), slips (changes not a whole number of periods after the previous one: the logger\'s phase '
+                      'slipped; counted to the nearest tick, at least one), markers '
+                      '(all-zero rows replaced by the hover point), moving (the log starts in motion), shift ((x, y) [m] '
+                      'subtracted from the waypoints for the replay and added back to the stand-in\'s positions).')
+
+Variant = collections.namedtuple('Variant', 'name label model_params controller_params schedule plan controllers')
+Variant.__new__.__defaults__ = (None, None, None, None, None)
+Variant.__doc__ = ('One configuration of the stand-in: name (short id), label (for tables), model_params (model '
+                   'dict, None = anafi_model.yaml), controller_params ({"mpc": {...}, "pid": {...}} or None), '
+                   'schedule (engine schedule overrides or None), plan (``replay_plan`` keyword arguments, e.g. '
+                   'latency, or None), controllers (the controllers it applies to, None = all).')
+
+Replay = collections.namedtuple('Replay', 'plan variant ok error standin cells histories info')
+Replay.__doc__ = ('One replay: plan, variant, ok, error, standin (ReferenceLog on the log\'s grid or None), cells '
+                  '({(source, stat): value}), histories ({name: rms}), info (the engine\'s run figures).')
+
+
+# ---------------------------------------------------------------------------------------------- logs
+def parse_name(name):
+    """(scenario, controller) of a log name such as 'x_straight_3_mpc'; ValueError when it names none."""
+    m = LOG_NAME.match(name)
+    if not m:
+        raise ValueError('reference log %r: the name must end in _pid or _mpc (the controller that flew it)' % name)
+    return m.group('scenario'), m.group('controller')
+
+
+def find_logs(directory):
+    """Sorted paths of the reference-log CSVs in ``directory`` ([] when it does not exist)."""
+    if not directory or not os.path.isdir(directory):
+        return []
+    return sorted(glob.glob(os.path.join(directory, '*.csv')))
+
+
+def load_logs(directory):
+    """The ``ReferenceLog`` of every CSV in ``directory`` whose name says pid or mpc, in name order."""
+    logs = []
+    for path in find_logs(directory):
+        log = read_log(path)
+        if LOG_NAME.match(log.name):
+            logs.append(log)
+    return logs
+
+
+def _is_marker(row):
+    return bool(np.all(row == 0.0))
+
+
+def hover_point(log):
+    """(x, y, z [m], yaw [deg]) of the logged estimate at the log's first sample (NaN-free fallback 0, 0, 1)."""
+    p = [float(log.columns[c][0]) for c in ('x_anafi', 'y_anafi', 'z_anafi')]
+    yaw = float(log.columns['yaw_anafi'][0])
+    if not all(math.isfinite(v) and abs(v) < 1e3 for v in p):
+        p = [0.0, 0.0, 1.0]
+    return (p[0], p[1], p[2], math.degrees(yaw) if math.isfinite(yaw) else 0.0)
+
+
+class ReplayTrajectory(object):
+    """The logged waypoint stream as a trajectory: zero-order hold of one value per 10 Hz tick.
+
+    ``values`` (K, 7): the waypoint of ticks 0..K-1 (x, y, z, vx, vy, vz, yaw [deg]; K >= 1); ``tick_tau``:
+    trajectory time [s] of tick 0 (a multiple of 1/rate, >= 0). Before tick 0 the first value extrapolated
+    backwards at its own velocity (the lead-in); after the last tick the last value. A trajectory time is
+    mapped to the nearest tick (the generator ticks at multiples of 1/rate of trajectory time).
+    """
+
+    kind = 'replay'
+
+    def __init__(self, values, tick_tau, rate=DEFAULT_RATE):
+        self.values = np.asarray(values, dtype=np.float64).reshape(-1, 7)
+        if not len(self.values):
+            raise ValueError('a replay needs at least one waypoint')
+        self.rate = float(rate)
+        self.tick0 = int(round(float(tick_tau) * self.rate))
+
+    def tick(self, t):
+        """Tick index (relative to tick 0) of trajectory time ``t`` [s]."""
+        return int(round(float(t) * self.rate)) - self.tick0
+
+    def sample(self, t):
+        """``WaypointSample`` at trajectory time ``t`` [s]."""
+        j = self.tick(t)
+        if j < 0:
+            v = self.values[0]
+            dt = j / self.rate
+            return WaypointSample(v[0] + v[3] * dt, v[1] + v[4] * dt, v[2] + v[5] * dt, v[3], v[4], v[5], v[6])
+        v = self.values[min(j, len(self.values) - 1)]
+        return WaypointSample(*[float(x) for x in v])
+
+    __call__ = sample
+
+    def period(self):
+        """None: not periodic."""
+        return None
+
+
+def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latency=None, controller=None):
+    """The ``ReplayPlan`` of ``log`` (see the module doc).
+
+    rate [Hz]: the waypoint stream's; lead [s]: lead-in for a log that starts in motion; approach [s]: hover
+    at the start first (default ``APPROACH_MOVING`` / ``APPROACH_STATIC``); latency [s]: how long before the
+    logger's first sample of a new waypoint it was published (default half the log's sample period);
+    controller: 'pid' | 'mpc' (default from the log's name).
+    """
+    if controller is None:
+        controller = parse_name(log.name)[1]
+    wp = log.waypoint()
+    n = len(wp)
+    if n < 2:
+        raise ValueError('%s: too short to replay (%d samples)' % (log.name, n))
+    if not np.all(np.isfinite(wp)):
+        raise ValueError('%s: the waypoint columns have non-finite values' % log.name)
+    t = log.t
+    if latency is None:
+        latency = 0.5 * float(np.median(np.diff(t)))
+    hover = hover_point(log)
+    markers = 0
+    clean = wp.copy()
+    for i in range(n):
+        if _is_marker(wp[i]):
+            clean[i] = (hover[0], hover[1], hover[2], 0.0, 0.0, 0.0, hover[3])
+            markers += 1
+    changes = [i for i in range(1, n) if np.any(clean[i] != clean[i - 1])]
+    period = 1.0 / rate
+    # tick -1: the value the log starts with; ticks 0..: the changes, counted in whole periods
+    ticks = [0]
+    slips = 0
+    for a, b in zip(changes, changes[1:]):
+        gap = (t[b] - t[a]) / period
+        ticks.append(ticks[-1] + max(1, int(round(gap))))
+        if abs(gap - round(gap)) > 0.25 or round(gap) < 1:
+            slips += 1
+    if changes:
+        t_change = np.array([t[i] for i in changes])
+        tick_log_time = float(np.median(t_change - np.array(ticks) * period)) - latency
+        values = [clean[changes[0] - 1]] + [None] * (ticks[-1] + 1)
+        for k, i in zip(ticks, changes):
+            values[k + 1] = clean[i]
+        for k in range(1, len(values)):         # ticks between two changes hold the earlier one
+            if values[k] is None:
+                values[k] = values[k - 1]
+        # the value of tick -1 becomes the first of the trajectory, one period before tick 0
+        tick_log_time -= period
+    else:
+        values = [clean[0]]
+        tick_log_time = 0.0
+    moving = bool(np.any(clean[0, 3:6] != 0.0))
+    if approach is None:
+        approach = APPROACH_MOVING if moving else APPROACH_STATIC
+    lead_in = float(lead) if moving else 0.0
+    # trajectory time tau of log time 0 must be >= lead_in; ticks at multiples of the period of tau
+    first_tick_tau = math.ceil((lead_in - tick_log_time) * rate - 1e-9) * period
+    first_tick_tau = max(first_tick_tau, 0.0)
+    tau_log0 = first_tick_tau - tick_log_time            # trajectory time of log time 0
+    if tau_log0 < 0.0:                                   # the stream starts after the log: shift by whole ticks
+        shift = math.ceil(-tau_log0 * rate - 1e-9) * period
+        first_tick_tau += shift
+        tau_log0 += shift
+    # replay in a frame shifted horizontally so that the start (the lead-in's first point) is above the
+    # take-off point: the dynamics do not depend on x, y, and the waypoint limits (geofence, jump from the
+    # drone) hold for the logs far from the origin (x_straight_5: x = 153 .. 300 m)
+    values = np.array(values, dtype=np.float64)
+    start = ReplayTrajectory(values, first_tick_tau, rate).sample(0.0)
+    shift = (float(start.x), float(start.y))
+    values[:, 0] -= shift[0]
+    values[:, 1] -= shift[1]
+    trajectory = ReplayTrajectory(values, first_tick_tau, rate)
+    duration = float(t[-1]) + TAIL
+    phases = [Phase('approach', float(approach), True, False)]
+    if tau_log0 > 1e-9:
+        phases.append(Phase('lead', tau_log0, False, False))
+    phases.append(Phase('replay', duration, False, True))
+    scenario = Scenario('replay_%s' % log.name, trajectory, phases,
+                        description='closed-loop replay of the reference log %s' % log.name)
+    scenario_offset = float(approach) + tau_log0        # scenario time of log time 0
+    return ReplayPlan(log, log.name, controller, scenario, tick_log_time, first_tick_tau, scenario_offset,
+                      len(changes), slips, markers, moving, shift)
+
+
+# ---------------------------------------------------------------------------------------------- runs
+def estimate_samples(t_publish, rows, rate):
+    """The estimate's own sample stream from its published copies: the estimate changes at multiples of
+    1/``rate`` [s] of simulation time (``anafi_sim.sim.state_estimate``) and is republished at the bridge's
+    rate; each publish carries the value of the latest multiple at or before it. Returns (times [s] of the
+    multiples, rows), one per multiple (the first publish of each)."""
+    t_publish = np.asarray(t_publish, dtype=np.float64)
+    rows = np.asarray(rows, dtype=np.float64).reshape(len(t_publish), -1)
+    ticks = np.floor(t_publish * rate + 1e-6)
+    keep = np.ones(len(ticks), dtype=bool)
+    keep[1:] = ticks[1:] != ticks[:-1]
+    return ticks[keep] / rate, rows[keep]
+
+
+def standin_log(plan, engine):
+    """The stand-in's run as a ``ReferenceLog`` on ``plan.log``'s sample times and waypoint columns.
+
+    Ground truth: the 100 Hz samples interpolated (angles unwrapped). Estimate: as a 20 Hz logger whose
+    phase drifts against the estimate's (Sphinx's estimate changes at 19.5 Hz, the logs sample at 20 Hz)
+    sees it on average: the estimate's own samples (``estimate_samples``) interpolated half a sample period
+    back (the mean of a zero-order hold over a uniform phase; a fixed phase would bias e by up to half a
+    sample of motion, 0.025 m at 1 m/s). NaN where the run has no sample. ``engine``: an Engine after
+    ``run()``."""
+    log = plan.log
+    if engine.started_at is None:
+        raise ValueError('the replay of %s never started (the monitor\'s start rule did not pass)' % plan.name)
+    t_sim = float(engine.started_at) + plan.scenario_offset + log.t           # sim time of each log sample
+    streams = engine.evaluator.streams
+    est = list(streams['estimate'])
+    truth = list(streams['truth'])
+    columns = collections.OrderedDict()
+    if est:
+        rate = float(engine.model_params['estimate_rate'])
+        t_est, rows = estimate_samples([s * 1e-9 for s, _ in est], [r for _, r in est], rate)
+        est_rows = interpolate(t_est, rows, t_sim - 0.5 / rate, max_gap=0.5, angle_columns=(6, 7, 8))
+    else:
+        est_rows = np.full((len(log), 9), np.nan)
+    if truth:
+        t_tr = np.array([s for s, _ in truth], dtype=np.float64) * 1e-9
+        rows = np.array([r for _, r in truth], dtype=np.float64)
+        truth_rows = interpolate(t_tr, rows, t_sim, max_gap=0.5, angle_columns=(6, 7, 8))
+    else:
+        truth_rows = np.full((len(log), 9), np.nan)
+    for rows in (truth_rows, est_rows):
+        rows[:, 0] += plan.shift[0]
+        rows[:, 1] += plan.shift[1]
+    for j, name in enumerate(STATE_NAMES):
+        columns['%s_sphinx' % name] = truth_rows[:, j]
+    for j, name in enumerate(STATE_NAMES):
+        columns['%s_anafi' % name] = est_rows[:, j]
+    for name in WAYPOINT_COLUMNS:
+        columns[name] = np.array(log.columns[name], dtype=np.float64)
+    ordered = collections.OrderedDict((c, columns[c]) for c in COLUMNS[1:])
+    return ReferenceLog(ordered, log.time_ns.copy(), path=log.path)
+
+
+def horizontal_sources(log):
+    """The sources whose cells are horizontal in ``log``: both when no 3-D estimate sample is valid (the
+    controller flew on a garbage altitude, e.g. x_straight_2/3_pid: z_anafi wrapped at 16 bit, and Sphinx's
+    drone sank 128-277 m below the ground under it, so the vertical of the truth is no flight either), else
+    those without a valid 3-D sample."""
+    out = set()
+    for source in SOURCES:
+        if tracking_error(log, SOURCE_COLUMN[source], exclude_garbage=True).stats.n_valid == 0:
+            out.add(source)
+    if 'estimate' in out:
+        out.add('truth')
+    return out
+
+
+def cells(log, horizontal=None):
+    """{(source, stat): value [m]} of a log: e_mu and e_max against the estimate and ground truth
+    (``reference_log.tracking_error``, garbage excluded), horizontal for the sources in ``horizontal``
+    (default ``horizontal_sources(log)``; give the reference log's set when evaluating a replay of it).
+    Also {'horizontal': that set}."""
+    horizontal = horizontal_sources(log) if horizontal is None else set(horizontal)
+    out = collections.OrderedDict()
+    for source in SOURCES:
+        te = tracking_error(log, SOURCE_COLUMN[source], exclude_garbage=True)
+        stats = te.stats_h if source in horizontal else te.stats
+        out[(source, 'e_mu')] = stats.mean
+        out[(source, 'e_max')] = stats.max
+    out['horizontal'] = horizontal
+    return out
+
+
+def history_rms(reference, standin, names=HISTORIES):
+    """{name: rms difference} of the ground-truth histories (roll, pitch [rad], vz [m/s]) of ``standin`` vs
+    ``reference`` on their common sample times (both ReferenceLogs on the same grid; NaN pairs skipped)."""
+    out = collections.OrderedDict()
+    for name in names:
+        a = np.asarray(reference.columns['%s_sphinx' % name], dtype=np.float64)
+        b = np.asarray(standin.columns['%s_sphinx' % name], dtype=np.float64)
+        ok = np.isfinite(a) & np.isfinite(b) & (np.abs(a) < 100.0)
+        out[name] = float(np.sqrt(np.mean((a[ok] - b[ok]) ** 2))) if ok.any() else float('nan')
+    return out
+
+
+def _controller_params(variant, controller):
+    params = (variant.controller_params or {}).get(controller) if variant is not None else None
+    return dict(params) if params else None
+
+
+def run_replay(plan, variant=None, seed=None):
+    """Replay ``plan`` on the engine with ``variant`` (None: the shipped defaults); ``Replay``."""
+    name = variant.name if variant is not None else 'default'
+    try:
+        engine = Engine(plan.scenario, plan.controller, seed=seed,
+                        controller_params=_controller_params(variant, plan.controller),
+                        schedule=variant.schedule if variant is not None else None,
+                        model_params=variant.model_params if variant is not None else None,
+                        name='%s_%s' % (plan.name, name),
+                        max_sim_time=plan.scenario.duration + 60.0)
+        result = engine.run()
+    except (ValueError, RuntimeError, KeyError) as error:
+        return Replay(plan, variant, False, '%s: %s' % (type(error).__name__, error), None, {}, {}, {})
+    if not result.ok:
+        return Replay(plan, variant, False, result.error, None, {}, {}, result.info)
+    standin = standin_log(plan, engine)
+    return Replay(plan, variant, True, '', standin, cells(standin, horizontal_sources(plan.log)),
+                  history_rms(plan.log, standin), result.info)
+
+
+def reference_cells(log):
+    """``cells`` of the Sphinx log itself (the reference values)."""
+    return cells(log)
+
+
+def compare(reference, replay_cells):
+    """{(source, stat): (stand-in, Sphinx, ratio)} (ratio NaN when either is missing)."""
+    out = collections.OrderedDict()
+    for key in CELLS:
+        ref = reference.get(key, float('nan'))
+        val = replay_cells.get(key, float('nan'))
+        ratio = val / ref if (math.isfinite(ref) and math.isfinite(val) and ref > 0) else float('nan')
+        out[key] = (val, ref, ratio)
+    return out
+
+
+def within(ratio, band):
+    """True when ``ratio`` is finite and |ratio - 1| <= band."""
+    return math.isfinite(ratio) and abs(ratio - 1.0) <= band + 1e-12
+
+
+def _run_one(args):
+    """Worker: (log path, variant, seed) -> plain record (picklable)."""
+    path, variant, seed = args
+    log = read_log(path)
+    plan = replay_plan(log, **((variant.plan if variant is not None else None) or {}))
+    rep = run_replay(plan, variant, seed=seed)
+    return replay_record(rep)
+
+
+def replay_record(rep):
+    """A plain dict of a ``Replay`` (for YAML and worker processes): name, controller, variant, ok, error,
+    cells {source: {stat: value}}, reference cells, ratios, histories, horizontal sources, info figures,
+    and the stand-in's columns needed for plots (t, truth/estimate x y z vz roll pitch)."""
+    plan = rep.plan
+    ref = reference_cells(plan.log)
+    variant = rep.variant.name if rep.variant is not None else 'default'
+    rec = collections.OrderedDict([('log', plan.name), ('controller', plan.controller), ('variant', variant),
+                                   ('name', '%s [%s]' % (plan.name, variant)), ('ok', bool(rep.ok)),
+                                   ('error', rep.error)])
+    rec['reference'] = dict(('%s_%s' % k, _num(ref[k])) for k in CELLS)
+    rec['standin'] = dict(('%s_%s' % k, _num(rep.cells.get(k, float('nan')))) for k in CELLS)
+    rec['ratio'] = dict(('%s_%s' % k, _num(v[2])) for k, v in compare(ref, rep.cells).items())
+    rec['horizontal'] = sorted(ref['horizontal'] | set(rep.cells.get('horizontal', ())))
+    rec['histories'] = dict((k, _num(v)) for k, v in rep.histories.items())
+    info = rep.info or {}
+    rec['hover_commands'] = info.get('hover_commands')
+    rec['wall_s'] = info.get('wall_s')
+    rec['info'] = dict(achieved_rtf=info.get('achieved_rtf'))
+    rec['ticks'] = plan.ticks
+    rec['markers'] = plan.markers
+    if rep.standin is not None:
+        rec['series'] = dict((c, rep.standin.columns[c].tolist()) for c in PLOT_COLUMNS)
+    return rec
+
+
+PLOT_COLUMNS = ('x_anafi', 'y_anafi', 'z_anafi', 'x_sphinx', 'y_sphinx', 'z_sphinx', 'vz_sphinx', 'roll_sphinx',
+                'pitch_sphinx')
+
+
+def _num(v):
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return None
+    return round(v, 5) if math.isfinite(v) else None
+
+
+def applies(variant, path_or_name):
+    """True when ``variant`` is meant for the controller of that log (``Variant.controllers``)."""
+    if variant is None or not variant.controllers:
+        return True
+    name = os.path.splitext(os.path.basename(str(path_or_name)))[0]
+    return parse_name(name)[1] in variant.controllers
+
+
+def replay_all(paths, variants, seed=None, workers=1, progress=None):
+    """Replay every log (paths) with every variant that applies to its controller; {(log name, variant
+    name): record}. Runs through ``anafi_sim.experiments.runs.execute`` (``workers`` processes)."""
+    from anafi_sim.experiments import runs
+    tasks = [(p, v, seed) for v in variants for p in paths if applies(v, p)]
+    records = runs.execute(tasks, workers=workers, progress=progress, label='fidelity', function=_run_one)
+    return collections.OrderedDict(((r['log'], r['variant']), r) for r in records)
+
+
+# ---------------------------------------------------------------------------------------------- variants
+def effect_groups(fitted):
+    """{effect name: {model keys}} of the fidelity effects a fitted model dict switches on (the keys whose
+    value differs from the effects-off model; the estimate's delay/smoothing refit goes with the fusion)."""
+    groups = collections.OrderedDict([
+        ('position_fusion', ('estimate_position_fusion', 'estimate_position_fix_delay',
+                             'estimate_position_fix_gain', 'estimate_delay', 'estimate_time_constant')),
+        ('tilt_attenuation', ('tilt_attenuation',)),
+        ('max_descent_speed', ('max_descent_speed',)),
+        ('yaw_bias', ('estimate_yaw_bias',)),
+        ('quantisation', ('estimate_quantum_x', 'estimate_quantum_y', 'estimate_quantum_z',
+                          'estimate_quantum_velocity')),
+    ])
+    return collections.OrderedDict((k, tuple(x for x in keys if x in fitted)) for k, keys in groups.items())
+
+
+def effect_variants(off, fitted):
+    """One model dict per effect: ``off`` with only that effect's keys from ``fitted``; {name: dict}
+    (effects whose fitted values equal the off values are left out: nothing to switch)."""
+    out = collections.OrderedDict()
+    for name, keys in effect_groups(fitted).items():
+        model = dict(off)
+        changed = False
+        for k in keys:
+            if model.get(k) != fitted[k]:
+                changed = True
+            model[k] = fitted[k]
+        if changed:
+            out[name] = model
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- Table 3
+def _table3_one(args):
+    scenario, controller, variant, seed = args
+    engine = Engine(scenario, controller, seed=seed,
+                    controller_params=_controller_params(variant, controller),
+                    schedule=variant.schedule if variant is not None else None,
+                    model_params=variant.model_params if variant is not None else None)
+    result = engine.run()
+    s = result.summary or {}
+    name = variant.name if variant is not None else 'default'
+    return dict(scenario=scenario, controller=controller, variant=name, name='%s_%s [%s]' % (scenario, controller, name),
+                wall_s=result.info.get('wall_s'), ok=result.ok, error=result.error,
+                e_mu=(s.get('estimate') or {}).get('e_mu'), e_mu_truth=(s.get('truth') or {}).get('e_mu'),
+                e_max=(s.get('estimate') or {}).get('e_max'))
+
+
+def table3_runs(variants, seed=None, workers=1, progress=None):
+    """The paper's straight-line scenarios (Table 3: straight_1..5, PID and MPC) on the engine for every
+    variant; {(variant, controller, speed): record with e_mu (vs estimate, the paper's), e_mu_truth}."""
+    from anafi_sim.experiments import runs
+    tasks = [(s, c, v, seed) for v in variants for c in report.CONTROLLERS for s in report.STRAIGHT
+             if v is None or not v.controllers or c in v.controllers]
+    records = runs.execute(tasks, workers=workers, progress=progress, label='table3', function=_table3_one)
+    out = collections.OrderedDict()
+    for r in records:
+        out[(r['variant'], r['controller'], int(r['scenario'].rsplit('_', 1)[1]))] = r
+    return out
+
+
+def table3_ratios(records, variant):
+    """{(controller, speed): stand-in e_mu / paper's Table 3} of one variant."""
+    out = collections.OrderedDict()
+    for c in report.CONTROLLERS:
+        for k, paper in enumerate(report.PAPER_TABLE3[c]):
+            r = records.get((variant, c, k + 1))
+            v = r.get('e_mu') if r else None
+            out[(c, k + 1)] = (v / paper) if v is not None else float('nan')
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- figures
+def plot_replay(path, log, series, title=None, dpi=80):
+    """One figure per log: Sphinx (black) and each stand-in variant (``series``: [(label, record['series'])]):
+    the main axis position (estimate solid, truth dotted) with the waypoint, the tracking error against the
+    estimate, the truth pitch and roll, the truth vertical speed; time = log time [s]."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    t = log.t
+    fig = Figure(figsize=(9.0, 9.0))
+    FigureCanvasAgg(fig)
+    axes = [fig.add_subplot(5, 1, i + 1) for i in range(5)]
+    wp = log.waypoint()
+    span = np.nanmax(wp[:, :3], axis=0) - np.nanmin(wp[:, :3], axis=0)
+    moving = bool(np.any(wp[:, 3:6] != 0.0))
+    colors = ('#1f77b4', '#d62728', '#2ca02c', '#ff7f0e', '#9467bd', '#8c564b')
+
+    def err(xyz_wp, xyz):
+        return np.sqrt(np.sum((xyz_wp - xyz) ** 2, axis=1))
+    if moving:       # position along the motion minus the waypoint: the lag
+        axis = int(np.argmax(span))
+        name = 'xyz'[axis]
+        axes[0].plot(t, log.columns['%s_anafi' % name] - wp[:, axis], 'k-', lw=1.2, label='Sphinx estimate')
+        axes[0].plot(t, log.columns['%s_sphinx' % name] - wp[:, axis], 'k:', lw=1.2, label='Sphinx truth')
+        for (label, s), c in zip(series, colors):
+            axes[0].plot(t, np.asarray(s['%s_anafi' % name]) - wp[:, axis], '-', color=c, lw=1, label=label)
+            axes[0].plot(t, np.asarray(s['%s_sphinx' % name]) - wp[:, axis], ':', color=c, lw=1)
+        axes[0].set_ylabel('%s - wp_%s [m]' % (name, name))
+    else:
+        for axis, ls in ((0, '-'), (2, '--')):
+            name = 'xyz'[axis]
+            axes[0].plot(t, log.columns['%s_anafi' % name], 'k' + ls, lw=1.2, label='Sphinx %s' % name)
+            for (label, s), c in zip(series, colors):
+                axes[0].plot(t, s['%s_anafi' % name], ls, color=c, lw=1, label='%s %s' % (label, name))
+        axes[0].plot(t, wp[:, 0], color='0.6', lw=0.8, label='wp x')
+        axes[0].plot(t, wp[:, 2], '--', color='0.6', lw=0.8, label='wp z')
+        axes[0].set_ylabel('x, z (estimate) [m]')
+    p_log = log.position('anafi')
+    axes[1].plot(t, err(wp[:, :3], p_log), 'k-', lw=1.2, label='Sphinx')
+    for (label, s), c in zip(series, colors):
+        p = np.column_stack([s['x_anafi'], s['y_anafi'], s['z_anafi']])
+        axes[1].plot(t, err(wp[:, :3], p), '-', color=c, lw=1, label=label)
+    axes[1].set_ylabel('e vs estimate [m]')
+    for ax, name, unit, scale in ((axes[2], 'pitch', 'deg', 180.0 / math.pi), (axes[3], 'roll', 'deg', 180.0 / math.pi),
+                                  (axes[4], 'vz', 'm/s', 1.0)):
+        col = '%s_sphinx' % name
+        ax.plot(t, log.columns[col] * scale, 'k-', lw=1.2, label='Sphinx')
+        for (label, s), c in zip(series, colors):
+            ax.plot(t, np.asarray(s[col], dtype=np.float64) * scale, '-', color=c, lw=1, label=label)
+        ax.set_ylabel('truth %s [%s]' % (name, unit))
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.tick_params(labelsize=8)
+        ax.yaxis.label.set_size(8)
+    axes[0].legend(fontsize=7, ncol=3, loc='best')
+    axes[1].legend(fontsize=7, ncol=3, loc='best')
+    axes[-1].set_xlabel('log time [s]')
+    fig.suptitle(title or log.name, fontsize=10)
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    directory = os.path.dirname(path)
+    if directory and not os.path.isdir(directory):
+        os.makedirs(directory, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    return path
+
+
+# ---------------------------------------------------------------------------------------------- report
+BANDS = (0.10, 0.15, 0.25)
+CELL_LABELS = {('estimate', 'e_mu'): 'e_mu est', ('estimate', 'e_max'): 'e_max est',
+               ('truth', 'e_mu'): 'e_mu truth', ('truth', 'e_max'): 'e_max truth'}
+
+
+def fmt(value, digits=3):
+    """A number for a table ('-' when missing)."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return '-'
+    return '%.*f' % (digits, value)
+
+
+def ratio_text(ratio, band=BANDS[0]):
+    """'0.97' inside the band, '**1.35**' outside, '-' when missing."""
+    if ratio is None or not math.isfinite(ratio):
+        return '-'
+    return ('%.2f' if within(ratio, band) else '**%.2f**') % ratio
+
+
+def _key(cell):
+    return '%s_%s' % cell
+
+
+def record_ratios(record):
+    """[(log, cell, ratio)] of a replay record (ratio None when missing)."""
+    return [(record['log'], cell, record['ratio'].get(_key(cell))) for cell in CELLS]
+
+
+def combined(records, models, mpc_variant, pid_variant):
+    """Records of one configuration: the PID logs from ``pid_variant``, the MPC logs from ``mpc_variant``
+    (a timing option of the MPC does not change the PID runs); [record]."""
+    out = []
+    for (log, variant), rec in records.items():
+        want = mpc_variant if rec['controller'] == 'mpc' else pid_variant
+        if variant == want and log in models:
+            out.append(rec)
+    return out
+
+
+def score(records, band=BANDS[0]):
+    """(cells within ``band``, cells with a ratio, mean |ln ratio|) over replay records."""
+    ratios = [r for rec in records for _, _, r in record_ratios(rec) if r is not None and r > 0]
+    inside = sum(1 for r in ratios if within(r, band))
+    return inside, len(ratios), (float(np.mean([abs(math.log(r)) for r in ratios])) if ratios else float('nan'))
+
+
+def replay_table(records, logs, columns):
+    """Markdown table: one row per log and cell, Sphinx's value then per column (title, variant name of the
+    PID logs, variant name of the MPC logs) the stand-in's value and its ratio to Sphinx."""
+    head = '| log | cell | Sphinx [m] | ' + ' | '.join('%s [m] | ratio' % title for title, _, _ in columns) + ' |'
+    lines = [head, '|' + '---|' * (3 + 2 * len(columns))]
+    for log in logs:
+        for cell in CELLS:
+            ref = None
+            parts = []
+            horizontal = False
+            for _, pid_v, mpc_v in columns:
+                ctrl = parse_name(log)[1]
+                rec = records.get((log, mpc_v if ctrl == 'mpc' else pid_v))
+                if rec is None:
+                    parts += ['-', '-']
+                    continue
+                ref = rec['reference'].get(_key(cell))
+                horizontal = horizontal or cell[0] in rec.get('horizontal', ())
+                if not rec['ok']:
+                    parts += ['failed', '-']
+                    continue
+                parts += [fmt(rec['standin'].get(_key(cell))), ratio_text(rec['ratio'].get(_key(cell)))]
+            label = CELL_LABELS[cell] + (' (horizontal)' if horizontal else '')
+            lines.append('| %s | %s | %s | %s |' % (log, label, fmt(ref), ' | '.join(parts)))
+    return '\n'.join(lines)
+
+
+def score_table(records, logs, columns, bands=BANDS):
+    """Markdown table: per configuration the cells within each band (all, PID, MPC, estimate, truth) and the
+    mean |ln ratio|."""
+    lines = ['| configuration | ' + ' | '.join('within +-%d %%' % round(100 * b) for b in bands)
+             + ' | PID +-10 % | MPC +-10 % | estimate +-10 % | truth +-10 % | mean abs ln(ratio) |',
+             '|' + '---|' * (len(bands) + 6)]
+    for title, pid_v, mpc_v in columns:
+        recs = combined(records, logs, mpc_v, pid_v)
+        parts = []
+        for b in bands:
+            k, n, _ = score(recs, b)
+            parts.append('%d / %d' % (k, n))
+        for subset in (('pid',), ('mpc',)):
+            k, n, _ = score([r for r in recs if r['controller'] in subset])
+            parts.append('%d / %d' % (k, n))
+        for source in SOURCES:
+            ratios = [r for rec in recs for _, cell, r in record_ratios(rec) if cell[0] == source and r]
+            parts.append('%d / %d' % (sum(1 for r in ratios if within(r, BANDS[0])), len(ratios)))
+        parts.append(fmt(score(recs)[2]))
+        lines.append('| %s | %s |' % (title, ' | '.join(parts)))
+    return '\n'.join(lines)
+
+
+def history_table(records, logs, columns):
+    """Markdown table: rms difference of the truth roll, pitch [deg] and vertical speed [m/s] vs Sphinx."""
+    lines = ['| log | ' + ' | '.join('%s roll / pitch [deg], vz [m/s]' % t for t, _, _ in columns) + ' |',
+             '|' + '---|' * (1 + len(columns))]
+    for log in logs:
+        parts = []
+        for _, pid_v, mpc_v in columns:
+            rec = records.get((log, mpc_v if parse_name(log)[1] == 'mpc' else pid_v))
+            h = (rec or {}).get('histories') or {}
+            deg = [None if h.get(k) is None else math.degrees(h[k]) for k in ('roll', 'pitch')]
+            parts.append('%s / %s, %s' % (fmt(deg[0], 2), fmt(deg[1], 2), fmt(h.get('vz'), 3)))
+        lines.append('| %s | %s |' % (log, ' | '.join(parts)))
+    return '\n'.join(lines)
+
+
+def table3_table(t3, columns):
+    """Markdown table: Table 3 (e_mu vs estimate, straight lines) of the paper and of each configuration."""
+    lines = ['| controller | speed [m/s] | paper [m] | ' + ' | '.join('%s [m] | ratio' % t for t, _, _ in columns)
+             + ' |', '|' + '---|' * (3 + 2 * len(columns))]
+    for c in report.CONTROLLERS:
+        for k, paper in enumerate(report.PAPER_TABLE3[c]):
+            parts = []
+            for _, pid_v, mpc_v in columns:
+                r = t3.get((mpc_v if c == 'mpc' else pid_v, c, k + 1))
+                v = r.get('e_mu') if r and r.get('ok') else None
+                parts += [fmt(v), ratio_text(v / paper if v is not None else None)]
+            lines.append('| %s | %d | %.2f | %s |' % (report.LABELS[c], k + 1, paper, ' | '.join(parts)))
+    return '\n'.join(lines)
+
+
+def table3_score(t3, pid_v, mpc_v, band=BANDS[0]):
+    """(cells of Table 3 within ``band``, cells, mean |ln ratio|) of a configuration."""
+    ratios = []
+    for c in report.CONTROLLERS:
+        for k, paper in enumerate(report.PAPER_TABLE3[c]):
+            r = t3.get((mpc_v if c == 'mpc' else pid_v, c, k + 1))
+            if r and r.get('ok') and r.get('e_mu'):
+                ratios.append(r['e_mu'] / paper)
+    inside = sum(1 for r in ratios if within(r, band))
+    return inside, len(ratios), (float(np.mean([abs(math.log(r)) for r in ratios])) if ratios else float('nan'))
+
+
+def ratio_matrix(records, logs, names, title='variant'):
+    """Markdown table of ratios only: one row per log and cell, one column per variant name."""
+    lines = ['| log | cell | ' + ' | '.join(names) + ' |', '|' + '---|' * (2 + len(names))]
+    for log in logs:
+        for cell in CELLS:
+            parts = []
+            for v in names:
+                rec = records.get((log, v))
+                parts.append('-' if rec is None or not rec['ok'] else ratio_text(rec['ratio'].get(_key(cell))))
+            if all(p == '-' for p in parts):
+                continue
+            lines.append('| %s | %s | %s |' % (log, CELL_LABELS[cell], ' | '.join(parts)))
+    return '\n'.join(lines)

@@ -1,0 +1,371 @@
+#!/usr/bin/env python3
+"""Fidelity of the stand-in against the shared Sphinx logs: closed-loop replays -> docs/fidelity.md and
+docs/fidelity/*.png (the core is anafi_sim/experiments/fidelity.py; this script only wires it to files).
+
+Stage: benchmark (not a test; the regression guard is test/unit/test_fidelity.py). Steps (``--steps``,
+default all; measured figures are kept in docs/fidelity/fidelity.yaml so that a step can be rerun alone and
+the report re-rendered):
+
+- ``replay``: every shared log replayed in closed loop by its controller on the in-process engine with the
+  model effects OFF (anafi_sim/config/anafi_model.yaml with every effect key off) and ON
+  (anafi_sim/config/anafi_model_fitted.yaml, or the calibration's fitted dict when that file is missing),
+  and for the MPC logs with the MPC's ``paper_timing`` true as well (when mpc.yaml knows the key); one
+  figure per log;
+- ``ablation``: each fidelity effect on its own (effects-off model + that effect's fitted keys);
+- ``phases``: the MPC logs with the waypoint 5 / 30 / 55 / 80 ms old at the MPC's cycle (engine schedule
+  ``generator_phase``; the ROS graph's phase is random per start-up) and with the replay's waypoint latency
+  at its extremes (0 and 50 ms before the logger's first sample of a new waypoint);
+- ``table3``: the paper's straight-line scenarios (Table 3) on the engine for each configuration.
+
+    python benchmarks/fidelity.py [--steps replay,ablation,phases,table3] [--workers 2] [--logs DIR]
+"""
+import argparse
+import collections
+import datetime
+import os
+import platform
+import sys
+import time
+
+import yaml
+
+from anafi_sim import paths
+from anafi_sim.experiments import fidelity as F
+from anafi_sim.experiments.engine import DEFAULT_SCHEDULE, mpc_config
+from anafi_sim.experiments.reference_log import read_log
+from anafi_sim.sim.drone_model import EFFECTS_OFF, load_model_params
+
+STEPS = ('replay', 'ablation', 'phases', 'table3')
+AGES = (0.005, 0.030, 0.055, 0.080)          # s, waypoint age at the MPC's cycle
+COMMAND = 'python benchmarks/fidelity.py'
+
+
+def checkout():
+    """The folder of the package's sources (package.xml resolved)."""
+    return os.path.dirname(os.path.realpath(os.path.join(paths.package_dir(), 'package.xml')))
+
+
+def parse_args(argv):
+    root = checkout()
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--logs', default=os.path.join(os.path.dirname(root), 'shared', 'reference_logs'),
+                        help='directory with the reference-log CSVs (default: <checkout>/../shared/reference_logs)')
+    parser.add_argument('--out', default=os.path.join(root, 'docs', 'fidelity.md'), help='Markdown report')
+    parser.add_argument('--figures', default=os.path.join(root, 'docs', 'fidelity'),
+                        help='directory of the figures and of fidelity.yaml (the measured figures)')
+    parser.add_argument('--fitted', default=paths.config_path('anafi_model_fitted.yaml'),
+                        help='model YAML with every effect on (missing: calibrate the logs)')
+    parser.add_argument('--steps', default=','.join(STEPS), help='comma-separated subset of %s' % ', '.join(STEPS))
+    parser.add_argument('--workers', type=int, default=os.cpu_count() or 1, help='worker processes')
+    parser.add_argument('--only', default='', help='comma-separated log names (default: every log)')
+    parser.add_argument('--variants', default='',
+                        help='replay / table3: comma-separated configurations (off, on, off_pt, on_pt; default all; '
+                             'a subset draws no figures)')
+    parser.add_argument('--effects', default='', help='ablation: comma-separated effects (default: every one)')
+    parser.add_argument('--ages', default=','.join(str(round(a * 1e3)) for a in AGES),
+                        help='phases: waypoint ages at the MPC cycle [ms], comma-separated')
+    parser.add_argument('--latencies', default='0,50', help='phases: replay latencies [ms], comma-separated')
+    args = parser.parse_args(argv)
+    args.steps = [s for s in args.steps.split(',') if s]
+    unknown = [s for s in args.steps if s not in STEPS]
+    if unknown:
+        parser.error('unknown step(s) %s' % ', '.join(unknown))
+    return args
+
+
+def models(args, paths_):
+    """(off, on, shipped name, how the fitted dict was found)."""
+    shipped = load_model_params()
+    off = dict(shipped)
+    off.update(EFFECTS_OFF)
+    if os.path.isfile(args.fitted):
+        on, how = load_model_params(args.fitted), os.path.relpath(os.path.realpath(args.fitted), checkout())
+    else:
+        from anafi_sim.calibration import fit
+        on = dict(fit.calibrate([read_log(p) for p in paths_]).fitted)
+        how = 'anafi_sim.calibration.fit.calibrate(logs).fitted (%s missing)' % args.fitted
+    name = 'off' if dict(shipped) == off else ('on' if dict(shipped) == dict(on) else 'other')
+    return off, dict(on), name, how
+
+
+def supports_paper_timing():
+    """True when mpc.yaml / the engine know the MPC's ``paper_timing`` key."""
+    try:
+        mpc_config({'paper_timing': True})
+        return True
+    except ValueError:
+        return False
+
+
+def main_variants(off, on, timing):
+    fusion = F.effect_variants(off, on).get('position_fusion', on)
+    out = [F.Variant('off', 'effects off', off), F.Variant('on', 'effects on', on),
+           F.Variant('fusion', 'fusion only', fusion)]
+    if timing:
+        out += [F.Variant('off_pt', 'effects off, paper_timing', off, {'mpc': {'paper_timing': True}},
+                          controllers=('mpc',)),
+                F.Variant('on_pt', 'effects on, paper_timing', on, {'mpc': {'paper_timing': True}},
+                          controllers=('mpc',)),
+                F.Variant('fusion_pt', 'fusion only, paper_timing', fusion, {'mpc': {'paper_timing': True}},
+                          controllers=('mpc',))]
+        for v in out[:3]:      # the default runs state the timing explicitly (mpc.yaml may change its default)
+            out[out.index(v)] = v._replace(controller_params={'mpc': {'paper_timing': False}})
+    return out
+
+
+def phase_variants(model, name, ages=AGES, latencies=(0.0, 0.05)):
+    out = []
+    controller_phase = DEFAULT_SCHEDULE['controller_phase']
+    for age in ages:
+        phase = round((controller_phase - age) % 0.1, 6)
+        out.append(F.Variant('%s_age%02d' % (name, round(age * 1e3)), 'waypoint %d ms old' % round(age * 1e3),
+                             model, schedule={'generator_phase': phase}, controllers=('mpc',)))
+    for latency in latencies:
+        out.append(F.Variant('%s_lat%02d' % (name, round(latency * 1e3)), 'latency %d ms' % round(latency * 1e3),
+                             model, plan={'latency': latency}, controllers=('mpc',)))
+    return out
+
+
+def strip(rec):
+    return dict((k, v) for k, v in rec.items() if k != 'series')
+
+
+def load_store(path):
+    if os.path.isfile(path):
+        with open(path) as stream:
+            return yaml.safe_load(stream) or {}
+    return {}
+
+
+def main(argv=None):
+    args = parse_args(argv if argv is not None else sys.argv[1:])
+    all_paths = F.find_logs(args.logs)
+    if not all_paths:
+        sys.exit('no reference logs in %s' % args.logs)
+    only = [s for s in args.only.split(',') if s]
+    log_paths = [p for p in all_paths if not only or os.path.splitext(os.path.basename(p))[0] in only]
+    all_logs = [os.path.splitext(os.path.basename(p))[0] for p in all_paths]
+    off, on, shipped, how = models(args, all_paths)
+    timing = supports_paper_timing()
+    os.makedirs(args.figures, exist_ok=True)
+    store_path = os.path.join(args.figures, 'fidelity.yaml')
+    store = load_store(store_path)
+    records = collections.OrderedDict(((r['log'], r['variant']), r) for r in store.get('replays', []))
+    t3 = collections.OrderedDict(((r['variant'], r['controller'], int(r['scenario'].rsplit('_', 1)[1])), r)
+                                 for r in store.get('table3', []))
+    walls = dict(store.get('walls', {}))
+    variants = main_variants(off, on, timing)
+    chosen = [v for v in args.variants.split(',') if v]
+    run_variants = [v for v in variants if not chosen or v.name in chosen]
+    effects = [e for e in args.effects.split(',') if e]
+    ablation = [F.Variant('only_%s' % k, k, m) for k, m in F.effect_variants(off, on).items()
+                if not effects or k in effects]
+    phases = phase_variants(on, 'on', [float(a) * 1e-3 for a in args.ages.split(',') if a],
+                            [float(a) * 1e-3 for a in args.latencies.split(',') if a])
+    t0 = time.perf_counter()
+
+    def save():
+        """Write the measured figures and the report (after every step: a later step may be cut short)."""
+        meta = collections.OrderedDict([
+            ('command', COMMAND + (' ' + ' '.join(argv if argv is not None else sys.argv[1:])).rstrip()),
+            ('date', datetime.datetime.now().strftime('%Y-%m-%d %H:%M')),
+            ('machine', '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0,
+                                                    platform.python_version())),
+            ('shipped_model', shipped), ('fitted_model', how), ('paper_timing_supported', timing),
+            ('wall_s', round(time.perf_counter() - t0, 1)),
+        ])
+        store = {'meta': dict(meta), 'walls': walls, 'fitted': dict(on),
+                 'replays': list(records.values()), 'table3': list(t3.values())}
+        with open(store_path, 'w') as stream:
+            yaml.safe_dump(store, stream, default_flow_style=False, sort_keys=False)
+        with open(args.out, 'w') as stream:
+            stream.write(render(records, t3, all_logs, variants, ablation, phases, on, meta, walls, args))
+
+    for step in args.steps:
+        t = time.perf_counter()
+        if step == 'replay':
+            new = F.replay_all(log_paths, run_variants, workers=args.workers)
+            for p in (log_paths if not chosen else []):
+                name = os.path.splitext(os.path.basename(p))[0]
+                series = [(v.label, new[(name, v.name)]['series']) for v in variants
+                          if (name, v.name) in new and new[(name, v.name)].get('series')
+                          and v.name in ('off', 'on', 'on_pt')]
+                F.plot_replay(os.path.join(args.figures, name + '.png'), read_log(p), series,
+                              title='%s: Sphinx (black) vs the stand-in' % name)
+        elif step == 'ablation':
+            new = F.replay_all(log_paths, ablation, workers=args.workers)
+        elif step == 'phases':
+            new = F.replay_all(log_paths, phases, workers=args.workers)
+        else:
+            new = {}
+            t3.update(F.table3_runs(run_variants, workers=args.workers))
+        records.update((k, strip(r)) for k, r in new.items())
+        walls[step] = round(time.perf_counter() - t, 1)
+        save()
+    save()
+    print('wrote %s and %s (%.0f s)' % (args.out, store_path, time.perf_counter() - t0))
+
+
+def _columns(variants, timing):
+    cols = [('effects off', 'off', 'off'), ('effects on', 'on', 'on'), ('fusion only', 'fusion', 'fusion')]
+    if timing:
+        cols += [('off + paper_timing', 'off', 'off_pt'), ('on + paper_timing', 'on', 'on_pt'),
+                 ('fusion + paper_timing', 'fusion', 'fusion_pt')]
+    return cols
+
+
+def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, args):
+    timing = meta['paper_timing_supported']
+    cols = _columns(variants, timing)
+    rel_fig = os.path.relpath(args.figures, os.path.dirname(os.path.abspath(args.out)))
+    best = sorted(cols, key=lambda c: (-F.score(F.combined(records, logs, c[2], c[1]))[0],
+                                       F.score(F.combined(records, logs, c[2], c[1]))[2]))
+    lines = [
+        '# Fidelity: the stand-in against the Sphinx reference logs',
+        '',
+        'Generated by `%s` (last: `%s`, %s, %s; step wall times below). Core: '
+        '`anafi_sim/experiments/fidelity.py`; regression test: `test/unit/test_fidelity.py`. Measured figures: '
+        '`%s/fidelity.yaml`.' % (COMMAND, meta['command'], meta['date'], meta['machine'], rel_fig),
+        '',
+        '## Method',
+        '',
+        'Every shared log (`shared/reference_logs`, the paper\'s Sphinx runs) is replayed in closed loop: the '
+        'log\'s waypoint columns, as the 10 Hz stream the controller saw, are fed to the controller the log '
+        'name says (PID framework or the paper\'s MPC) on the stand-in, with the in-process engine '
+        '(`anafi_sim/experiments/engine.py`, the ROS graph\'s schedule on virtual time). Each waypoint change '
+        'is one 10 Hz generator tick, published half a log sample (25 ms) before the logger first shows it; '
+        'the all-zero waypoint the static PID logs hold before the step (no waypoint yet; the drone hovers at '
+        '1 m) is replaced by the hover point; a straight-line log (a steady-state segment) gets a %g s lead-in '
+        '(its first waypoint extrapolated backwards at its velocity) so the controller has settled when the '
+        'log begins; the replay runs in a frame shifted horizontally to the take-off point (the dynamics do '
+        'not depend on x, y) and the positions are shifted back. The stand-in\'s estimate (its 20 Hz samples '
+        'as a 20 Hz logger with a drifting phase sees them on average, like Sphinx\'s 19.5 Hz estimate in the '
+        '20 Hz logs) and ground truth (interpolated) are resampled at the log\'s own sample times and evaluated '
+        'with the '
+        'log\'s waypoint columns by the function that recomputes the paper\'s Table 3 '
+        '(`reference_log.tracking_error`, garbage excluded): e_mu and e_max against the estimate (the paper\'s '
+        'metric) and against ground truth. In x_straight_2_pid and x_straight_3_pid every z_anafi sample is a '
+        '16-bit wrap and Sphinx\'s drone sank below the ground under it, so those cells are the horizontal '
+        'error (marked). Time base: log time, t = 0 at the log\'s first sample; the replay starts the motion '
+        '(the step, the line) at the same log time as the log.' % F.DEFAULT_LEAD,
+        '',
+        'Configurations: **effects off** = `anafi_sim/config/anafi_model.yaml` with every fidelity effect key '
+        'off; **effects on** = %s (position fusion, tilt attenuation, descent limit, yaw bias, quantisation; '
+        'values below); **fusion only** = effects off plus the position fusion\'s keys. %s The shipped '
+        '`anafi_model.yaml` is currently **effects %s**.' % (
+            '`%s`' % meta['fitted_model'] if meta['fitted_model'].endswith('.yaml') else meta['fitted_model'],
+            ('For the MPC logs also `paper_timing: true` (mpc.yaml: the authors\' node computes each command '
+             'from the state and waypoint of the previous cycle); the PID logs do not depend on it.')
+            if timing else '(`paper_timing` of the MPC is not in mpc.yaml yet: not measured.)', meta['shipped_model']),
+        '',
+        '## Summary',
+        '',
+        'Cells (log x {e_mu, e_max} x {estimate, truth}) whose stand-in value is within the band of Sphinx\'s '
+        '(ratio = stand-in / Sphinx):',
+        '',
+        F.score_table(records, logs, cols),
+        '',
+        'Best configuration on the shared logs (most cells within +-10 %%, then mean |ln ratio|): **%s**.' % best[0][0],
+        '',
+    ]
+    if t3:
+        t3best = sorted(cols, key=lambda c: (-F.table3_score(t3, c[1], c[2])[0], F.table3_score(t3, c[1], c[2])[2]))
+        lines += ['Best on the paper\'s Table 3 (engine runs of straight_1..5, e_mu vs the estimate): **%s** '
+                  '(%d / %d cells within +-10 %%).' % (t3best[0][0], F.table3_score(t3, t3best[0][1], t3best[0][2])[0],
+                                                     F.table3_score(t3, t3best[0][1], t3best[0][2])[1]), '']
+    lines += ['## Recommendation for the defaults', '']
+    k, n, m = F.score(F.combined(records, logs, best[0][2], best[0][1]))
+    lines.append('By these measurements: **%s** (%d / %d shared-log cells within +-10 %%, mean |ln ratio| %s). '
+                 'Per effect, against all effects off (ablation below: cells within +-10 %%, mean |ln ratio|):'
+                 % (best[0][0], k, n, F.fmt(m)))
+    k0, n0, m0 = F.score(F.combined(records, logs, 'off', 'off'))
+    lines.append('')
+    lines.append('- all off: %d / %d, %s' % (k0, n0, F.fmt(m0)))
+    for v in ablation:
+        recs = F.combined(records, logs, v.name, v.name)
+        if recs:
+            k, n, m = F.score(recs)
+            lines.append('- %s alone: %d / %d, %s' % (v.label, k, n, F.fmt(m)))
+    lines += ['',
+              'Reading of the tables at the time of writing: the position fusion is the one effect that moves the '
+              'ground-truth cells (Sphinx\'s truth runs ahead of its estimate; without the fusion the stand-in\'s '
+              'truth error on the MPC lines is 1.4-3.8x Sphinx\'s, with the fusion alone 0.56-1.05x, with every effect '
+              'on 0.49-0.68x) and it brings the PID truth '
+              'cells into the band; the tilt attenuation, a constant fraction, raises the MPC line estimate cells '
+              'at 1-4 m/s by 13-17 % while it is only needed at 5 m/s (the 5 m/s MPC cell stays at 0.75-0.79x '
+              'without it): the logs ask for an attenuation that grows with tilt or speed, not a constant one; '
+              'the descent limit, the yaw bias and the quantisation hardly move any cell (they act in saturated descents, '
+              'on the yaw, below the centimetre). The MPC\'s '
+              '`paper_timing` leaves the straight lines unchanged (the state and the waypoint are equally old) '
+              'and brings the static-waypoint MPC cells closer (yaw 0: 0.88 -> 0.98, yaw 180: 0.77 -> 0.94 with '
+              'effects off). The MPC line cells move by +-15-35 % with the waypoint\'s age at the MPC\'s cycle '
+              '(timer phase section), which the logs do not record: a +-10 % target on them is within that '
+              'uncertainty only for the right phase. Sphinx\'s e_max on the MPC lines comes from single '
+              'glitches (e.g. x_straight_5_mpc at 8.7 s, see its figure), which no model reproduces.', '']
+    lines += [
+        '## Every log: Sphinx vs the stand-in',
+        '',
+        'Ratios outside +-10 % in bold.',
+        '',
+        F.replay_table(records, logs, cols),
+        '',
+        '### Attitude and vertical speed histories',
+        '',
+        'rms difference of the ground-truth roll and pitch [deg] and vertical speed [m/s] of the stand-in '
+        'against Sphinx over the whole log (same sample times).',
+        '',
+        F.history_table(records, logs, cols),
+        '',
+    ]
+    if t3:
+        lines += ['## Table 3 on the engine (straight-line scenarios)', '',
+                  'The paper\'s straight-line scenarios (anafi_sim/config/scenarios/straight_*.yaml: 15 s settle, '
+                  '12 s measured) on the in-process engine, e_mu against the estimate, vs the paper\'s Table 3.',
+                  '', F.table3_table(t3, cols), '']
+    present = []
+    for _, v in records:
+        if v not in present:
+            present.append(v)
+    order = dict((v.name, i) for i, v in enumerate(list(ablation) + list(phases)))
+    abl = sorted((v for v in present if v.startswith('only_')), key=lambda v: (order.get(v, 99), v))
+    if abl:
+        lines += ['## Ablation: each effect on its own', '',
+                  'Ratio stand-in / Sphinx with the effects-off model plus one effect (the fitted values of its '
+                  'keys; the estimate\'s delay/smoothing refit goes with the position fusion), beside all off '
+                  'and all on (default MPC timing).', '',
+                  F.ratio_matrix(records, logs, ['off'] + abl + ['on']), '',
+                  F.score_table(records, logs, [(n, n, n) for n in ['off'] + abl + ['on']]), '']
+    ph = sorted((v for v in present if v.startswith('on_age') or v.startswith('on_lat')), key=lambda v: (v[:6], v))
+    if ph:
+        lines += ['## Timer phase and waypoint latency (MPC logs, effects on)', '',
+                  'The MPC tracks the waypoint as received; in the ROS graph the phase of the generator\'s timer '
+                  'against the MPC\'s is random per start-up (engine default: the waypoint is 50 ms old at the '
+                  'MPC\'s cycle). `ageNN`: the waypoint is NN ms old at the cycle (schedule `generator_phase`); '
+                  '`latNN`: the replayed waypoint published NN ms before the logger first shows it (default 25 ms: '
+                  'the true value lies in 0-50 ms).', '',
+                  F.ratio_matrix(records, [l for l in logs if l.endswith('_mpc')], ['on'] + ph), '']
+    lines += ['## The modelled effects and their residuals', '',
+              'Fitted by `anafi_sim/scripts/calibrate_model.py` (`anafi_sim/calibration/fit.py`); the residual of '
+              'every effect (before/after) and what the logs cannot identify: [docs/calibration.md]'
+              '(calibration.md). Values of the effects-on model:', '',
+              '| key | value |', '|---|---|']
+    for k in EFFECTS_OFF:
+        if k in fitted:
+            lines.append('| %s | %s |' % (k, fitted[k]))
+    lines += ['', '## Figures', '',
+              'One per log: the position along the motion minus the waypoint (straight lines; estimate solid, '
+              'truth dotted) or x and z (static waypoints), the tracking error against the estimate, the truth '
+              'pitch and roll and the vertical speed; Sphinx black, the stand-in coloured.', '']
+    for log in logs:
+        lines += ['### %s' % log, '', '![%s](%s/%s.png)' % (log, rel_fig, log), '']
+    lines += ['## Regenerate', '', '```', 'cd <checkout> && source env.bash',
+              '%s --workers 2   # all steps (the step wall times below were measured on a machine loaded by '
+              'other jobs)' % COMMAND,
+              '%s --steps replay   # one step; the others are kept in docs/fidelity/fidelity.yaml' % COMMAND,
+              'python -m pytest -q test/unit/test_fidelity.py    # the regression guard (shipped defaults)',
+              '```', '', 'Wall time of the last run of each step [s] (some steps were last run on a subset): %s.' % ', '.join('%s %s' % kv for kv in sorted(walls.items())), '']
+    return '\n'.join(lines)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,242 @@
+"""Fidelity regression guard: the shared Sphinx logs replayed in closed loop on the stand-in with the SHIPPED
+defaults (anafi_sim/config/anafi_model.yaml, mpc.yaml, pid.yaml, the engine's schedule) must stay within
+15 % of Sphinx in every logged metric (e_mu, e_max against the estimate and against ground truth).
+
+Cells that are more than 15 % off with today's defaults are marked xfail(strict=True) with the measured ratio
+(docs/fidelity.md has the whole table): a model change that brings one into the band makes the test fail too,
+so the list is updated rather than silently outgrown. The replay's own pieces (the waypoint stream, the lead-in,
+the frame shift, the estimate resampling, the cells) are tested on synthetic logs first.
+
+The replays run in-process (anafi_sim/experiments/engine.py, virtual time): about 20-30 s for the 14 logs on
+an idle machine. Skipped when ../shared/reference_logs (beside the checkout) is missing.
+"""
+import collections
+import math
+import os
+
+import numpy as np
+import pytest
+
+from anafi_sim import paths
+from anafi_sim.experiments import fidelity as F
+from anafi_sim.experiments.reference_log import COLUMNS, ReferenceLog, read_log
+
+BAND = 0.15
+
+
+def _log_dir():
+    """<checkout>/../shared/reference_logs, as scripts/calibrate_model.py finds it (package or this file)."""
+    roots = [os.path.dirname(os.path.realpath(os.path.join(paths.package_dir(), 'package.xml'))),
+             os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))]
+    for root in roots:
+        d = os.path.join(os.path.dirname(root), 'shared', 'reference_logs')
+        if os.path.isdir(d):
+            return d
+    return os.path.join(os.path.dirname(roots[0]), 'shared', 'reference_logs')
+
+
+LOG_DIR = _log_dir()
+LOGS = tuple('static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('mpc', 'pid')) + tuple(
+    'x_straight_%d_%s' % (v, c) for v in range(1, 6) for c in ('mpc', 'pid'))
+
+# (log, source, stat) -> ratio stand-in / Sphinx measured with the shipped defaults (effects off, MPC timing of
+# mpc.yaml) where it is outside +-15 % (benchmarks/fidelity.py, docs/fidelity.md). Do not widen the band:
+# update this list when a model change moves a cell, and say so in the change.
+KNOWN_OFF = {
+    ('static_waypoint_yaw_0_mpc', 'truth', 'e_mu'): 0.84,
+    ('static_waypoint_yaw_180_mpc', 'estimate', 'e_mu'): 0.77,
+    ('static_waypoint_yaw_180_mpc', 'truth', 'e_mu'): 0.74,
+    ('x_straight_1_mpc', 'truth', 'e_mu'): 1.42,
+    ('x_straight_2_mpc', 'estimate', 'e_max'): 0.53,
+    ('x_straight_2_mpc', 'truth', 'e_mu'): 2.75,
+    ('x_straight_2_mpc', 'truth', 'e_max'): 1.61,
+    ('x_straight_3_mpc', 'estimate', 'e_max'): 0.64,
+    ('x_straight_3_mpc', 'truth', 'e_mu'): 2.71,
+    ('x_straight_3_mpc', 'truth', 'e_max'): 1.74,
+    ('x_straight_3_pid', 'truth', 'e_max'): 0.82,       # horizontal (the log's z estimate is garbage)
+    ('x_straight_4_mpc', 'truth', 'e_mu'): 3.44,
+    ('x_straight_4_mpc', 'truth', 'e_max'): 1.65,
+    ('x_straight_5_mpc', 'estimate', 'e_mu'): 0.79,
+    ('x_straight_5_mpc', 'estimate', 'e_max'): 0.59,
+    ('x_straight_5_mpc', 'truth', 'e_mu'): 3.82,
+    ('x_straight_5_mpc', 'truth', 'e_max'): 1.99,
+}
+
+
+# ----------------------------------------------------------------------------------------- synthetic logs
+def make_log(name, t, wp, est=None, truth=None):
+    """A ReferenceLog named ``name`` with time ``t`` [s], waypoint rows ``wp`` (N, 7), estimate / truth (N, 9)."""
+    n = len(t)
+    est = np.zeros((n, 9)) if est is None else est
+    truth = est if truth is None else truth
+    columns = collections.OrderedDict()
+    for j, c in enumerate(COLUMNS[1:10]):
+        columns[c] = np.array(truth[:, j], dtype=float)
+    for j, c in enumerate(COLUMNS[10:19]):
+        columns[c] = np.array(est[:, j], dtype=float)
+    for j, c in enumerate(COLUMNS[19:]):
+        columns[c] = np.array(wp[:, j], dtype=float)
+    return ReferenceLog(columns, (np.asarray(t) * 1e9).astype(np.int64) + 1700000000 * 10 ** 9,
+                        path='/logs/%s.csv' % name)
+
+
+def line_log(speed=3.0, x0=100.0, n=120, slip_at=None):
+    """A 20 Hz log of a waypoint moving along +x at ``speed``, changing at every other sample (10 Hz);
+    ``slip_at``: index of a change that comes one sample early (the logger's phase slipped)."""
+    t = np.arange(n) * 0.05
+    change = np.arange(n) // 2 * 2            # the sample index the waypoint of sample i was first logged at
+    if slip_at is not None:
+        change = np.where(np.arange(n) >= slip_at, (np.arange(n) + 1) // 2 * 2 - 1, change)
+        change[change < 0] = 0
+    ticks = np.unique(change, return_inverse=True)[1]
+    wp = np.zeros((n, 7))
+    wp[:, 0] = x0 + speed * 0.1 * ticks
+    wp[:, 2] = 7.0
+    wp[:, 3] = speed
+    est = np.zeros((n, 9))
+    est[:, 0] = x0 - 1.0 + speed * t
+    est[:, 2] = 7.0
+    return make_log('x_line_mpc', t, wp, est)
+
+
+def test_line_stream_is_replayed_tick_by_tick_with_lead_in_and_shift():
+    log = line_log()
+    plan = F.replay_plan(log, lead=20.0)
+    assert plan.controller == 'mpc' and plan.moving and plan.markers == 0 and plan.slips == 0
+    traj = plan.scenario.trajectory
+    # every logged waypoint is replayed at its tick (positions in the shifted frame)
+    wp = log.waypoint()
+    change = [i for i in range(1, len(wp)) if wp[i, 0] != wp[i - 1, 0]]
+    tau0 = plan.tick_tau
+    for k, i in enumerate([change[0] - 1] + change):
+        s = traj.sample(tau0 + k * 0.1)
+        assert s.x + plan.shift[0] == pytest.approx(wp[i, 0], abs=1e-9)
+        assert (s.vx, s.z) == (3.0, 7.0)
+    # the lead-in: the first waypoint extrapolated backwards at its velocity, starting above the take-off point
+    start = traj.sample(0.0)
+    assert (start.x, start.y) == pytest.approx((0.0, 0.0), abs=1e-9)
+    assert plan.shift[0] == pytest.approx(wp[0, 0] - 3.0 * tau0, abs=1e-9)
+    phases = [p.name for p in plan.scenario.phases]
+    assert phases == ['approach', 'lead', 'replay'] and plan.scenario.phases[1].duration >= 20.0
+    # log time -> scenario time: a change published half a sample (latency) before the logger shows it
+    approach = plan.scenario.phases[0].duration
+    t_change = log.t[change[5]]
+    s_tick = approach + tau0 + 6 * 0.1             # scenario time of that change's tick
+    assert s_tick - (plan.scenario_offset + t_change) == pytest.approx(-0.025, abs=1e-6)
+
+
+def test_a_phase_slip_of_the_logger_neither_skips_nor_repeats_a_waypoint():
+    log = line_log(slip_at=61)
+    plan = F.replay_plan(log)
+    assert plan.slips == 1
+    wp = log.waypoint()
+    distinct = [wp[0, 0]] + [wp[i, 0] for i in range(1, len(wp)) if wp[i, 0] != wp[i - 1, 0]]
+    replayed = [plan.scenario.trajectory.sample(plan.tick_tau + k * 0.1).x + plan.shift[0]
+                for k in range(len(distinct))]
+    assert replayed == pytest.approx(distinct, abs=1e-9)
+    assert np.all(np.diff(replayed) == pytest.approx(0.3, abs=1e-9))
+
+
+def test_static_log_no_waypoint_marker_becomes_the_hover_point():
+    n = 200
+    t = np.arange(n) * 0.05
+    wp = np.zeros((n, 7))
+    wp[100:, :3] = (3.0, 2.0, 5.0)
+    wp[100:, 6] = 180.0
+    est = np.zeros((n, 9))
+    est[:, :3] = (0.2, -0.1, 1.0)
+    plan = F.replay_plan(make_log('static_waypoint_yaw_180_pid', t, wp, est))
+    assert plan.controller == 'pid' and not plan.moving and plan.markers == 100 and plan.ticks == 1
+    traj = plan.scenario.trajectory
+    hover = traj.sample(0.0)
+    assert (hover.x + plan.shift[0], hover.y + plan.shift[1], hover.z) == pytest.approx((0.2, -0.1, 1.0))
+    assert [p.name for p in plan.scenario.phases] == ['approach', 'lead', 'replay'] or \
+        [p.name for p in plan.scenario.phases] == ['approach', 'replay']
+    step = traj.sample(plan.tick_tau + 0.1)
+    assert (step.x + plan.shift[0], step.y + plan.shift[1], step.z, step.yaw) == pytest.approx((3.0, 2.0, 5.0, 180.0))
+    # the step happens at its log time: 5.0 s, published 25 ms before the logger shows it
+    approach = plan.scenario.phases[0].duration
+    assert approach + plan.tick_tau + 0.1 - plan.scenario_offset == pytest.approx(5.0 - 0.025, abs=1e-6)
+
+
+def test_log_names_say_the_controller():
+    assert F.parse_name('x_straight_5_mpc') == ('x_straight_5', 'mpc')
+    with pytest.raises(ValueError):
+        F.parse_name('x_straight_5')
+
+
+def test_estimate_samples_keeps_one_value_per_estimate_period():
+    publish = np.arange(0, 31) / 30.0                   # the bridge republishes at 30 Hz
+    value = np.floor(publish * 20.0 + 1e-6) / 20.0      # the estimate changes at 20 Hz
+    t, rows = F.estimate_samples(publish, value[:, None], 20.0)
+    assert t == pytest.approx(np.arange(0, 21) / 20.0)
+    assert rows[:, 0] == pytest.approx(t)
+
+
+def test_cells_fall_back_to_the_horizontal_error_when_z_is_garbage():
+    log = line_log()
+    log.columns['x_sphinx'][:] = log.columns['x_anafi'] + 0.5
+    log.columns['z_sphinx'][:] = 3.0                    # 4 m below the waypoint: counts in the 3-D truth error
+    wp_x = log.columns['wp_x']
+    c = F.cells(log)
+    assert c['horizontal'] == set()
+    assert c[('truth', 'e_mu')] == pytest.approx(np.mean(np.hypot(wp_x - log.columns['x_sphinx'], 4.0)))
+    # the estimate's altitude wrapped at 16 bit: no 3-D flight, both sources horizontal
+    log.columns['z_anafi'][:] = 65280.0
+    c = F.cells(log)
+    assert c['horizontal'] == {'estimate', 'truth'}
+    assert c[('estimate', 'e_mu')] == pytest.approx(np.mean(np.abs(wp_x - log.columns['x_anafi'])))
+    assert c[('truth', 'e_max')] == pytest.approx(np.max(np.abs(wp_x - log.columns['x_sphinx'])))
+    # a replay of it is evaluated the same way, although its own altitude is fine
+    clean = line_log()
+    assert F.cells(clean, horizontal=F.horizontal_sources(log))['horizontal'] == {'estimate', 'truth'}
+    assert F.cells(clean)[('estimate', 'e_mu')] > F.cells(clean, {'estimate'})[('estimate', 'e_mu')] - 1e-12
+
+
+def test_compare_and_band():
+    out = F.compare({('estimate', 'e_mu'): 2.0}, {('estimate', 'e_mu'): 2.2})
+    assert out[('estimate', 'e_mu')] == pytest.approx((2.2, 2.0, 1.1))
+    assert math.isnan(out[('truth', 'e_mu')][2])
+    assert F.within(1.1, 0.1) and not F.within(1.16, 0.15) and not F.within(float('nan'), 0.15)
+
+
+# ----------------------------------------------------------------------------------------- the shared logs
+@pytest.fixture(scope='module')
+def replays():
+    if not os.path.isdir(LOG_DIR):
+        pytest.skip('reference logs not found at %s (shared/reference_logs beside the checkout)' % LOG_DIR)
+    out = {}
+    for name in LOGS:
+        path = os.path.join(LOG_DIR, name + '.csv')
+        if not os.path.isfile(path):
+            continue
+        log = read_log(path)
+        rep = F.run_replay(F.replay_plan(log))
+        out[name] = (F.reference_cells(log), rep)
+    return out
+
+
+def _params():
+    out = []
+    for name in LOGS:
+        for cell in F.CELLS:
+            key = (name,) + cell
+            marks = ()
+            if key in KNOWN_OFF:
+                marks = pytest.mark.xfail(strict=True, reason='%s %s %s: stand-in / Sphinx = %.2f with the shipped '
+                                          'defaults (docs/fidelity.md)' % (key + (KNOWN_OFF[key],)))
+            out.append(pytest.param(name, cell, marks=marks, id='%s-%s_%s' % key))
+    return out
+
+
+@pytest.mark.parametrize('name, cell', _params())
+def test_replayed_metric_within_15_percent_of_sphinx(replays, name, cell):
+    if name not in replays:
+        pytest.skip('%s.csv not in %s' % (name, LOG_DIR))
+    reference, rep = replays[name]
+    assert rep.ok, 'the replay of %s failed: %s' % (name, rep.error)
+    assert rep.info.get('hover_commands', 0) == 0, 'the controller fell back to hover in the replay of %s' % name
+    value, ref, ratio = F.compare(reference, rep.cells)[cell]
+    assert math.isfinite(ref) and ref > 0
+    assert F.within(ratio, BAND), '%s %s %s: stand-in %.3f m vs Sphinx %.3f m (ratio %.2f, band +-%d %%)' % (
+        name, cell[0], cell[1], value, ref, ratio, round(BAND * 100))

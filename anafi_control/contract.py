@@ -206,7 +206,7 @@ class WaypointLimits(object):
             if r > self.geofence_radius:
                 return GEOFENCE, ' (%.1f m from the start > %.1f m)' % (r, self.geofence_radius)
         if drone is not None:
-            d = math.sqrt((x - drone[0]) ** 2 + (y - drone[1]) ** 2 + (z - drone[2]) ** 2)
+            d = math.hypot(x - drone[0], math.hypot(y - drone[1], z - drone[2]))   # no overflow for huge values
             if d > self.max_waypoint_jump:
                 return WAYPOINT_JUMP, ' (%.1f m > %.1f m)' % (d, self.max_waypoint_jump)
         return None

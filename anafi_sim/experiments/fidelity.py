@@ -50,6 +50,7 @@ from anafi_sim.experiments.evaluation import interpolate
 from anafi_sim.experiments.reference_log import (COLUMNS, STATE_NAMES, WAYPOINT_COLUMNS, ReferenceLog, read_log,
                                                  tracking_error)
 from anafi_sim.experiments.trajectory import Phase, Scenario, WaypointSample
+from anafi_sim.sim.drone_model import EFFECT_GROUPS
 
 CONTROLLERS = ('pid', 'mpc')
 LOG_NAME = re.compile(r'^(?P<scenario>.+)_(?P<controller>pid|mpc)$')
@@ -459,16 +460,7 @@ def replay_all(paths, variants, seed=None, workers=1, progress=None):
 def effect_groups(fitted):
     """{effect name: {model keys}} of the fidelity effects a fitted model dict switches on (the keys whose
     value differs from the effects-off model; the estimate's delay/smoothing refit goes with the fusion)."""
-    groups = collections.OrderedDict([
-        ('position_fusion', ('estimate_position_fusion', 'estimate_position_fix_delay',
-                             'estimate_position_fix_gain', 'estimate_delay', 'estimate_time_constant')),
-        ('tilt_attenuation', ('tilt_attenuation',)),
-        ('max_descent_speed', ('max_descent_speed',)),
-        ('yaw_bias', ('estimate_yaw_bias',)),
-        ('quantisation', ('estimate_quantum_x', 'estimate_quantum_y', 'estimate_quantum_z',
-                          'estimate_quantum_velocity')),
-    ])
-    return collections.OrderedDict((k, tuple(x for x in keys if x in fitted)) for k, keys in groups.items())
+    return collections.OrderedDict((k, tuple(x for x in keys if x in fitted)) for k, keys in EFFECT_GROUPS.items())
 
 
 def effect_variants(off, fitted):

@@ -18,7 +18,9 @@ simulator's keeping up, and the plots.
 """
 import math
 
-CONTROLLERS = ('mpc', 'pid')
+CONTROLLERS = ('mpc', 'pid')                  # the paper's two: every batch runs them
+BEYOND = ('preview_mpc',)                     # beyond the paper (issue 12): a column where the batch has it
+KNOWN_CONTROLLERS = CONTROLLERS + BEYOND
 STATIC = ('static_wp0', 'static_wp1')
 STRAIGHT_SPEEDS = (1, 2, 3, 4, 5)
 STRAIGHT = tuple('straight_%d' % v for v in STRAIGHT_SPEEDS)
@@ -32,7 +34,13 @@ PAPER_TABLE3 = {'mpc': (0.16, 0.36, 0.59, 0.82, 1.41), 'pid': (1.32, 2.67, 4.07,
 """The paper's Table 3: mean tracking error [m] on the straight line at 1..5 m/s (simulation)."""
 
 SOURCES = (('estimate', 'vs the drone\'s estimate (the paper\'s metric)'), ('truth', 'vs ground truth'))
-LABELS = {'mpc': 'MPC', 'pid': 'PID'}
+LABELS = {'mpc': 'MPC', 'pid': 'PID', 'preview_mpc': 'preview MPC'}
+
+
+def present(records):
+    """The controllers to tabulate: the paper's two, then those of ``BEYOND`` some record has."""
+    have = set(r.get('controller') for r in records)
+    return CONTROLLERS + tuple(c for c in BEYOND if c in have)
 
 
 def fmt(value, digits=2):
@@ -98,12 +106,15 @@ def table3(records):
     idx = index(records)
     head = '| Controller / speed | ' + ' | '.join('%d m/s' % v for v in STRAIGHT_SPEEDS) + ' |'
     lines = [head, '|---|' + '---|' * len(STRAIGHT_SPEEDS)]
-    for c in CONTROLLERS:
+    for c in present(records):
         lines.append('| %s ours, vs estimate | ' % LABELS[c] + ' | '.join(
             '**%s**' % cell(idx.get((s, c)), 'estimate', 'e_mu') for s in STRAIGHT) + ' |')
-        lines.append('| %s paper | ' % LABELS[c] + ' | '.join(fmt(v) for v in PAPER_TABLE3[c]) + ' |')
+        if c in PAPER_TABLE3:
+            lines.append('| %s paper | ' % LABELS[c] + ' | '.join(fmt(v) for v in PAPER_TABLE3[c]) + ' |')
         lines.append('| %s ours, vs ground truth | ' % LABELS[c] + ' | '.join(
             cell(idx.get((s, c)), 'truth', 'e_mu') for s in STRAIGHT) + ' |')
+        if c not in PAPER_TABLE3:
+            continue
         ratios = []
         for s, p in zip(STRAIGHT, PAPER_TABLE3[c]):
             v = stat(idx.get((s, c)), 'estimate', 'e_mu')
@@ -116,13 +127,14 @@ def stats_table(records, scenarios, params, source):
     """Markdown lines of a Table-4/5 style table: (r, v) rows, e_max e_mu e_sigma per controller."""
     idx = index(records)
     cols = []
-    for c in CONTROLLERS:
+    controllers = present(records)
+    for c in controllers:
         cols += ['%s e_max' % LABELS[c], '%s e_mu' % LABELS[c], '%s e_sigma' % LABELS[c]]
     lines = ['| r [m] | v [m/s] | ' + ' | '.join(cols) + ' | MPC e_mu < PID e_mu |',
              '|---|---|' + '---|' * (len(cols) + 1)]
     for s, (r, v) in zip(scenarios, params):
         cells = []
-        for c in CONTROLLERS:
+        for c in controllers:
             rec = idx.get((s, c))
             cells += [cell(rec, source, k) for k in ('e_max', 'e_mu', 'e_sigma')]
         lines.append('| %g | %g | %s | %s |' % (r, v, ' | '.join(cells), _yes_no(mpc_beats_pid(idx, s, source))))
@@ -136,7 +148,7 @@ def static_table(records):
              'yaw settling [s] | e_mu [m] | e_mu ground truth [m] |',
              '|---|---|---|---|---|---|---|---|']
     for s in STATIC:
-        for c in CONTROLLERS:
+        for c in present(records):
             rec = idx.get((s, c))
             st = (rec or {}).get('step') or {}
             if not rec or not rec.get('ok'):
@@ -193,7 +205,7 @@ def timing_table(records):
 def cpu_ratio(records):
     """{controller: CPU s per simulated s over all its runs} and PID / MPC ratio (None when unknown)."""
     per = {}
-    for c in CONTROLLERS:
+    for c in present(records):
         cpu = sim = 0.0
         for r in records:
             info = r.get('info') or {}
@@ -305,7 +317,11 @@ def render(records, meta, plots=(), comparison_plots=()):
     lines += ['## Computational workload', '',
               'Controller CPU time per simulated second (all controller processes; PID mode %s): MPC %s s, '
               'PID %s s; PID / MPC = %s (the paper: 2.59).' % (meta.get('pid_mode'), fmt(per.get('mpc'), 3),
-                                                              fmt(per.get('pid'), 3), fmt(ratio)), '']
+                                                              fmt(per.get('pid'), 3), fmt(ratio))]
+    for c in present(records)[len(CONTROLLERS):]:
+        lines.append('%s (beyond the paper): %s s, %s x the MPC\'s.' % (
+            LABELS[c], fmt(per.get(c), 3), fmt(per[c] / per['mpc'] if per.get(c) and per.get('mpc') else None)))
+    lines.append('')
     lines += ['## Runs: wall time and the simulator', ''] + timing_table(records) + ['']
     notes = meta.get('notes') or []
     if notes:

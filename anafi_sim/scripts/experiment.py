@@ -9,7 +9,7 @@
         -> DIR/<scenario>_<controller>.yaml (the evaluator's summary), .csv (reference log), .png; one
            'RESULT ...' line on stdout (exit 0 when the summary is final).
     experiment.py batch [--engine inprocess|ros] [--workers N] [--scheduler ADDRESS] [--scenarios ...]
-                        [--controllers mpc,pid] [--runs-dir DIR] [--no-plots] --out DIR
+                        [--controllers mpc,pid,preview_mpc] [--runs-dir DIR] [--no-plots] --out DIR
         -> DIR/experiments.yaml (the ROS batch's schema) and DIR/report.md (the paper's tables), plots.
     experiment.py sweep SPEC.yaml [--workers N] [--scheduler ADDRESS] [--no-plot] --out DIR
         -> DIR/runs.csv (every run's metrics), DIR/summary.md, DIR/e_mu.png (anafi_sim/config/sweeps/).
@@ -133,7 +133,8 @@ def _selection(text, groups, known, what):
 
 def cmd_batch(args):
     scenarios = _selection(args.scenarios, GROUPS, set(list_scenarios()), 'scenario')
-    controllers = _selection(args.controllers, {}, set(report.CONTROLLERS), 'controller')
+    default = 'mpc,pid' if args.engine == 'ros' else 'mpc,pid,preview_mpc'   # the ROS batch runs the paper's two
+    controllers = _selection(args.controllers or default, {}, set(report.KNOWN_CONTROLLERS), 'controller')
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
     command = 'anafi_sim/scripts/experiment.py ' + ' '.join(sys.argv[1:])
@@ -200,7 +201,8 @@ def parser():
     bat.add_argument('--workers', type=int, default=None, help='processes (default: the CPU count)')
     bat.add_argument('--scheduler', default=None, help='Dask distributed scheduler address (tcp://host:8786)')
     bat.add_argument('--scenarios', default='all', help='all, a group (static, straight, circle, vertical) or names')
-    bat.add_argument('--controllers', default='mpc,pid')
+    bat.add_argument('--controllers', default=None,
+                     help='comma list (default mpc,pid,preview_mpc in-process; mpc,pid with --engine ros)')
     bat.add_argument('--runs-dir', default=None, help='per-run summaries and CSVs (default OUT/runs)')
     bat.add_argument('--no-plots', action='store_true')
     bat.add_argument('--rtf', type=float, default=2.0, help='--engine ros: requested real-time factor')

@@ -80,6 +80,16 @@ EFFECTS_OFF = collections.OrderedDict((
     ('max_descent_speed', 0.0),      # m/s, firmware descent limit (0 = none)
 ))
 EFFECTS_OFF.update(state_estimate.EFFECTS_OFF)
+# The effects by name and their keys (the estimate's delay/smoothing, refitted on velocity and attitude alone
+# when the position has its own model, goes with the fusion).
+EFFECT_GROUPS = collections.OrderedDict((
+    ('position_fusion', ('estimate_position_fusion', 'estimate_position_fix_delay', 'estimate_position_fix_gain',
+                         'estimate_delay', 'estimate_time_constant')),
+    ('tilt_attenuation', ('tilt_attenuation',)),
+    ('max_descent_speed', ('max_descent_speed',)),
+    ('yaw_bias', ('estimate_yaw_bias',)),
+    ('quantisation', ('estimate_quantum_x', 'estimate_quantum_y', 'estimate_quantum_z', 'estimate_quantum_velocity')),
+))
 # Every key of anafi_model.yaml, in file order.
 MODEL_KEYS = REQUIRED_KEYS + tuple(EFFECTS_OFF)
 _POSITIVE = ('gravity', 'estimate_rate')

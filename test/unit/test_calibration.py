@@ -403,9 +403,13 @@ def test_yaml_text_has_exactly_the_model_keys_and_validates(real):
                         if not line.startswith('#'))
         for key in EFFECTS_OFF:                                     # every effect says how it was fitted
             assert len(comments[key].strip()) > 20, key
-    off = yaml.safe_load(report.format_model_yaml(result, names))
-    if not result.effects_on:
-        assert all(off[key] == value for key, value in EFFECTS_OFF.items())
+    shipped = yaml.safe_load(report.format_model_yaml(result, names))
+    for name, keys in cal.EFFECT_GROUPS.items():       # the shipped groups have the fitted values, the others are off
+        for key in keys:
+            if name in result.effects_on:
+                assert shipped[key] == pytest.approx(result.fitted[key], rel=1e-5), (name, key)
+            elif key in EFFECTS_OFF:
+                assert shipped[key] == EFFECTS_OFF[key], (name, key)
 
 
 def test_committed_config_is_this_fit(real):
@@ -425,7 +429,7 @@ def test_real_log_effects(real):
     """Every effect is found in the shared logs with its documented value and helps where it should."""
     logs, result = real
     f, p = result.effects, result.fitted
-    assert result.effects_on is cal.SHIPPED_EFFECTS
+    assert result.effects_on == tuple(cal.SHIPPED_EFFECTS)
     # fusion: steady lag of the replayed estimate within 0.03 s of the logged one, transients well below it
     fusion = f.fusion
     assert 0.15 < fusion.fix_delay < 0.3 and 0.05 < fusion.fix_gain < 1.0

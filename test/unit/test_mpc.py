@@ -281,7 +281,7 @@ def test_bad_input_gives_not_ok_and_recovers(bad):
 
 def test_fast_start_is_clipped_into_the_velocity_bounds_not_infeasible():
     # |v_z| = 3 m/s could not be brought within 2 m/s in one step with |a_z| <= 5 m/s^2: x_0 gets v_z = 2
-    c = CumulativeErrorMpc()
+    c = CumulativeErrorMpc({'paper_timing': False})
     r = c.solve((0, 0, 5), (0, 0, 3.0), (0, 0, 5), (0, 0, 0))
     assert r.ok and r.velocity_clipped and r.u0[2] < -1.0
     assert r.x_pred[0, 11] == pytest.approx(2.0, abs=1e-6)
@@ -293,7 +293,7 @@ def test_fast_start_is_clipped_into_the_velocity_bounds_not_infeasible():
 
 
 def test_paper_timing_solves_with_the_previous_inputs():
-    tight = {'eps_abs': 1e-6, 'eps_rel': 1e-6, 'max_iter': 20000}
+    tight = {'eps_abs': 1e-6, 'eps_rel': 1e-6, 'max_iter': 20000, 'paper_timing': False}
     paper = CumulativeErrorMpc(dict(tight, paper_timing=True))
     now = CumulativeErrorMpc(tight)
     seq = [((0, 0, 5), (0, 0, 0), (3, 2, 5), (0, 0, 0)), ((0.1, 0, 5), (0.5, 0, 0), (3, 2, 5), (0, 0, 0)),
@@ -387,7 +387,7 @@ OLD_NUMERICS = {'polish': False, 'verify': False, 'cum_scale': 1.0, 'accept_inac
 
 @pytest.mark.parametrize('seed', [0, 1])
 def test_every_u0_within_0p05_of_the_exact_optimum_after_waypoint_jumps(seed):
-    new, old = CumulativeErrorMpc(), CumulativeErrorMpc(OLD_NUMERICS)
+    new, old = CumulativeErrorMpc({'paper_timing': False}), CumulativeErrorMpc(dict(OLD_NUMERICS, paper_timing=False))
     err_new, err_old = [], []
     for p, v, wp, wv in _jump_sequence(seed):
         u_ex = exact_u0(new, mpc.initial_state(p, v, wp, wv), new.reference(wp, wv))

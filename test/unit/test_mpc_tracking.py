@@ -165,7 +165,7 @@ def test_fast_start_gives_a_real_command_not_hover():
 
 
 def test_paper_timing_commands_come_from_the_previous_cycle():
-    paper, now = MpcTracking({'paper_timing': True}), MpcTracking()
+    paper, now = MpcTracking({'paper_timing': True}), MpcTracking({'paper_timing': False})
     states = [((0, 0, 1), (0, 0, 0)), ((0.2, 0.1, 1.2), (1.0, 0.5, 0.5)), ((0.5, 0.2, 1.5), (2.0, 0.8, 1.0))]
     wps = [WP, WP, (-3.0, 4.0, 6.0, 0.0, 0.0, 0.0, 0.0)]
     prev = None

@@ -31,8 +31,9 @@ numbers, passed in by the node / engine through ``PredictionModel``), at 20-50 H
   against the model's with the measured tilt, filtered with ``disturbance_time_constant`` [s]; a constant
   wind leaves no steady error.
 * **Estimate lag**: the state sample is taken as the truth ``estimate_lag`` [s] before its sample time (the
-  receipt time rounded down to the estimate's ``sample_period``), the position moved by v ``position_lag``
-  [s] (a position fix that trails), and predicted forward from there (``lag_compensation`` False: not).
+  receipt time rounded down to the estimate's ``sample_period``), the position moved by the fused fix's
+  lag (D = ``position_lag`` [s], gain k = ``position_fix_gain`` [1/s]: e' = k (v D - e); v D on a line, less
+  on a turn) and predicted forward from there (``lag_compensation`` False: not).
 
 Yaw: yaw rate = ``yaw_gain`` (yaw_ref - yaw) + the reference's yaw rate, within the bridge's max yaw rate.
 ``cycle`` result: ``PreviewResult`` (the paper MPC's stats fields plus the predicted / reference paths,
@@ -101,8 +102,8 @@ EXTRA_COUNTERS = ('previews', 'rejected_previews', 'preview_cycles', 'estimator_
 
 #: keys of the prediction model (``PredictionModel``), from anafi_model.yaml / sim.yaml (bridge limits)
 MODEL_KEYS = ('gravity', 'attitude_time_constant', 'attitude_delay', 'vertical_speed_time_constant',
-              'drag_linear', 'drag_quadratic', 'estimate_lag', 'position_lag', 'sample_period',
-              'max_tilt_deg', 'max_vertical_speed', 'max_yaw_rate_deg')
+              'drag_linear', 'drag_quadratic', 'estimate_lag', 'position_lag', 'position_fix_gain',
+              'sample_period', 'max_tilt_deg', 'max_vertical_speed', 'max_yaw_rate_deg')
 
 
 class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
@@ -113,14 +114,16 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
     def from_params(cls, model, max_tilt_deg, max_vertical_speed, max_yaw_rate_deg):
         """From an anafi_model.yaml dict (anafi_sim.sim.drone_model's keys) and the bridge's limits.
 
-        estimate_lag = estimate_delay + estimate_time_constant; position_lag = the position fix delay when
-        the model fuses a delayed position fix, else 0; sample_period = 1 / estimate_rate."""
+        estimate_lag = estimate_delay + estimate_time_constant; position_lag, position_fix_gain = the
+        position fix's delay D [s] and gain k [1/s] when the model fuses a delayed position fix, else 0;
+        sample_period = 1 / estimate_rate."""
         lag = float(model.get('estimate_delay', 0.0)) + float(model.get('estimate_time_constant', 0.0))
         fusion = bool(model.get('estimate_position_fusion', False))
         return cls(float(model['gravity']), float(model['attitude_time_constant']), float(model['attitude_delay']),
                    float(model['vertical_speed_time_constant']), float(model['drag_linear']),
                    float(model['drag_quadratic']), lag,
                    float(model.get('estimate_position_fix_delay', 0.0)) if fusion else 0.0,
+                   float(model.get('estimate_position_fix_gain', 0.0)) if fusion else 0.0,
                    1.0 / float(model['estimate_rate']) if model.get('estimate_rate') else 0.0,
                    float(max_tilt_deg), float(max_vertical_speed), float(max_yaw_rate_deg))
 
@@ -251,6 +254,7 @@ class PreviewMpc(Controller):
         self.estimator = TargetEstimator(p['estimator_window'], p['estimator_max_rate'])
         self.preview = None          # (receipt time, times (n,), P, V, A (n, 3), yaw_deg (n,))
         self.sample = None           # newest distinct state sample (see _state_received)
+        self.lag_offset = None       # truth - estimate position [m] of the fused fix (see _state_received)
         self.disturbance = np.zeros(3)
         self.commands = collections.deque()   # (t_apply, u_x, u_y (world m/s^2), u_z (m/s))
         self.carry = [0.0, 0.0, 0.0, 0.0]     # quantisation error carried (roll, pitch, yaw rate, gaz)
@@ -302,6 +306,22 @@ class PreviewMpc(Controller):
             self._last_orientation = None
         return Controller.on_state(self, t, position, orientation, twist_linear)
 
+    def _lag_offset(self, ts, vel):
+        """truth - estimate of the position [m] (world) at sample time ``ts``: the estimate's fix trails by D
+        and is pulled in with gain k, e' = k (chord - e), the chord of the last D s ~ v D (on a line e -> v D,
+        on a turn the filter attenuates it); the estimator's own filter run on the estimated velocity."""
+        m = self.model
+        chord = np.array(vel, dtype=float) * m.position_lag
+        prev = self.sample
+        if self.lag_offset is None or prev is None or m.position_lag <= 0.0:
+            self.lag_offset = chord
+        else:
+            h = ts - prev['t']
+            if 0.0 < h < 0.5:
+                c = 1.0 - math.exp(-m.position_fix_gain * h)
+                self.lag_offset = self.lag_offset + c * (chord - self.lag_offset)
+        return self.lag_offset
+
     def _state_received(self, t):
         """A new state sample: keep it when its values changed (the estimate holds values between its
         samples), update the disturbance estimate."""
@@ -316,7 +336,7 @@ class PreviewMpc(Controller):
             ts = math.floor(t / m.sample_period + 1e-6) * m.sample_period
         if self.params['lag_compensation']:
             ts -= m.estimate_lag
-            pos = tuple(pi + vi * m.position_lag for pi, vi in zip(pos, vel))
+            pos = tuple(pi + oi for pi, oi in zip(pos, self._lag_offset(ts, vel)))
         fwd, left = tilt_acceleration(roll, pitch, m.gravity)
         ax, ay = stability_to_world(fwd, left, yaw)
         new = {'t': ts, 'pos': self.gate.state.value[0], 'vel': vel, 'p': np.array(pos), 'v': np.array(vel),
@@ -570,6 +590,7 @@ class PreviewMpc(Controller):
     def _clock_jumped(self):
         self.commands.clear()
         self.sample = None
+        self.lag_offset = None
         self.preview = None
         self.estimator.reset()
         self.disturbance = np.zeros(3)

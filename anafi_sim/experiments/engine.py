@@ -140,6 +140,8 @@ Odom = collections.namedtuple('Odom', 'stamp position orientation twist')
 """A nav_msgs/Odometry in numbers: stamp [s], position [m], orientation (x, y, z, w), linear twist [m/s] in
 the child (body) frame."""
 Stamped = collections.namedtuple('Stamped', 'stamp values')
+# a contract controller's command: ``ok`` False = a failsafe output (the monitor's hover commands)
+Command = collections.namedtuple('Command', 'stamp values ok')
 """A stamped message: stamp [s], values (a waypoint's 7 numbers, a command's 4)."""
 
 RunResult = collections.namedtuple('RunResult', 'name ok error summary info evaluation')
@@ -365,16 +367,16 @@ class ControllerNode(object):
         if solve_time is not None and math.isfinite(solve_time):
             self.solve_times.append(solve_time)
         if self.command_rate is None:
-            self._publish(now, out.command)
+            self._publish(now, out.command, out.ok)
 
     def _on_command(self, now):
-        self._publish(now, self.core.last.command)
+        self._publish(now, self.core.last.command, self.core.last.ok)
 
-    def _publish(self, now, command):
+    def _publish(self, now, command, ok=True):
         if command is None:       # nothing to send: the firmware's hover brake acts
             self.silent += 1
             return
-        self.command.publish(Stamped(to_s(now), tuple(command)), self.latency)
+        self.command.publish(Command(to_s(now), tuple(command), bool(ok)), self.latency)
 
 
 class RelativeStateNode(object):
@@ -557,7 +559,8 @@ class Engine(object):
         self.monitor = ExperimentMonitor(self.scenario.duration, min_commands=int(s['min_commands']),
                                          ready_timeout=self.max_sim_time, end_margin=self.max_sim_time)
         self.state_out.subscribe(self.monitor.on_drone_state)
-        self.command_topic.subscribe(lambda m: self.monitor.on_command(m.values, m.stamp))
+        self.command_topic.subscribe(lambda m: self.monitor.on_command(m.values, m.stamp,
+                                                                       hover=(not m.ok) if hasattr(m, 'ok') else None))
         self.start_topic = w.topic('trajectory_generator/command')
         self.reference_topic = w.topic('command/trajectory')   # the generator's preview (PREVIEW controllers)
         self.hold = self.scenario.waypoint(0.0)

@@ -112,17 +112,23 @@ class ExperimentMonitor(object):
     def on_drone_state(self, text):
         self.drone_state = str(text)
 
-    def on_command(self, values=None, ros_time=None):
+    def on_command(self, values=None, ros_time=None, hover=None):
         """A piloting command (roll, pitch, yaw, gaz) from the controller at ROS time ``ros_time`` [s].
 
         Before the start only engaged (non-zero, finite) commands count toward ``min_commands``
         (``values`` None: counted as engaged). While the scenario runs (start .. end of the measured
-        segment) every command is counted, all-zero ones as hover commands (the controller fell back to
-        hovering: stale or missing input), and the largest gap between commands in ROS time is kept."""
+        segment) every command is counted, hover commands apart (the controller fell back to hovering:
+        stale or missing input), and the largest gap between commands in ROS time is kept. ``hover``: the
+        controller says whether this is a failsafe command (the in-process engine knows it from the
+        contract's ``ok``); None = all-zero commands are taken as hover (a ROS graph only sees the
+        command) - a controller whose quantised command is exactly zero on target (preview_mpc) is then
+        miscounted."""
         engaged = True
         if values is not None:
             vals = [float(v) for v in values]
             engaged = all(math.isfinite(v) for v in vals) and any(abs(v) > 1e-9 for v in vals)
+        if hover is not None:
+            engaged = not hover and (values is None or all(math.isfinite(float(v)) for v in values))
         if self.state in (STARTED, MEASURING):
             self.scenario_commands += 1
             if not engaged:

@@ -164,3 +164,16 @@ def test_hover_commands_and_gaps_while_the_scenario_runs_make_it_disturbed():
     info = m.run_info()
     assert info['hover_commands'] == 3 and info['max_command_gap_s'] == pytest.approx(0.8)
     assert info['disturbed'] == reason
+
+
+def test_the_controller_says_what_a_hover_command_is_when_it_can():
+    """In-process the contract's ``ok`` decides: an exact-zero command on target (preview_mpc's quantised
+    output) is not a hover command, a non-zero failsafe command (HOLD) is; without it, all-zero = hover."""
+    m = ready_monitor()
+    m.tick(1.0, 0.0)
+    t = 1.0
+    for hover, values in ((False, (0.0, 0.0, 0.0, 0.0)), (True, (0.3, 0.0, 0.0, 0.1)), (None, (0.0,) * 4),
+                          (False, (float('nan'), 0.0, 0.0, 0.0))):
+        t += 0.1
+        m.on_command(values, t, hover=hover)
+    assert m.scenario_commands == 4 and m.hover_commands == 3

@@ -313,9 +313,12 @@ class TestMirror(unittest.TestCase):
             self.rec.latest_world = {}
         time.sleep(1.5)
         self.assertEqual(node_pid('/%s/gazebo_mirror' % DRONE), mirror_pid, 'the mirror died with the world')
-        script = os.path.join(PKG, 'anafi_sim', 'scripts', 'kinematic_world_node.py')
         started = time.time()
-        type(self).new_world = subprocess.Popen([sys.executable, script, '__name:=gazebo'])
+        # world.launch respawns the world (respawn="true", 1 s); a launch without respawn: start one ourselves
+        # (never both: two nodes named /gazebo would kill each other)
+        if not wait_for(lambda: node_pid('/gazebo') not in (None, world_pid), 6.0):
+            script = os.path.join(PKG, 'anafi_sim', 'scripts', 'kinematic_world_node.py')
+            type(self).new_world = subprocess.Popen([sys.executable, script, '__name:=gazebo'])
         # the clock starts when the new world serves spawn_urdf_model (its own start-up is not the mirror's)
         rospy.wait_for_service('/gazebo/spawn_urdf_model', timeout=30.0)
         serving = time.time()

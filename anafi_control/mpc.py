@@ -99,7 +99,7 @@ DEFAULT_PARAMS = {
     'carry_cumulative_errors': False,
     'rebuild_every_cycle': False,
     'accept_inaccurate': True,  # treat OSQP 'solved inaccurate' as ok (the authors' code did)
-    'paper_timing': True,       # solve with the inputs of the previous call (the authors' node), see solve()
+    'paper_timing': False,      # solve with the inputs of the previous call (the authors' node), see solve()
     'cum_scale': 30.0,          # QP variable of the cumulative errors = cum / cum_scale (1 = unscaled)
     'eps_abs': 1e-3,
     'eps_rel': 1e-3,

@@ -429,6 +429,14 @@ class CumulativeErrorMpc(object):
                 self._scaled_qp_data()
                 self._bounds_into(self.qp)
 
+    def set_max_iter(self, max_iter):
+        """Change OSQP's iteration limit (>= 1) of the persistent solver (no rebuild). A solve that hits it
+        reports 'maximum iterations reached': not ok, the controller's failsafe takes over."""
+        self._settings['max_iter'] = _positive_int(max_iter, 'max_iter', minimum=1)
+        self._p['max_iter'] = self._settings['max_iter']
+        if self._solver is not None:
+            self._solver.update_settings(max_iter=self._settings['max_iter'])
+
     def set_horizon(self, N):
         """Change the horizon; the QP structure changes, so the solver is rebuilt."""
         self._N = self._check_horizon(N)

@@ -41,7 +41,7 @@ from anafi_control.pid_framework import DEFAULT_CONFIG as PID_FRAMEWORK_CONFIG
 
 #: flat, reconfigurable parameter names (cfg/Mpc.cfg, anafi_sim/config/mpc.yaml) -> MPC core
 RECONFIGURABLE = ('q_cum', 'q_cum_terminal', 'q_cum_vel', 'q_cum_vel_terminal', 'r',
-                  'v_max_x', 'v_max_y', 'v_max_z', 'a_max', 'N', 'carry_cumulative_errors')
+                  'v_max_x', 'v_max_y', 'v_max_z', 'a_max', 'N', 'carry_cumulative_errors', 'max_iter')
 
 #: counters of MpcTracking besides the contract's (contract.COUNTER_NAMES)
 EXTRA_COUNTERS = ('waypoint_jumps', 'reconfigurations', 'solved_inaccurate', 'velocity_clipped', 'cold_resolves')
@@ -186,6 +186,7 @@ class MpcTracking(Controller):
             'v_max_x': float(p['v_max'][0]), 'v_max_y': float(p['v_max'][1]), 'v_max_z': float(p['v_max'][2]),
             'a_max': _scalar(a_max), 'N': int(p['N']),
             'carry_cumulative_errors': bool(self.mpc.carry_cumulative_errors),
+            'max_iter': int(p['max_iter']),
         }
 
     def reconfigure(self, new):
@@ -220,6 +221,11 @@ class MpcTracking(Controller):
             if isinstance(n, bool) or int(n) != n:
                 raise ValueError('N must be an integer, got %r' % (n,))
             self.mpc.set_horizon(int(n))
+        if want['max_iter'] != old['max_iter']:
+            n = want['max_iter']
+            if isinstance(n, bool) or int(n) != n:
+                raise ValueError('max_iter must be an integer, got %r' % (n,))
+            self.mpc.set_max_iter(int(n))
         if bool(want['carry_cumulative_errors']) != old['carry_cumulative_errors']:
             self.mpc.carry_cumulative_errors = bool(want['carry_cumulative_errors'])
             self.mpc.reset_cumulative_errors()

@@ -3,6 +3,7 @@
 
     python benchmarks/bench_preview_mpc.py scenarios [--workers 2] [--out DIR]   # moving + static scenarios
     python benchmarks/bench_preview_mpc.py wind [--seeds 10] [--workers 2]        # 4 m/s wind + 1 m/s gusts
+    python benchmarks/bench_preview_mpc.py airship [--workers 2]                  # follow the airship (no preview)
     python benchmarks/bench_preview_mpc.py cycle                                  # cycle time p50/p99 [ms]
 
 Every figure comes from ``anafi_sim.experiments.engine.Engine`` runs (the same cores as the ROS nodes on
@@ -37,6 +38,8 @@ VARIANTS = {
     'mpc': ('mpc', None),
     'pid': ('pid', None),
 }
+DEFAULT_LABELS = 'preview_mpc,preview_mpc (no preview),mpc,pid'
+AIRSHIP_LABELS = ['preview_mpc (no preview)', 'mpc', 'pid']   # a seen target: no preview
 WIND = {'x': 3.2, 'y': 2.4, 'gust': 1.0, 'gust_vertical': 0.3, 'gust_time_constant': 2.0}   # |mean| 4 m/s
 
 
@@ -153,6 +156,21 @@ def cmd_wind(args):
     return lines
 
 
+def cmd_airship(args):
+    labels = args.labels.split(',') if args.labels != DEFAULT_LABELS else AIRSHIP_LABELS
+    results = _pool([('airship_follow', l, None, None) for l in labels], args.workers)
+    by = dict((r['label'], r) for r in results)
+    lines = ['## Airship tracking (scenario airship_follow: the airship of airship.yaml followed 6 m behind, 2 m '
+             'below; 10 Hz waypoints from model_follower, no preview): e_mu [m] over one lap (120 s)', '',
+             '| controller | truth vs held waypoint | truth vs continuous reference | estimate vs held waypoint |',
+             '|---|---|---|---|']
+    for l in labels:
+        r = by[l]
+        lines.append('| %s | %s |' % (l, ' | '.join(_fmt(r.get(k)) for k in ('e_mu_truth', 'e_mu_ref', 'e_mu_est'))
+                                      if r['ok'] else 'FAILED | - | -'))
+    return lines
+
+
 def cmd_cycle(args):
     lines = ['## cycle() time [ms], one run of %s per controller (same process, one after the other): process '
              'CPU time (time.process_time: preemption by other processes excluded) and wall time' % args.scenario,
@@ -188,18 +206,20 @@ def cmd_cycle(args):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    ap.add_argument('command', choices=('scenarios', 'wind', 'cycle'))
+    ap.add_argument('command', choices=('scenarios', 'wind', 'airship', 'cycle'))
     ap.add_argument('--workers', type=int, default=2)
     ap.add_argument('--seeds', type=int, default=10, help='wind: gust seeds of the preview MPC')
     ap.add_argument('--baseline-seeds', type=int, default=10, help='wind: gust seeds of mpc / pid')
-    ap.add_argument('--labels', default='preview_mpc,preview_mpc (no preview),mpc,pid',
-                    help='comma-separated variants: %s' % ', '.join(VARIANTS))
+    ap.add_argument('--labels', default=DEFAULT_LABELS,
+                    help='comma-separated variants: %s (airship default: %s)' % (', '.join(VARIANTS),
+                                                                                  ','.join(AIRSHIP_LABELS)))
     ap.add_argument('--scenario', default='circle_r3_v3')
     ap.add_argument('--circles', default='', help='wind: comma-separated circles (default: all six)')
     ap.add_argument('--out', default=None)
     args = ap.parse_args()
     t0 = time.time()
-    lines = {'scenarios': cmd_scenarios, 'wind': cmd_wind, 'cycle': cmd_cycle}[args.command](args)
+    lines = {'scenarios': cmd_scenarios, 'wind': cmd_wind, 'airship': cmd_airship,
+             'cycle': cmd_cycle}[args.command](args)
     lines += ['', '(%s: %.0f s wall)' % (' '.join(sys.argv[1:]), time.time() - t0)]
     text = '\n'.join(lines) + '\n'
     print(text)

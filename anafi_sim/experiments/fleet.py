@@ -37,7 +37,7 @@ import yaml
 
 from anafi_sim import paths
 from anafi_sim.experiments.model_follower import OFFSET_FRAMES, YAW_MODES
-from anafi_sim.experiments.trajectory import SCENARIO_DIR, scenario_from_dict, scenario_path
+from anafi_sim.experiments.trajectory import SCENARIO_DIR, airship_defaults, scenario_from_dict, scenario_path
 from anafi_sim.gazebo.mirror import model_names
 
 FLEET_DIR = paths.config_path('fleets')
@@ -264,6 +264,11 @@ def offset_trajectory_dict(traj, offset):
     elif kind == 'per_axis':
         for axis, o in zip('xyz', offset):
             traj[axis] = _shift_component(traj.get(axis, 0.0), o)
+    elif kind == 'airship':          # the followed target's path moves: its centre and altitude
+        path = dict(airship_defaults(), **(traj.get('path') or {}))
+        path['center'] = [float(path['center'][0]) + offset[0], float(path['center'][1]) + offset[1]]
+        path['altitude'] = float(path['altitude']) + offset[2]
+        traj['path'] = path
     else:
         raise ValueError('cannot shift a trajectory of type %r' % (kind,))
     return traj

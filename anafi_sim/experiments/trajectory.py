@@ -39,7 +39,8 @@ trajectory into phases. Schema (see anafi_sim/config/scenarios/README.md)::
 
 Trajectory types: ``static`` (position [x, y, z], yaw), ``line`` (start,
 direction, speed, yaw), ``circle`` (centre, radius, speed, yaw, phase [rad],
-clockwise), ``vertical`` (centre [x, y, z0], radius, speed, yaw), ``per_axis``
+clockwise), ``vertical`` (centre [x, y, z0], radius, speed, yaw), ``airship`` (a
+followed scripted target: path {airship.yaml keys}, offset, offset_frame, yaw_mode, yaw_offset), ``per_axis``
 (x, y, z, yaw: each {type: constant, value} | {type: ramp, start, speed} |
 {type: sine, offset, amplitude, omega [rad/s], phase [rad]}; missing axes are
 constant 0). A phase has ``duration`` [s] or ``periods`` (whole trajectory
@@ -322,6 +323,65 @@ class VerticalPeriodic(PerAxis):
                          Sine(centre[2], radius, speed / radius, 0.0), Constant(yaw))
 
 
+class FollowedTarget(object):
+    """The waypoint ``model_follower.py`` makes of a scripted moving target: the airship of the multi-robot
+    scene (``anafi_sim.gazebo.airship_path.AirshipPath``, parameters ``path``: its keys of
+    anafi_sim/config/airship.yaml, which gives the defaults) followed at ``offset`` [m] in its heading frame
+    (``ModelFollower``: offset_frame, yaw_mode, yaw_offset [deg]) with the velocity from its twist, as the
+    follower computes it from /gazebo/model_states. A pure function of time, for the in-process engine
+    (``airship_follow`` scenario). ``acceleration`` is a central difference of the velocity (h = 1 ms).
+    """
+
+    kind = 'airship'
+    PATH_KEYS = ('shape', 'size', 'period', 'altitude', 'z_amplitude', 'z_period', 'center', 'phase')
+
+    def __init__(self, path=None, offset=(-6.0, 0.0, -2.0), offset_frame='heading', yaw_mode='heading',
+                 yaw_offset=0.0):
+        from anafi_sim.experiments.model_follower import ModelFollower   # (imports this module)
+        from anafi_sim.gazebo.airship_path import AirshipPath
+        params = airship_defaults()
+        if path is not None:
+            _check_keys(path, self.PATH_KEYS, 'airship path')
+            params.update(path)
+        self.path = AirshipPath(**params)
+        self.follower = ModelFollower(list(offset), offset_frame, yaw_mode, yaw_offset, velocity_source='twist')
+
+    def sample(self, t):
+        """Waypoint at trajectory time ``t`` [s]."""
+        t = float(t)
+        st = self.path.state(t)
+        half = 0.5 * st.yaw
+        self.follower.reset()          # a pure function of t: no history (the velocity is the twist's)
+        return self.follower.update(t, st.position, (0.0, 0.0, math.sin(half), math.cos(half)),
+                                    linear=st.velocity, angular_z=st.yaw_rate)
+
+    __call__ = sample
+
+    def acceleration(self, t, h=1e-3):
+        """(ax, ay, az) [m/s^2] at ``t`` (central difference of the waypoint velocity)."""
+        a, b = self.sample(t - h), self.sample(t + h)
+        return ((b.vx - a.vx) / (2 * h), (b.vy - a.vy) / (2 * h), (b.vz - a.vz) / (2 * h))
+
+    def position(self, t):
+        s = self.sample(t)
+        return s.x, s.y, s.z
+
+    def velocity(self, t):
+        s = self.sample(t)
+        return s.vx, s.vy, s.vz
+
+    def period(self):
+        """Lap and bob periods' common period [s]."""
+        return common_period([self.path.period, self.path.z_period])
+
+
+def airship_defaults():
+    """The airship path's parameters of anafi_sim/config/airship.yaml (the scene's single source)."""
+    with open(paths.config_path('airship.yaml')) as stream:
+        data = yaml.safe_load(stream)
+    return dict((k, data[k]) for k in FollowedTarget.PATH_KEYS if k in data)
+
+
 # ---------------------------------------------------------------- construction from dicts
 
 def _check_keys(d, allowed, what):
@@ -383,6 +443,11 @@ def trajectory_from_dict(d, what='trajectory'):
             _check_keys(d, ('type', 'centre', 'radius', 'speed', 'yaw'), what)
             return VerticalPeriodic(_require(d, 'centre', what), _require(d, 'radius', what),
                                     _require(d, 'speed', what), _number(d.get('yaw', 0.0), 'yaw'))
+        if kind == 'airship':
+            _check_keys(d, ('type', 'path', 'offset', 'offset_frame', 'yaw_mode', 'yaw_offset'), what)
+            return FollowedTarget(d.get('path'), d.get('offset', (-6.0, 0.0, -2.0)),
+                                  d.get('offset_frame', 'heading'), d.get('yaw_mode', 'heading'),
+                                  _number(d.get('yaw_offset', 0.0), 'yaw_offset'))
         if kind == 'per_axis':
             _check_keys(d, ('type', 'x', 'y', 'z', 'yaw'), what)
             return PerAxis(*[component_from_dict(d[a], '%s.%s' % (what, a)) if a in d else None
@@ -390,7 +455,8 @@ def trajectory_from_dict(d, what='trajectory'):
     except ValueError as e:
         msg = str(e)
         raise ValueError(msg if msg.startswith(what) else '%s (%s): %s' % (what, kind, msg))
-    raise ValueError('%s: type must be one of static, line, circle, vertical, per_axis, got %r' % (what, kind))
+    raise ValueError('%s: type must be one of static, line, circle, vertical, airship, per_axis, got %r'
+                     % (what, kind))
 
 
 # ---------------------------------------------------------------- scenarios

@@ -64,3 +64,30 @@ def piloting_command_class():
 def sphinx_class():
     """``sphinx_with_gazebo/Sphinx`` (md5 85390efb41e38eee13815912075e2a5a)."""
     return load_message_class(SPHINX_TYPE, SPHINX_DEFINITION)
+
+
+def class_from_connection_header(header):
+    """The message class a publisher announced in its connection header (dict of str -> str).
+
+    Every ROS publisher sends its type name (``type``), md5 (``md5sum``) and full definition
+    (``message_definition``) when a subscriber connects; this builds the class from them, so a type whose
+    package is not installed here (``olympe_bridge/PilotingCommand`` from a real bridge, ``gazebo_msgs``)
+    can still be decoded. Raises ValueError when the header lacks them or the built class's md5 differs.
+    """
+    type_name = header.get('type', '')
+    definition = header.get('message_definition', '')
+    if '/' not in type_name or not definition:
+        raise ValueError('connection header without type / message_definition: %r' % sorted(header))
+    key = (type_name, definition)
+    if key not in _cache:
+        _cache[key] = genpy.dynamic.generate_dynamic(type_name, definition)[type_name]
+    cls = _cache[key]
+    md5 = header.get('md5sum', cls._md5sum)
+    if md5 != '*' and md5 != cls._md5sum:
+        raise ValueError('%s: md5 %s in the header, %s from its definition' % (type_name, md5, cls._md5sum))
+    return cls
+
+
+def decode(header, buffer):
+    """Deserialize one message (bytes ``buffer``) of the type announced in ``header`` (see above)."""
+    return class_from_connection_header(header)().deserialize(buffer)

@@ -2,10 +2,10 @@
 """rostest: the fault matrix (issue 14). Each fault is injected into a running graph with a flying drone.
 
 The graph runs on a private ROS master of this test (so that the master itself can be restarted, the last
-case): sim.launch (simulated Anafi + interface) + mpc.launch whose state comes through this test
+case): world.launch (simulated Anafi + interface + kinematic Gazebo world + mirror) + mpc.launch whose state comes through this test
 (``fault/odom``, a relay of drone/odom that the test can corrupt or stop) + a second interface in
 /garbage whose telemetry command prints garbage, a malformed number and a 10 kB line before the real tool.
-Wall clock, rtf 1, about 3 min.
+Wall clock, rtf 1, about 5 min.
 
 For each fault (``FAULTS``): the drone flies along x at about 3 m/s (a moving waypoint); the fault is
 injected; checked: the diagnostic level and message of the node concerned, the counter, that the drone
@@ -30,11 +30,13 @@ import psutil
 import rospy
 import rostest
 from diagnostic_msgs.msg import DiagnosticArray
+from dynamic_reconfigure.client import Client
 from nav_msgs.msg import Odometry
 from std_msgs.msg import String
 
 from anafi_sim import harness, paths
 from anafi_sim.msg import Waypoint
+from anafi_sim.ros import gazebo_types
 from anafi_sim.ros.wire_types import piloting_command_class
 
 DRONE = 'anafi'
@@ -60,19 +62,29 @@ FAULTS = (
      'non-finite state", rejected_states grows, no command, the firmware brake stops the drone'),
     ('stale_state', 'state stops', 'SILENT after state_timeout (0.5 s): WARN "no command, firmware hover brake: '
      'stale state", no command, the drone stops'),
+    ('solver_failure', 'MPC solver fails (OSQP max_iter lowered to 1 by dynamic_reconfigure in flight)',
+     'SILENT: ERROR "no command, firmware hover brake: solver ...", solver_failed grows, no command, the '
+     'firmware brake stops the drone; max_iter back -> tracking'),
     ('cli_killed', 'telemetry CLI killed (SIGKILL)', 'restarted at once (process restarts grows, last exit '
      'code -9), OK again; the controller (on the drone\'s estimate) keeps tracking'),
     ('cli_hung', 'telemetry CLI stopped (SIGSTOP: no output, no exit)', 'interface ERROR (stale), the CLI is '
      'killed and restarted after restart_timeout (process hangs grows), OK again'),
     ('telemetry_garbage', 'garbage, a malformed number (1_000) and a 10 kB line in the telemetry',
      'lines counted (parse malformed, process oversize lines), dropped; samples flow: OK'),
+    ('simulator_restart', 'simulated Anafi (anafi_sim node: Sphinx + firmware) killed (SIGKILL)',
+     'interface ERROR while the telemetry is gone, controller SILENT (stale state); roslaunch respawns the '
+     'simulator (a new flight from the take-off point); interface OK within 5 s of its first sample, the '
+     'controller tracks again'),
+    ('world_killed', 'Gazebo world (/gazebo) killed (SIGKILL), respawned by world.launch',
+     'the mirror survives (same pid), counts the world restart, respawns both models, OK again; the drone keeps '
+     'tracking (the controller does not use the world)'),
     ('master_restart', 'ROS master killed and restarted on the same port', 'every node exits (code 75) and is '
      'respawned with its parameters; new publishers reach the controller again'),
 )
 
 LAUNCH = """<launch>
   <param name="/use_sim_time" value="false"/>
-  <include file="$(find anafi_sim)/anafi_sim/launch/sim.launch">
+  <include file="$(find anafi_sim)/anafi_sim/launch/world.launch">
     <arg name="drone_name" value="{drone}"/>
     <arg name="telemetry_port" value="{port}"/>
   </include>
@@ -108,6 +120,8 @@ class Graph(object):
         rospy.Subscriber('/%s/sim/truth' % DRONE, Odometry, self.on_truth, queue_size=1, tcp_nodelay=True)
         rospy.Subscriber('/diagnostics', DiagnosticArray, self.on_diag, queue_size=50)
         rospy.Subscriber('/%s/drone/rpyt' % DRONE, piloting_command_class(), self.on_cmd, queue_size=50)
+        self.models = (0.0, ())     # (wall time, names) of the last /gazebo/model_states
+        rospy.Subscriber('/gazebo/model_states', gazebo_types.model_states_class(), self.on_models, queue_size=1)
         self.timer = rospy.Timer(rospy.Duration(0.1), self.publish_waypoint)
 
     @property
@@ -130,6 +144,10 @@ class Graph(object):
         with self.lock:
             for s in msg.status:
                 self.diag[s.name] = (now, s.level, s.message, dict((kv.key, kv.value) for kv in s.values))
+
+    def on_models(self, msg):
+        with self.lock:
+            self.models = (time.time(), tuple(msg.name))
 
     def on_cmd(self, _msg):
         with self.lock:
@@ -370,6 +388,29 @@ class TestFaultMatrix(unittest.TestCase):
         # stops), at the next 10 Hz cycle
         self.silent_case('stale_state', 'off', 'stale state', 'stale_state', 0.65)
 
+    def test_06b_solver_failure(self):
+        g = self.g
+        client = Client('/%s/mpc_controller' % DRONE, timeout=20.0)
+        v = self.fly()
+        before = counter(self.controller(0.0), 'solver_failed') or 0
+        pos0, t0 = g.position(), time.time()
+        self.assertEqual(client.update_configuration({'max_iter': 1})['max_iter'], 1)
+        try:
+            secs, dist = self.wait_stop(t0, pos0)
+            e = self.wait_controller(t0 + 0.2, lambda e: 'solver' in e[2], 5.0, 'solver failure diagnostic')
+            self.assertEqual(e[1], 2, e)                                  # ERROR: the controller itself failed
+            self.assertIn('no command, firmware hover brake', e[2])
+            self.assertEqual(g.command_rate(), 0.0, 'a failed solve sends nothing')
+            self.assertGreater(counter(e, 'solver_failed'), before, e)
+            bound = self.bound(v, 0.2)
+            self.assertLess(dist, bound, 'solver_failure: %.1f m from %.1f m/s > bound %.1f m' % (dist, v, bound))
+        finally:
+            client.update_configuration({'max_iter': 4000})
+        rec = self.recover(time.time())
+        self.record('solver_failure', 'ERROR "%s"; solver_failed %d -> %d; commands 0 Hz' % (
+            e[2], before, counter(e, 'solver_failed')),
+            '%.1f m from %.1f m/s in %.1f s (bound %.1f m)' % (dist, v, secs, bound), rec)
+
     def _interface(self, since=0.0):
         return self.g.status('/%s/interface' % DRONE, since)
 
@@ -440,6 +481,89 @@ class TestFaultMatrix(unittest.TestCase):
         self.record('telemetry_garbage', 'OK "%s"; per start of the command (%d): parse malformed %d, process '
                     'oversize lines %d; samples published %s' % (e[0][2], starts, malformed, oversize,
                                                                  e[0][3]['samples published']), 'not needed', None)
+
+    def test_08b_simulator_restart(self):
+        g = self.g
+        self.fly()
+        old = harness.node_pid('/%s/anafi_sim' % DRONE, self.uri)
+        before = self._interface()
+        t0 = time.time()
+        os.kill(old, signal.SIGKILL)
+        err = [None]
+
+        def interface_error():
+            err[0] = self._interface(t0)
+            return err[0] is not None and err[0][1] == 2
+        harness.require(interface_error, 8.0, 'interface ERROR without telemetry', lambda: str(err[0]))
+        silent = self.wait_controller(t0, lambda e: 'stale state' in e[2] or 'no state' in e[2], 8.0,
+                                      'controller silent on the stale state')
+        new = [None]
+        harness.require(lambda: new.__setitem__(0, harness.node_pid('/%s/anafi_sim' % DRONE, self.uri))
+                        or (new[0] not in (None, old)), 20.0, 'the simulator respawned')
+        with g.lock:
+            g.truth = []                  # the old flight's positions are not the new flight's
+        harness.require(lambda: g.position() is not None, 20.0, 'the new simulator flying (sim/truth)')
+        t_back = g.truth[0][0]
+        ok = [None]
+
+        def interface_ok():
+            ok[0] = self._interface(t_back)
+            return ok[0] is not None and ok[0][1] == 0 and \
+                counter(ok[0], 'samples published') > counter(before, 'samples published')
+        harness.require(interface_ok, 8.0, 'interface OK after the new simulator', lambda: str(ok[0]))
+        iface_rec = ok[0][0] - t_back
+        self.assertLess(iface_rec, 5.0 + 1.0, ok[0])     # + the 1 Hz diagnostics
+        t_fixed = time.time()
+        tracking_at = t_fixed + self.recover(t_fixed)
+        self.record('simulator_restart', 'interface ERROR "%s", controller WARN "%s"; simulator respawned (pid %d -> '
+                    '%d); interface OK "%s" %.1f s after the new simulator\'s first sample (process restarts %d -> %d)'
+                    % (err[0][2], silent[2], old, new[0], ok[0][2], iface_rec, counter(before, 'process restarts'),
+                       counter(ok[0], 'process restarts')),
+                    'the simulated drone restarts (a new flight); no command meanwhile',
+                    max(ok[0][0], tracking_at) - t_back)
+
+    def _mirror(self, since=0.0):
+        return self.g.status('/%s/gazebo_mirror' % DRONE, since)
+
+    def test_08c_world_killed(self):
+        g = self.g
+        self.fly()
+        models = ('anafi', 'anafi_camera')
+        harness.require(lambda: set(models) <= set(g.models[1]), 20.0, 'both models in the world',
+                        lambda: str(g.models))
+        mirror = harness.node_pid('/%s/gazebo_mirror' % DRONE, self.uri)
+        world = harness.node_pid('/gazebo', self.uri)
+        harness.require(lambda: self._mirror() is not None, 10.0, 'mirror diagnostics')
+        before = self._mirror()
+        commands0 = g.command_rate()
+        t0 = time.time()
+        os.kill(world, signal.SIGKILL)
+        bad = [None]
+        ok = [None]
+
+        def back():
+            e = self._mirror(t0)
+            if e is not None and e[1] != 0 and bad[0] is None:
+                bad[0] = e
+            ok[0] = e
+            return bad[0] is not None and e is not None and e[1] == 0 and set(models) <= set(g.models[1]) \
+                and g.models[0] > t0 and harness.node_pid('/gazebo', self.uri) not in (None, world)
+        harness.require(back, 20.0, 'mirror reporting the lost world, then OK with both models back',
+                        lambda: 'first non-OK %s, last %s, models %s' % (bad[0], ok[0], g.models))
+        self.assertEqual(harness.node_pid('/%s/gazebo_mirror' % DRONE, self.uri), mirror, 'the mirror died')
+        lost = counter(ok[0], 'world restarts') + counter(ok[0], 'world losses')
+        self.assertGreater(lost, counter(before, 'world restarts') + counter(before, 'world losses'), ok[0])
+        self.assertGreaterEqual(counter(ok[0], 'respawns'), counter(before, 'respawns') + 2, ok[0])
+        tracking = self.controller(t0)
+        self.assertEqual(tracking[2], 'tracking', 'the controller does not depend on the world')
+        self.assertGreater(g.command_rate(), 5.0)
+        self.record('world_killed', 'mirror %s "%s", then OK "%s" (same pid %d); world restarts + losses %d -> %d, '
+                    'respawns %d -> %d; controller "%s", commands %.0f Hz (before %.0f Hz)'
+                    % ({1: 'WARN', 2: 'ERROR'}.get(bad[0][1], bad[0][1]), bad[0][2], ok[0][2], mirror,
+                       counter(before, 'world restarts') + counter(before, 'world losses'), lost,
+                       counter(before, 'respawns'), counter(ok[0], 'respawns'), tracking[2], g.command_rate(),
+                       commands0),
+                    'not needed (the drone keeps tracking at %.1f m/s)' % (g.speed() or 0.0), ok[0][0] - t0)
 
     def test_09_master_restart(self):
         g = self.g

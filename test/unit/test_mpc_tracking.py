@@ -148,11 +148,31 @@ def test_solver_failure_hovers_then_recovers():
     out = tr.cycle(0.0)
     assert not out.ok and out.key == 'solver_failed' and out.command is None
     assert out.reason.startswith('solver: ') and out.result is not None and not out.result.ok
-    tr.reconfigure({'N': 20})
-    tr.mpc._settings['max_iter'] = 4000
-    tr.mpc._solver.update_settings(max_iter=4000)
+    tr.reconfigure({'max_iter': 4000})          # live, as dynamic_reconfigure does it (no rebuild)
     tr.on_state(0.05, (0, 0, 1), LEVEL, (0, 0, 0))
     assert tr.cycle(0.1).ok and tr.counters['solver_failed'] == 1
+
+
+def test_reconfigured_iteration_limit_fails_the_solver_in_flight():
+    """The fault matrix's solver failure: max_iter lowered to 1 while flying -> 'maximum iterations reached',
+    no command (the firmware brake), key solver_failed; back to 4000 -> commands again. Bad values refused."""
+    tr = MpcTracking()
+    _ready(tr)
+    solver = tr.mpc._solver
+    assert tr.cycle(0.0).ok
+    assert tr.reconfigure({'max_iter': 1})['max_iter'] == 1 and tr.mpc._solver is solver
+    tr.on_waypoint(0.05, (-4.0, 3.0, 2.0, 1.0, 0.0, 0.0, 0.0))
+    tr.on_state(0.05, (0.1, 0, 1), LEVEL, (0.5, 0, 0))
+    out = tr.cycle(0.1)
+    assert out.key == 'solver_failed' and out.command is None
+    assert 'maximum iterations' in out.result.status.lower()
+    for bad in (0, 2.5, -3):
+        with pytest.raises(ValueError):
+            tr.reconfigure({'max_iter': bad})
+        assert tr.config()['max_iter'] == 1
+    tr.reconfigure({'max_iter': 4000})
+    tr.on_state(0.15, (0.1, 0, 1), LEVEL, (0.5, 0, 0))
+    assert tr.cycle(0.2).ok and tr.counters['solver_failed'] == 1
 
 
 def test_fast_start_gives_a_real_command_not_hover():

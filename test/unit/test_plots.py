@@ -108,3 +108,69 @@ def test_plot_of_a_shared_reference_log(tmp_path):
         pytest.skip('shared reference logs not found at %s (../shared beside the repo)' % REFERENCE_LOGS)
     png = plots.plot_run(path, str(tmp_path / 'ref.png'), title='reference')
     assert os.path.getsize(png) < 150000
+
+
+def _pixels_of(png, hex_colour, tol=0.06):
+    """Number of pixels of the decoded PNG within ``tol`` (0..1 per channel) of ``hex_colour``."""
+    from matplotlib import colors, image
+    rgb = np.asarray(image.imread(png))[:, :, :3]
+    target = np.array(colors.to_rgb(hex_colour))
+    return int(np.sum(np.all(np.abs(rgb - target) < tol, axis=2)))
+
+
+def test_the_png_shows_the_three_curves(tmp_path):
+    """The saved picture, decoded: its size follows the figure and dpi, and the waypoint (red), estimate (blue)
+    and ground-truth (green) colours are drawn; a log without ground truth has no green curve."""
+    from matplotlib import image
+    t, log = circle_log()
+    csv = str(tmp_path / 'run.csv')
+    write_log(csv, log)
+    png = plots.plot_run(csv, str(tmp_path / 'run.png'), window=(2.0, 15.0))
+    rgb = image.imread(png)
+    fig = plots.run_figure(plots.load(csv))
+    width, height = fig.get_size_inches() * plots.DEFAULT_DPI
+    assert rgb.shape[:2] == (int(round(height)), int(round(width)))
+    counts = dict((key, _pixels_of(png, colour)) for key, colour in plots.COLORS.items())
+    assert all(n > 200 for n in counts.values()), counts
+    assert np.mean(rgb[:, :, :3]) > 0.7            # mostly white paper, not a black or empty canvas
+    _, no_truth = circle_log()
+    for axis in 'xyz':
+        no_truth.columns[axis + '_sphinx'][:] = np.nan
+    csv2 = str(tmp_path / 'no_truth.csv')
+    write_log(csv2, no_truth)
+    png2 = plots.plot_run(csv2, str(tmp_path / 'no_truth.png'))
+    assert _pixels_of(png2, plots.COLORS['truth']) < 0.1 * counts['truth']
+
+
+def test_drawn_data_are_the_logs_columns():
+    """The curves hold the CSV's numbers: x of the estimate, truth and waypoint against seconds since start,
+    and the error curve is |waypoint - estimate| (here the chord of the 0.3 rad lag on r = 2)."""
+    t, log = circle_log(lag=0.3)
+    fig = plots.run_figure(log)
+    x_ax = fig.axes[0]
+    lines = dict((line.get_label(), line) for line in x_ax.get_lines())
+    k = plots._decimate(len(t))
+    assert np.allclose(lines['waypoint'].get_xdata(), log.t[::k])
+    assert np.allclose(lines['waypoint'].get_ydata(), log.columns['wp_x'][::k])
+    assert np.allclose(lines['drone (estimate)'].get_ydata(), log.columns['x_anafi'][::k])
+    assert np.allclose(lines['ground truth'].get_ydata(), log.columns['x_sphinx'][::k])
+    err = dict((line.get_label(), line) for line in fig.axes[-1].get_lines())
+    assert np.allclose(err['vs estimate'].get_ydata(), 2 * 2 * math.sin(0.3 / 2), atol=1e-6)
+    truth_error = np.linalg.norm(log.position('sphinx')[::k] - log.waypoint()[::k, :3], axis=1)
+    assert np.allclose(err['vs ground truth'].get_ydata(), truth_error)
+
+
+def test_comparison_overlays_each_run_against_its_own_offset():
+    runs = []
+    for i, lag in enumerate((0.1, 0.4)):
+        _, log = circle_log(lag=lag)
+        runs.append(('run %d' % i, log, 2.0 * i))
+    fig = plots.comparison_figure(runs)
+    x_ax = fig.axes[0]
+    drawn = dict((line.get_label(), line) for line in x_ax.get_lines() if line.get_label().startswith('run'))
+    assert sorted(drawn) == ['run 0', 'run 1']
+    for label, log, offset in runs:
+        k = plots._decimate(len(log.t))
+        assert np.allclose(drawn[label].get_xdata(), log.t[::k] - offset)
+        assert np.allclose(drawn[label].get_ydata(), log.columns['x_anafi'][::k])
+    assert drawn['run 0'].get_color() != drawn['run 1'].get_color()

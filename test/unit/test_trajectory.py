@@ -295,3 +295,36 @@ def test_generator_emits_every_event_when_ticks_skip_phases():
     gen.start(0.0)
     _, events = gen.update(1000.0)
     assert [e.kind for e in events] == ['start', 'phase', 'phase', 'phase', 'begin', 'end', 'phase', 'done']
+
+
+def test_airship_target_is_the_followers_waypoint_of_the_scripted_airship():
+    """The in-process airship scenario: the waypoint model_follower.py makes from the airship's pose and twist
+    (airship.yaml's path), a pure function of time whose velocity is the derivative of its position."""
+    import math as _m
+    from anafi_sim.experiments.model_follower import ModelFollower
+    from anafi_sim.experiments.trajectory import FollowedTarget, airship_defaults, load_scenario
+    from anafi_sim.gazebo.airship_path import AirshipPath
+    scenario = load_scenario('airship_follow')
+    target = scenario.trajectory
+    assert isinstance(target, FollowedTarget) and target.period() == 120.0
+    assert scenario.measure_window == (30.0, 150.0)
+    path = AirshipPath(**airship_defaults())
+    follower = ModelFollower((-6.0, 0.0, -2.0), 'heading', 'heading', velocity_source='twist')
+    for t in (0.0, 7.5, 33.0, 91.2):
+        st = path.state(t)
+        q = (0.0, 0.0, _m.sin(st.yaw / 2), _m.cos(st.yaw / 2))
+        expected = follower.update(t, st.position, q, st.velocity, st.yaw_rate)
+        got = target.sample(t)
+        assert got == pytest.approx(expected)
+        # 6 m behind the airship along its heading, 2 m below; facing its heading
+        back = (st.position[0] - 6.0 * _m.cos(st.yaw), st.position[1] - 6.0 * _m.sin(st.yaw), st.position[2] - 2.0)
+        assert (got.x, got.y, got.z) == pytest.approx(back)
+        assert got.yaw == pytest.approx(_m.degrees(st.yaw))
+        h = 1e-5
+        a, b = target.sample(t - h), target.sample(t + h)
+        assert ((b.x - a.x) / (2 * h), (b.y - a.y) / (2 * h), (b.z - a.z) / (2 * h)) == \
+            pytest.approx((got.vx, got.vy, got.vz), abs=1e-4)
+    assert target.sample(12.0) == target.sample(12.0)         # no history: the same answer every time
+    with pytest.raises(ValueError):
+        load_scenario_from = __import__('anafi_sim.experiments.trajectory', fromlist=['trajectory_from_dict'])
+        load_scenario_from.trajectory_from_dict({'type': 'airship', 'path': {'wingspan': 3}})

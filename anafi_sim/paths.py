@@ -35,3 +35,13 @@ def data_path(*parts):
 def config_path(*parts):
     """Path below ``anafi_sim/config``."""
     return data_path('config', *parts)
+
+
+def checkout():
+    """The folder of the package's sources (package.xml resolved, so a workspace's link leads to it)."""
+    return os.path.dirname(os.path.realpath(os.path.join(package_dir(), 'package.xml')))
+
+
+def reference_logs_dir():
+    """``<checkout>/../shared/reference_logs``: the shared Sphinx logs beside the checkout (may not exist)."""
+    return os.path.join(os.path.dirname(checkout()), 'shared', 'reference_logs')

@@ -40,15 +40,10 @@ AGES = (0.005, 0.030, 0.055, 0.080)          # s, waypoint age at the MPC's cycl
 COMMAND = 'python benchmarks/fidelity.py'
 
 
-def checkout():
-    """The folder of the package's sources (package.xml resolved)."""
-    return os.path.dirname(os.path.realpath(os.path.join(paths.package_dir(), 'package.xml')))
-
-
 def parse_args(argv):
-    root = checkout()
+    root = paths.checkout()
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    parser.add_argument('--logs', default=os.path.join(os.path.dirname(root), 'shared', 'reference_logs'),
+    parser.add_argument('--logs', default=paths.reference_logs_dir(),
                         help='directory with the reference-log CSVs (default: <checkout>/../shared/reference_logs)')
     parser.add_argument('--out', default=os.path.join(root, 'docs', 'fidelity.md'), help='Markdown report')
     parser.add_argument('--figures', default=os.path.join(root, 'docs', 'fidelity'),
@@ -79,7 +74,7 @@ def models(args, paths_):
     off = dict(shipped)
     off.update(EFFECTS_OFF)
     if os.path.isfile(args.fitted):
-        on, how = load_model_params(args.fitted), os.path.relpath(os.path.realpath(args.fitted), checkout())
+        on, how = load_model_params(args.fitted), os.path.relpath(os.path.realpath(args.fitted), paths.checkout())
     else:
         from anafi_sim.calibration import fit
         on = dict(fit.calibrate([read_log(p) for p in paths_]).fitted)

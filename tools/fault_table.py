@@ -17,7 +17,11 @@ import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TEST = os.path.join(ROOT, 'test', 'ros', 'test_fault_matrix.py')
-RESULTS = os.path.join(ROOT, 'test_results', 'fault_matrix.json')
+try:    # where the test writes it: <package dir>/test_results (the workspace's package folder in a devel space)
+    from anafi_sim import paths
+    RESULTS = os.path.join(paths.package_dir(), 'test_results', 'fault_matrix.json')
+except Exception:   # not inside env.bash
+    RESULTS = os.path.join(ROOT, 'test_results', 'fault_matrix.json')
 DOC = os.path.join(ROOT, 'docs', 'reliability.md')
 BEGIN, END = '<!-- fault-matrix:begin -->', '<!-- fault-matrix:end -->'
 HEADER = ('| fault | injected | expected | observed | stop | recovery [s] |', '|---|---|---|---|---|---|')

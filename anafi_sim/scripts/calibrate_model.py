@@ -18,15 +18,10 @@ from anafi_sim.calibration import fit, plot, report
 from anafi_sim.experiments.reference_log import read_log
 
 
-def checkout():
-    """The folder of the package's sources (package.xml resolved, so a workspace's link leads to it)."""
-    return os.path.dirname(os.path.realpath(os.path.join(paths.package_dir(), 'package.xml')))
-
-
 def parse_args(argv):
-    root = checkout()
+    root = paths.checkout()
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    parser.add_argument('--logs', default=os.path.join(os.path.dirname(root), 'shared', 'reference_logs'),
+    parser.add_argument('--logs', default=paths.reference_logs_dir(),
                         help='directory with reference-log CSVs (default: <checkout>/../shared/reference_logs)')
     parser.add_argument('--out', default=os.path.join(root, 'anafi_sim', 'config', 'anafi_model.yaml'),
                         help='model YAML to write (fidelity effects as fit.SHIPPED_EFFECTS says)')

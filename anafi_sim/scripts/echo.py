@@ -10,7 +10,7 @@ Works for any type, also ``gazebo_msgs`` ones without gazebo_msgs installed.
 
 Usage::
 
-    rosrun anafi_sim echo.py /anafi/drone/rpyt [-n COUNT] [--noarr]
+    rosrun anafi_sim echo.py /anafi/drone/rpyt [-n COUNT]
 
 Exit code 0 after COUNT messages or Ctrl-C, 1 if a message cannot be decoded (the reason on stderr).
 """
@@ -28,7 +28,6 @@ def main(argv):
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('topic', help='topic name (resolved in the caller namespace)')
     parser.add_argument('-n', type=int, default=0, help='exit after this many messages (0: run until Ctrl-C)')
-    parser.add_argument('--noarr', action='store_true', help='print arrays as <array type: ..., length: N>')
     args = parser.parse_args(rospy.myargv(argv)[1:])
     rospy.init_node('echo', anonymous=True, disable_signals=False)
     done = threading.Event()
@@ -41,12 +40,12 @@ def main(argv):
                 return
             try:
                 msg = wire_types.decode(raw._connection_header, raw._buff)
-            except (ValueError, genpy.message.DeserializationError) as error:
+                text = genpy.message.strify_message(msg)
+            except Exception as error:   # anything a foreign publisher sends: report once, exit 1
                 sys.stderr.write('echo.py: cannot decode %s: %s\n' % (args.topic, error))
                 state['failed'] = True
                 done.set()
                 return
-            text = genpy.message.strify_message(msg, noarr=args.noarr)
             sys.stdout.write(text + '\n---\n')
             sys.stdout.flush()
             state['count'] += 1

@@ -13,7 +13,7 @@ stops (speed < ``STOP_SPEED`` within ``STOP_TIME``, no farther than 1.2 x the fi
 speed -- measured in the first case, the controller killed -- plus the speed x the detection delay), and
 the recovery (time until the node reports OK / tracking again after the fault is removed). The observed
 matrix is written to test_results/fault_matrix.json; ``tools/fault_table.py`` turns it into the table of
-docs/reliability.md (``test/unit/test_fault_table.py`` checks that the table lists exactly ``FAULTS``).
+docs/reliability.md (``test/unit/test_fault_glue.py`` checks that the table lists exactly ``FAULTS``).
 """
 import json
 import math
@@ -50,7 +50,7 @@ RESULTS = os.path.join(paths.package_dir(), 'test_results', 'fault_matrix.json')
 
 #: (name, fault injected, expected) -- the rows of the table in docs/reliability.md (same order)
 FAULTS = (
-    ('controller_killed', 'mpc_controller killed (SIGKILL) in flight',
+    ('controller_killed', 'mpc_controller killed (SIGKILL) in flight (and the waypoints stop: the firmware brake alone)',
      'no command: the firmware brake stops the drone (the reference distance); roslaunch respawns the node'),
     ('nan_waypoint', 'NaN waypoints at 10 Hz', 'HOLD: WARN "holding position: non-finite waypoint", '
      'rejected_waypoints grows, the drone stops'),
@@ -360,6 +360,9 @@ class TestFaultMatrix(unittest.TestCase):
         old = harness.node_pid('/%s/mpc_controller' % DRONE, self.uri)
         pos0, t0 = g.position(), time.time()
         os.kill(old, signal.SIGKILL)
+        # the waypoints stop with it, so that the respawned controller (after respawn_delay 1 s) stays silent
+        # (no waypoint yet) and the stop is the firmware brake alone: the reference of the other rows
+        g.wp_mode = 'off'
         secs, dist = self.wait_stop(t0, pos0)
         self.assertEqual(g.command_rate(), 0.0)
         TestFaultMatrix.brake = (v, dist)

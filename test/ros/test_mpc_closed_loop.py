@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """rostest: the MPC (mpc.launch) flies the simulated Anafi to the paper's static waypoints (3, 2, 5) with yaw 0
 and 180 deg (Fig. 6), with less overshoot than the PID framework (pid.launch) flown in the same run from the
-same hover start; a dynamic_reconfigure change of an MPC weight changes the flight live.
+same hover start, and with overshoots like Sphinx's in the shared logs (yaw 0: within +-35 %; yaw 180: less than
+twice); a dynamic_reconfigure change of an MPC weight changes the flight live; ``rosrun anafi_sim echo.py``
+decodes the MPC's drone/rpyt without olympe_bridge.
 
 The simulator (sim.launch, sim time) is started by mpc_closed_loop.test; this script starts and stops the
 controller launch files itself (one at a time, as its own subprocesses) and publishes the waypoint at 10 Hz.
@@ -11,6 +13,8 @@ three. (The projection of the excursion on the 3-D approach direction is printed
 lateral overshoot that happens while the drone is still below the waypoint projects to a negative number.)
 """
 import math
+import os
+import subprocess
 import sys
 import threading
 import time
@@ -23,7 +27,8 @@ from dynamic_reconfigure.client import Client
 from nav_msgs.msg import Odometry
 
 from anafi_control.frames import wrap_angle, yaw_from_quaternion
-from anafi_sim import harness
+from anafi_sim import harness, paths
+from anafi_sim.experiments.reference_log import read_log
 from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim.ros.wire_types import piloting_command_class
 
@@ -44,6 +49,16 @@ def overshoot(track, start, goal):
     d = (goal - start) / np.linalg.norm(goal - start)
     projection = max(0.0, float(np.max((track - goal).dot(d))))
     return per_axis, float(np.linalg.norm(per_axis)), projection
+
+
+def sphinx_overshoot(path):
+    """``overshoot`` norm of Sphinx's ground truth in a shared static-waypoint log, from the sample where the
+    waypoint steps (> 0.5 m) to the end of the log."""
+    log = read_log(path)
+    wp = log.waypoint()
+    step = int(np.argmax(np.linalg.norm(wp[:, :3] - wp[0, :3], axis=1) > 0.5))
+    truth = log.position('sphinx')
+    return overshoot(truth[step:], truth[step], wp[step, :3])[1]
 
 
 class Controller(object):
@@ -188,9 +203,25 @@ class TestMpcClosedLoop(unittest.TestCase):
         self.results[name] = res
         return res
 
+    def check_echo_tool(self):
+        """rosrun anafi_sim echo.py decodes drone/rpyt from the publisher's own definition (no olympe_bridge
+        needed): 3 messages as YAML, each with the command's fields."""
+        out = subprocess.run(['rosrun', 'anafi_sim', 'echo.py', NS + '/drone/rpyt', '-n', '3'],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=60, universal_newlines=True)
+        self.assertEqual(out.returncode, 0, out.stderr)
+        docs = [d for d in out.stdout.split('---') if d.strip()]
+        self.assertEqual(len(docs), 3, out.stdout)
+        for doc in docs:
+            fields = dict(line.split(':', 1) for line in doc.strip().splitlines() if ':' in line
+                          and not line.startswith(' '))
+            self.assertTrue({'header', 'roll', 'pitch', 'yaw', 'gaz'} <= set(fields), doc)
+            self.assertTrue(all(math.isfinite(float(fields[k])) for k in ('roll', 'pitch', 'yaw', 'gaz')), doc)
+        self.results['echo_tool'] = docs[0].strip().replace('\n', '; ')
+
     # -- tests (run in name order: MPC first, then the PID in the same simulation) -------------
     def test_1_mpc_reaches_static_waypoints(self):
         self.switch_to('mpc.launch')
+        self.check_echo_tool()
         for yaw in (0.0, 180.0):
             res = self.static_run('mpc_yaw_%d' % yaw, yaw)
             self.assertLess(res['final_distance'], REACH_TOL, res)
@@ -239,6 +270,24 @@ class TestMpcClosedLoop(unittest.TestCase):
             mpc, pid = self.results['mpc_yaw_%d' % yaw], self.results['pid_yaw_%d' % yaw]
             self.assertLess(mpc['overshoot'], pid['overshoot'],
                             'yaw %d: MPC overshoot %s not below PID %s' % (yaw, mpc, pid))
+        # absolute: the same flights in Sphinx (the shared logs, same start, goal and metric). Yaw 0: within
+        # +-35 % of Sphinx's overshoot (measured 0.88x MPC, 1.11x PID). Yaw 180 (the drone turns while it
+        # flies; a known gap of the stand-in, docs/fidelity.md): no more than twice Sphinx's.
+        logs = paths.reference_logs_dir()
+        if not os.path.isdir(logs):
+            print('[mpc_closed_loop] no shared logs at %s: absolute overshoot check skipped' % logs)
+            return
+        for name in ('mpc_yaw_0', 'pid_yaw_0', 'mpc_yaw_180', 'pid_yaw_180'):
+            controller, yaw = name.split('_yaw_')
+            sphinx = sphinx_overshoot(os.path.join(logs, 'static_waypoint_yaw_%s_%s.csv' % (yaw, controller)))
+            ratio = self.results[name]['overshoot'] / sphinx
+            self.results[name]['sphinx_overshoot'] = round(sphinx, 3)
+            if yaw == '0':
+                self.assertTrue(0.65 <= ratio <= 1.35, '%s: overshoot %.3f m vs Sphinx %.3f m (x%.2f)'
+                                % (name, self.results[name]['overshoot'], sphinx, ratio))
+            else:
+                self.assertLess(ratio, 2.0, '%s: overshoot %.3f m vs Sphinx %.3f m' % (
+                    name, self.results[name]['overshoot'], sphinx))
 
 
 if __name__ == '__main__':

@@ -17,7 +17,7 @@ Fleet file schema (every key optional except ``drones`` unless ``drones:=N`` is 
       - name: anafi1                # a ROS name: namespace, tf prefix, models <name> and <name>_camera
         source: sim                 # sim (stand-in, default) | sphinx (the real Sphinx drone: at most one)
         start: {x: 0, y: 0, yaw: 0} # take-off point [m, deg]; default (offset x, offset y, 0)
-        controller: mpc             # mpc | pid (the paper's 8 nodes) | pid_single | none
+        controller: mpc             # mpc | pid (the paper's 8 nodes) | pid_single | preview_mpc | none
         # exactly one of:
         scenario: circle_r2_v1      # name in config/scenarios or a path, shifted by offset
         waypoint: [3, 2, 5, 0]      # a static target x, y, z [m], yaw [deg], shifted by offset
@@ -44,7 +44,7 @@ FLEET_DIR = paths.config_path('fleets')
 """Directory of the shipped fleet files (anafi_sim/config/fleets)."""
 
 SOURCES = ('sim', 'sphinx')
-CONTROLLERS = ('mpc', 'pid', 'pid_single', 'none')
+CONTROLLERS = ('mpc', 'pid', 'pid_single', 'preview_mpc', 'none')
 DRONE_KEYS = ('name', 'source', 'start', 'controller', 'scenario', 'waypoint', 'target', 'offset',
               'telemetry_port', 'telemetry_command')
 DEFAULT_KEYS = tuple(k for k in DRONE_KEYS if k not in ('name', 'start', 'telemetry_port'))
@@ -362,6 +362,8 @@ def drone_launch_lines(drone, port, scenario_file, options):
         out += _include('sphinx_gazebo.launch', args, 'the real Sphinx drone: its telemetry + mirror (no world)')
     if drone.controller == 'mpc':
         out += _include('mpc.launch', [('drone_name', n), ('output', options['output'])])
+    elif drone.controller == 'preview_mpc':     # the generator's preview, or the target estimator on a target
+        out += _include('preview_mpc.launch', [('drone_name', n), ('output', options['output'])])
     elif drone.controller in ('pid', 'pid_single'):
         out += _include('pid.launch', [('drone_name', n), ('output', options['output']),
                                        ('mode', 'single' if drone.controller == 'pid_single' else 'distributed')])

@@ -161,6 +161,14 @@ def test_targets_run_a_model_follower_and_sphinx_drones_the_sphinx_chain():
     assert [s['drone_name'] for s in _includes(mixed, 'sim.launch')] == ['anafi2', 'anafi3']
 
 
+def test_a_preview_mpc_drone_gets_the_preview_mpc_launch():
+    fleet = fl.fleet_from_dict({'defaults': {'scenario': 'circle_r2_v1'},
+                                'drones': [{'name': 'a', 'controller': 'preview_mpc'}, {'name': 'b'}]}, 'pv')
+    root = _generated(fleet)
+    assert [i['drone_name'] for i in _includes(root, 'preview_mpc.launch')] == ['a']
+    assert [i['drone_name'] for i in _includes(root, 'mpc.launch')] == ['b']
+
+
 def test_launch_xml_needs_a_port_per_simulated_drone():
     fleet = fl.load_fleet('three_circles')
     with pytest.raises(ValueError, match='telemetry port'):
@@ -173,6 +181,7 @@ STATUS_NAMES = {   # the names the nodes give their statuses (docs/nodes.md), fo
     'interface': ['/NAME/interface: ground truth interface'],
     'mirror': ['/NAME/gazebo_mirror: gazebo mirror'],
     'controller': ['mpc_controller: /NAME/mpc_controller', 'pid_framework: /NAME/pid_framework',
+                   'preview_mpc: /NAME/preview_mpc_controller',
                    'pid_controller: /NAME/pid/x_outer', 'pid_command: /NAME/pid_command',
                    'pid_relative_state: /NAME/pid_relative_state'],
     'target': ['trajectory_generator: /NAME/trajectory_generator', '/NAME/model_follower: following airship',

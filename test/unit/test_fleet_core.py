@@ -163,7 +163,7 @@ def test_targets_run_a_model_follower_and_sphinx_drones_the_sphinx_chain():
 
 def test_a_preview_mpc_drone_gets_the_preview_mpc_launch():
     fleet = fl.fleet_from_dict({'defaults': {'scenario': 'circle_r2_v1'},
-                                'drones': [{'name': 'a', 'controller': 'preview_mpc'}, {'name': 'b'}]}, 'pv')
+                                'drones': [{'name': 'a', 'controller': 'preview_mpc'}, {'name': 'b', 'start': [0, 6]}]}, 'pv')
     root = _generated(fleet)
     assert [i['drone_name'] for i in _includes(root, 'preview_mpc.launch')] == ['a']
     assert [i['drone_name'] for i in _includes(root, 'mpc.launch')] == ['b']

@@ -19,6 +19,8 @@ shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenari
    (as a 20 Hz logger sees it on average, ``standin_log``) and ground truth (interpolated, 100 Hz)
    resampled at the log's own sample times:
    ``standin_log`` has the log's time and waypoint columns, so both are evaluated by the same function.
+   The drone takes off at the heading at which its estimate shows the log's first estimated yaw
+   (``initial_yaw``).
 3. ``cells``: e_mu and e_max against the estimate and against ground truth with
    ``reference_log.tracking_error`` (the function the paper's Table 3 recomputation uses, garbage excluded);
    in a log whose 3-D estimate error is all garbage (x_straight_2/3_pid: z_anafi wrapped at 16 bit, the drone
@@ -50,7 +52,7 @@ from anafi_sim.experiments.evaluation import interpolate
 from anafi_sim.experiments.reference_log import (COLUMNS, STATE_NAMES, WAYPOINT_COLUMNS, ReferenceLog, read_log,
                                                  tracking_error)
 from anafi_sim.experiments.trajectory import Phase, Scenario, WaypointSample
-from anafi_sim.sim.drone_model import EFFECT_GROUPS
+from anafi_sim.sim.drone_model import EFFECT_GROUPS, load_model_params
 
 CONTROLLERS = ('pid', 'mpc')
 LOG_NAME = re.compile(r'^(?P<scenario>.+)_(?P<controller>pid|mpc)$')
@@ -351,11 +353,26 @@ def _controller_params(variant, controller):
     return dict(params) if params else None
 
 
+def initial_yaw(log, model_params):
+    """Take-off heading [rad] of a replay: the one at which the stand-in's estimate shows the log's first
+    estimated yaw (the logged estimate minus the model's ``estimate_yaw_bias``), so that the controller starts
+    from the heading it saw in Sphinx. It matters for a 180 deg turn: its direction follows the sign of the
+    yaw error (static_waypoint_yaw_180_pid: Sphinx's estimate -1.8 deg -> a clockwise turn; from 0 deg the
+    replay turned the other way)."""
+    yaw = float(log.columns['yaw_anafi'][0])
+    if not math.isfinite(yaw):
+        return 0.0
+    return yaw - float(model_params.get('estimate_yaw_bias', 0.0))
+
+
 def run_replay(plan, variant=None, seed=None):
-    """Replay ``plan`` on the engine with ``variant`` (None: the shipped defaults); ``Replay``."""
+    """Replay ``plan`` on the engine with ``variant`` (None: the shipped defaults); ``Replay``. The simulated
+    drone takes off at ``initial_yaw``."""
     name = variant.name if variant is not None else 'default'
+    model = variant.model_params if variant is not None and variant.model_params is not None else None
     try:
-        engine = Engine(plan.scenario, plan.controller, seed=seed,
+        heading = initial_yaw(plan.log, model if model is not None else load_model_params())
+        engine = Engine(plan.scenario, plan.controller, seed=seed, settings={'initial_yaw': heading},
                         controller_params=_controller_params(variant, plan.controller),
                         schedule=variant.schedule if variant is not None else None,
                         model_params=variant.model_params if variant is not None else None,

@@ -20,6 +20,7 @@ import pytest
 from anafi_sim import paths
 from anafi_sim.experiments import fidelity as F
 from anafi_sim.experiments.reference_log import COLUMNS, ReferenceLog, read_log
+from anafi_sim.sim.drone_model import load_model_params
 
 BAND = 0.15
 
@@ -160,6 +161,27 @@ def test_static_log_no_waypoint_marker_becomes_the_hover_point():
     # the step happens at its log time: 5.0 s, published 25 ms before the logger shows it
     approach = plan.scenario.phases[0].duration
     assert approach + plan.tick_tau + 0.1 - plan.scenario_offset == pytest.approx(5.0 - 0.025, abs=1e-6)
+
+
+def test_the_replay_takes_off_at_the_heading_the_controller_saw():
+    """The stand-in's estimate starts at the log's first estimated yaw (its model's yaw bias taken off the
+    take-off heading): a 180 deg step then turns the same way as in Sphinx (here: clockwise, from -2 deg)."""
+    n = 200
+    t = np.arange(n) * 0.05
+    wp = np.zeros((n, 7))
+    wp[100:, :3] = (3.0, 2.0, 5.0)
+    wp[100:, 6] = 180.0
+    est = np.zeros((n, 9))
+    est[:, :3] = (0.0, 0.0, 1.0)
+    est[:, 8] = math.radians(-2.0)
+    log = make_log('static_waypoint_yaw_180_pid', t, wp, est)
+    model = dict(load_model_params(), estimate_yaw_bias=0.03)
+    assert F.initial_yaw(log, model) == pytest.approx(math.radians(-2.0) - 0.03)
+    rep = F.run_replay(F.replay_plan(log), F.Variant('bias', 'bias', model))
+    assert rep.ok, rep.error
+    yaw_est = np.degrees(rep.standin.columns['yaw_anafi'])
+    assert yaw_est[90] == pytest.approx(-2.0, abs=0.5)          # hovering before the step, as logged
+    assert np.nanmin(yaw_est[100:160]) < -90.0                   # then turning clockwise
 
 
 def test_log_names_say_the_controller():

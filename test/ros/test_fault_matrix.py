@@ -5,7 +5,7 @@ The graph runs on a private ROS master of this test (so that the master itself c
 case): world.launch (simulated Anafi + interface + kinematic Gazebo world + mirror) + mpc.launch whose state comes through this test
 (``fault/odom``, a relay of drone/odom that the test can corrupt or stop) + a second interface in
 /garbage whose telemetry command prints garbage, a malformed number and a 10 kB line before the real tool.
-Wall clock, rtf 1, about 5 min.
+Wall clock, rtf 1, about 2 min.
 
 For each fault (``FAULTS``): the drone flies along x at about 3 m/s (a moving waypoint); the fault is
 injected; checked: the diagnostic level and message of the node concerned, the counter, that the drone

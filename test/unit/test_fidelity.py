@@ -24,19 +24,7 @@ from anafi_sim.sim.drone_model import load_model_params
 
 BAND = 0.15
 
-
-def _log_dir():
-    """<checkout>/../shared/reference_logs, as scripts/calibrate_model.py finds it (package or this file)."""
-    roots = [os.path.dirname(os.path.realpath(os.path.join(paths.package_dir(), 'package.xml'))),
-             os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))]
-    for root in roots:
-        d = os.path.join(os.path.dirname(root), 'shared', 'reference_logs')
-        if os.path.isdir(d):
-            return d
-    return os.path.join(os.path.dirname(roots[0]), 'shared', 'reference_logs')
-
-
-LOG_DIR = _log_dir()
+LOG_DIR = paths.reference_logs_dir()   # <checkout>/../shared/reference_logs
 LOGS = tuple('static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('mpc', 'pid')) + tuple(
     'x_straight_%d_%s' % (v, c) for v in range(1, 6) for c in ('mpc', 'pid'))
 

@@ -217,18 +217,19 @@ class MpcTracking(Controller):
             self.mpc.set_limits(v_max=(float(want['v_max_x']), float(want['v_max_y']),
                                        float(want['v_max_z'])), a_max=float(want['a_max']))
         if want['N'] != old['N']:
-            n = want['N']
-            if isinstance(n, bool) or int(n) != n:
-                raise ValueError('N must be an integer, got %r' % (n,))
-            self.mpc.set_horizon(int(n))
+            self.mpc.set_horizon(_integer(want['N'], 'N'))
         if want['max_iter'] != old['max_iter']:
-            n = want['max_iter']
-            if isinstance(n, bool) or int(n) != n:
-                raise ValueError('max_iter must be an integer, got %r' % (n,))
-            self.mpc.set_max_iter(int(n))
+            self.mpc.set_max_iter(_integer(want['max_iter'], 'max_iter'))
         if bool(want['carry_cumulative_errors']) != old['carry_cumulative_errors']:
             self.mpc.carry_cumulative_errors = bool(want['carry_cumulative_errors'])
             self.mpc.reset_cumulative_errors()
+
+
+def _integer(value, name):
+    """``value`` as an int; ValueError when it is a bool or not a whole number."""
+    if isinstance(value, bool) or int(value) != value:
+        raise ValueError('%s must be an integer, got %r' % (name, value))
+    return int(value)
 
 
 def predicted_positions(result):

@@ -369,13 +369,14 @@ def run_replay(plan, variant=None, seed=None):
     """Replay ``plan`` on the engine with ``variant`` (None: the shipped defaults); ``Replay``. The simulated
     drone takes off at ``initial_yaw``."""
     name = variant.name if variant is not None else 'default'
-    model = variant.model_params if variant is not None and variant.model_params is not None else None
     try:
-        heading = initial_yaw(plan.log, model if model is not None else load_model_params())
-        engine = Engine(plan.scenario, plan.controller, seed=seed, settings={'initial_yaw': heading},
+        model = variant.model_params if variant is not None and variant.model_params is not None \
+            else load_model_params()
+        engine = Engine(plan.scenario, plan.controller, seed=seed,
+                        settings={'initial_yaw': initial_yaw(plan.log, model)},
                         controller_params=_controller_params(variant, plan.controller),
                         schedule=variant.schedule if variant is not None else None,
-                        model_params=variant.model_params if variant is not None else None,
+                        model_params=model,
                         name='%s_%s' % (plan.name, name),
                         max_sim_time=plan.scenario.duration + 60.0)
         result = engine.run()

@@ -362,14 +362,6 @@ class FollowedTarget(object):
         a, b = self.sample(t - h), self.sample(t + h)
         return ((b.vx - a.vx) / (2 * h), (b.vy - a.vy) / (2 * h), (b.vz - a.vz) / (2 * h))
 
-    def position(self, t):
-        s = self.sample(t)
-        return s.x, s.y, s.z
-
-    def velocity(self, t):
-        s = self.sample(t)
-        return s.vx, s.vy, s.vz
-
     def period(self):
         """Lap and bob periods' common period [s]."""
         return common_period([self.path.period, self.path.z_period])

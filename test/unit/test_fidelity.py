@@ -129,15 +129,21 @@ def test_a_phase_slip_of_the_logger_neither_skips_nor_repeats_a_waypoint():
     assert np.all(np.diff(replayed) == pytest.approx(0.3, abs=1e-9))
 
 
-def test_static_log_no_waypoint_marker_becomes_the_hover_point():
-    n = 200
+def static_pid_log(position, yaw=0.0, n=200):
+    """A 20 Hz static_waypoint_yaw_180_pid log: the no-waypoint marker (all zero) for 5 s, then WP1 (3, 2, 5,
+    180 deg); the estimate holds ``position`` [m] and ``yaw`` [rad] throughout."""
     t = np.arange(n) * 0.05
     wp = np.zeros((n, 7))
     wp[100:, :3] = (3.0, 2.0, 5.0)
     wp[100:, 6] = 180.0
     est = np.zeros((n, 9))
-    est[:, :3] = (0.2, -0.1, 1.0)
-    plan = F.replay_plan(make_log('static_waypoint_yaw_180_pid', t, wp, est))
+    est[:, :3] = position
+    est[:, 8] = yaw
+    return make_log('static_waypoint_yaw_180_pid', t, wp, est)
+
+
+def test_static_log_no_waypoint_marker_becomes_the_hover_point():
+    plan = F.replay_plan(static_pid_log((0.2, -0.1, 1.0)))
     assert plan.controller == 'pid' and not plan.moving and plan.markers == 100 and plan.ticks == 1
     traj = plan.scenario.trajectory
     hover = traj.sample(0.0)
@@ -154,15 +160,7 @@ def test_static_log_no_waypoint_marker_becomes_the_hover_point():
 def test_the_replay_takes_off_at_the_heading_the_controller_saw():
     """The stand-in's estimate starts at the log's first estimated yaw (its model's yaw bias taken off the
     take-off heading): a 180 deg step then turns the same way as in Sphinx (here: clockwise, from -2 deg)."""
-    n = 200
-    t = np.arange(n) * 0.05
-    wp = np.zeros((n, 7))
-    wp[100:, :3] = (3.0, 2.0, 5.0)
-    wp[100:, 6] = 180.0
-    est = np.zeros((n, 9))
-    est[:, :3] = (0.0, 0.0, 1.0)
-    est[:, 8] = math.radians(-2.0)
-    log = make_log('static_waypoint_yaw_180_pid', t, wp, est)
+    log = static_pid_log((0.0, 0.0, 1.0), math.radians(-2.0))
     model = dict(load_model_params(), estimate_yaw_bias=0.03)
     assert F.initial_yaw(log, model) == pytest.approx(math.radians(-2.0) - 0.03)
     rep = F.run_replay(F.replay_plan(log), F.Variant('bias', 'bias', model))

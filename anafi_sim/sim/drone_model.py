@@ -21,7 +21,13 @@ fitted by ``anafi_sim/calibration/fit.py``, see docs/calibration.md):
 
 - ``tilt_attenuation`` a: the firmware delivers (1 - a) of the roll/pitch a
   PCMD commands (before the max-tilt clamp); its own hover brake is not
-  attenuated;
+  attenuated; with ``tilt_attenuation_speed`` v0 > 0 [m/s] it acts as a speed
+  governor instead: only above that horizontal speed, by a x clip((|v| - v0) /
+  (v1 - v0), 0, 1) with v1 = ``tilt_attenuation_speed_full`` [m/s] (> v0), |v|
+  the true horizontal speed when the PCMD arrives, and only on the part of the
+  tilt that drives the drone along its velocity (a braking or sideways tilt is
+  delivered whole: the logs show steady fast flight only, see
+  docs/calibration.md);
 - ``max_descent_speed`` [m/s]: the firmware descends at most this fast,
   whatever the commanded vertical speed (0 = no limit beyond the PCMD's).
 
@@ -77,6 +83,8 @@ REQUIRED_KEYS = (
 # anafi_model_fitted.yaml has every one on (docs/calibration.md).
 EFFECTS_OFF = collections.OrderedDict((
     ('tilt_attenuation', 0.0),       # fraction of the commanded roll/pitch not delivered, in [0, 1)
+    ('tilt_attenuation_speed', 0.0),       # m/s, v0: no attenuation below this horizontal speed (0 = at any speed)
+    ('tilt_attenuation_speed_full', 0.0),  # m/s, v1 > v0: the full fraction from this speed on (ramp v0..v1)
     ('max_descent_speed', 0.0),      # m/s, firmware descent limit (0 = none)
 ))
 EFFECTS_OFF.update(state_estimate.EFFECTS_OFF)
@@ -85,7 +93,7 @@ EFFECTS_OFF.update(state_estimate.EFFECTS_OFF)
 EFFECT_GROUPS = collections.OrderedDict((
     ('position_fusion', ('estimate_position_fusion', 'estimate_position_fix_delay', 'estimate_position_fix_gain',
                          'estimate_delay', 'estimate_time_constant')),
-    ('tilt_attenuation', ('tilt_attenuation',)),
+    ('tilt_attenuation', ('tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full')),
     ('max_descent_speed', ('max_descent_speed',)),
     ('yaw_bias', ('estimate_yaw_bias',)),
     ('quantisation', ('estimate_quantum_x', 'estimate_quantum_y', 'estimate_quantum_z', 'estimate_quantum_velocity')),
@@ -162,13 +170,18 @@ def validate_model_params(params):
     given = [key for key in EFFECTS_OFF if key in params]
     if given:
         effects = state_estimate.validate_effects(params)
-        for key in ('tilt_attenuation', 'max_descent_speed'):
+        for key in ('tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full',
+                    'max_descent_speed'):
             value = params.get(key, EFFECTS_OFF[key])
             if not _is_number(value) or value < 0.0:
                 raise ValueError('model parameter %s must be a finite number >= 0, got %r' % (key, value))
             effects[key] = float(value)
         if not effects['tilt_attenuation'] < 1.0:
             raise ValueError('model parameter tilt_attenuation must be < 1, got %r' % (effects['tilt_attenuation'],))
+        if effects['tilt_attenuation_speed'] > 0.0 and \
+                not effects['tilt_attenuation_speed_full'] > effects['tilt_attenuation_speed']:
+            raise ValueError('model parameter tilt_attenuation_speed_full must be > tilt_attenuation_speed (%r), '
+                             'got %r' % (effects['tilt_attenuation_speed'], effects['tilt_attenuation_speed_full']))
         for key in given:
             clean[key] = effects[key]
     return clean
@@ -237,7 +250,9 @@ class AnafiModel(object):
         self._drag_quad = p['drag_quadratic']
         self._drag_vert = p['drag_vertical']
         effects = effect_params(p)
-        self._tilt_gain = 1.0 - effects['tilt_attenuation']
+        self._tilt_attenuation = effects['tilt_attenuation']
+        self._tilt_speed = effects['tilt_attenuation_speed']
+        self._tilt_speed_full = effects['tilt_attenuation_speed_full']
         self._max_descent = effects['max_descent_speed']
         self._max_tilt = math.radians(self.mapping.max_tilt_deg)
         self._max_vs = self.mapping.max_vertical_speed
@@ -290,10 +305,40 @@ class AnafiModel(object):
         self._last_command_time = t
         if self.state == FLYING:
             setpoints = self.mapping.pcmd_to_setpoints(*pcmd)
-            if self._tilt_gain != 1.0:     # firmware delivers less tilt than commanded
-                gain = self._tilt_gain
-                setpoints = (setpoints[0] * gain, setpoints[1] * gain, setpoints[2], setpoints[3])
+            if self._tilt_attenuation > 0.0:     # firmware delivers less tilt than commanded
+                roll, pitch = self.delivered_tilt(setpoints[0], setpoints[1])
+                setpoints = (roll, pitch, setpoints[2], setpoints[3])
             self._queue.append((t,) + setpoints)
+
+    def tilt_gain(self):
+        """Fraction of a commanded tilt the firmware delivers at the current speed (1 = none taken): for the
+        speed governor (tilt_attenuation_speed > 0) the fraction of the tilt's driving part."""
+        a = self._tilt_attenuation
+        if a == 0.0:
+            return 1.0
+        v0 = self._tilt_speed
+        if v0 > 0.0:
+            ramp = (math.hypot(self.vx, self.vy) - v0) / (self._tilt_speed_full - v0)
+            a *= min(1.0, max(0.0, ramp))
+        return 1.0 - a
+
+    def delivered_tilt(self, roll, pitch):
+        """(roll, pitch) [rad, FLU: + = right wing down, nose down] the firmware delivers for a commanded one."""
+        gain = self.tilt_gain()
+        if gain == 1.0:
+            return roll, pitch
+        if self._tilt_speed <= 0.0:                       # constant attenuation: the whole tilt
+            return roll * gain, pitch * gain
+        # speed governor: remove (1 - gain) of the tilt's component along the velocity when it drives it
+        # (body axes: pitch accelerates forward, roll to the right = -left)
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        speed = math.hypot(self.vx, self.vy)
+        forward, left = (c * self.vx + s * self.vy) / speed, (-s * self.vx + c * self.vy) / speed
+        drive = pitch * forward - roll * left
+        if drive <= 0.0:
+            return roll, pitch
+        cut = (1.0 - gain) * drive
+        return roll + cut * left, pitch - cut * forward
 
     def command_age(self, t):
         """Seconds since the last PCMD (inf if none)."""

@@ -393,6 +393,39 @@ def test_tilt_attenuation_delivers_the_fraction_of_the_commanded_tilt():
     assert model.roll == pytest.approx(-0.7 * math.radians(MAX_TILT_DEG) * 0.3, rel=1e-3)
 
 
+def test_speed_gated_tilt_attenuation_acts_only_above_its_speed():
+    """tilt_attenuation_speed v0 / tilt_attenuation_speed_full v1: the whole command below v0, (1 - a) of it from
+    v1 on, linear in between (the horizontal speed when the PCMD arrives)."""
+    gates = dict(tilt_attenuation=0.2, tilt_attenuation_speed=4.0, tilt_attenuation_speed_full=5.0)
+    model = flying_model(**gates)
+    for speed, gain in ((0.0, 1.0), (3.9, 1.0), (4.5, 0.9), (5.0, 0.8), (7.0, 0.8)):
+        model.vx, model.vy = 0.6 * speed, -0.8 * speed
+        assert model.tilt_gain() == pytest.approx(gain, abs=1e-12), speed
+    # in flight: a slow cruise gets its whole pitch, a fast one (terminal speed ~6 m/s) 0.8 of it
+    slow, fast = flying_model(**gates), flying_model(**gates)
+    run(slow, 40.0, pcmd=(0, 10, 0, 0))
+    run(fast, 40.0, pcmd=(0, 50, 0, 0))
+    assert slow.vx < 3.0 and slow.pitch == pytest.approx(math.radians(MAX_TILT_DEG) * 0.1, rel=1e-3)
+    assert fast.vx > 5.5 and fast.pitch == pytest.approx(0.8 * math.radians(MAX_TILT_DEG) * 0.5, rel=1e-3)
+    constant = flying_model(tilt_attenuation=0.2)                      # v0 = 0: at any speed, as before
+    assert constant.tilt_gain() == pytest.approx(0.8)
+    assert constant.delivered_tilt(0.1, -0.2) == pytest.approx((0.08, -0.16))
+
+
+def test_speed_governor_takes_only_the_driving_part_of_the_tilt():
+    """Above its speed the gate cuts the tilt that pushes the drone along its velocity; braking and sideways
+    tilt are delivered whole (the hover-brake and failsafe distances do not grow)."""
+    model = flying_model(yaw=math.pi / 2, tilt_attenuation=0.2, tilt_attenuation_speed=4.0,
+                         tilt_attenuation_speed_full=5.0)
+    model.vx, model.vy = 0.0, 6.0                                       # flying nose first (heading +y)
+    assert model.delivered_tilt(0.0, 0.2) == pytest.approx((0.0, 0.16))        # driving: 0.8 of it
+    assert model.delivered_tilt(0.0, -0.2) == pytest.approx((0.0, -0.2))       # braking: whole
+    assert model.delivered_tilt(0.1, 0.0) == pytest.approx((0.1, 0.0))        # sideways: whole
+    model.vx, model.vy = 6.0, 0.0                                       # now flying to the right of the nose
+    assert model.delivered_tilt(0.1, 0.05) == pytest.approx((0.08, 0.05))      # roll right drives: 0.8 of it
+    assert model.delivered_tilt(-0.1, 0.05) == pytest.approx((-0.1, 0.05))
+
+
 def test_tilt_attenuation_does_not_weaken_the_hover_brake():
     model = flying_model(tilt_attenuation=0.5, settings={'wind_y': 4.0})
     run(model, 1.0, pcmd=(0, 0, 0, 0))
@@ -429,11 +462,17 @@ def test_every_effect_off_is_bit_for_bit_the_model_without_them():
 
 @pytest.mark.parametrize('key, value', [
     ('tilt_attenuation', 1.0), ('tilt_attenuation', -0.1), ('tilt_attenuation', float('nan')),
+    ('tilt_attenuation_speed', -1.0), ('tilt_attenuation_speed_full', 'fast'),
     ('max_descent_speed', -1.0), ('max_descent_speed', 'fast'), ('max_descent_speed', True),
     ('estimate_position_fusion', 'yes'), ('estimate_position_fix_gain', -0.2), ('estimate_quantum_x', float('inf'))])
 def test_bad_effect_values_raise_value_error(key, value):
     with pytest.raises(ValueError, match=key):
         AnafiModel(params(**{key: value}))
+
+
+def test_speed_gate_needs_a_full_speed_above_its_start():
+    with pytest.raises(ValueError, match='tilt_attenuation_speed_full'):
+        AnafiModel(params(tilt_attenuation=0.2, tilt_attenuation_speed=4.0, tilt_attenuation_speed_full=4.0))
 
 
 def test_fitted_config_file_is_valid_and_has_every_effect_on():

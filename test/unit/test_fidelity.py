@@ -29,16 +29,16 @@ LOGS = tuple('static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('m
     'x_straight_%d_%s' % (v, c) for v in range(1, 6) for c in ('mpc', 'pid'))
 
 # (log, source, stat) -> ratio stand-in / Sphinx measured with the shipped defaults (position fusion on, descent
-# limit off, yaw bias and quantisation on, tilt attenuation off; MPC paper_timing false; the timing of
+# limit off, yaw bias and quantisation on, speed-gated tilt attenuation on; MPC paper_timing false; the timing of
 # mpc.yaml) where it is outside +-15 % (benchmarks/fidelity.py, docs/fidelity.md). Do not widen the band:
 # update this list when a model change moves a cell, and say so in the change.
 KNOWN_OFF = {
-    ('static_waypoint_yaw_180_mpc', 'estimate', 'e_mu'): 0.77,   # paper_timing true would give 0.88
+    ('static_waypoint_yaw_180_mpc', 'estimate', 'e_mu'): 0.76,   # paper_timing true would give 0.88
     ('static_waypoint_yaw_180_mpc', 'truth', 'e_mu'): 0.76,
-    ('x_straight_1_mpc', 'truth', 'e_mu'): 0.64,
-    ('x_straight_1_mpc', 'truth', 'e_max'): 0.58,
+    ('x_straight_1_mpc', 'truth', 'e_mu'): 0.67,
+    ('x_straight_1_mpc', 'truth', 'e_max'): 0.62,
     ('x_straight_2_mpc', 'estimate', 'e_max'): 0.53,
-    ('x_straight_2_mpc', 'truth', 'e_max'): 0.77,
+    ('x_straight_2_mpc', 'truth', 'e_max'): 0.76,
     ('x_straight_2_pid', 'truth', 'e_mu'): 0.83,        # horizontal (the log's z estimate is garbage)
     ('x_straight_2_pid', 'truth', 'e_max'): 0.80,       # horizontal
     ('x_straight_3_mpc', 'estimate', 'e_max'): 0.64,
@@ -46,12 +46,10 @@ KNOWN_OFF = {
     ('x_straight_3_mpc', 'truth', 'e_max'): 0.68,
     ('x_straight_3_pid', 'truth', 'e_mu'): 0.73,        # horizontal
     ('x_straight_3_pid', 'truth', 'e_max'): 0.70,       # horizontal
-    ('x_straight_4_mpc', 'truth', 'e_mu'): 0.58,
-    ('x_straight_4_mpc', 'truth', 'e_max'): 0.43,
-    ('x_straight_5_mpc', 'estimate', 'e_mu'): 0.79,
-    ('x_straight_5_mpc', 'estimate', 'e_max'): 0.59,
-    ('x_straight_5_mpc', 'truth', 'e_mu'): 0.56,
-    ('x_straight_5_mpc', 'truth', 'e_max'): 0.36,
+    ('x_straight_4_mpc', 'truth', 'e_mu'): 0.57,
+    ('x_straight_4_mpc', 'truth', 'e_max'): 0.42,
+    ('x_straight_5_mpc', 'estimate', 'e_max'): 0.73,    # Sphinx's glitch at 8.7 s
+    ('x_straight_5_mpc', 'truth', 'e_max'): 0.75,
 }
 
 

@@ -103,7 +103,8 @@ EXTRA_COUNTERS = ('previews', 'rejected_previews', 'preview_cycles', 'estimator_
 #: keys of the prediction model (``PredictionModel``), from anafi_model.yaml / sim.yaml (bridge limits)
 MODEL_KEYS = ('gravity', 'attitude_time_constant', 'attitude_delay', 'vertical_speed_time_constant',
               'drag_linear', 'drag_quadratic', 'estimate_lag', 'position_lag', 'position_fix_gain',
-              'sample_period', 'max_tilt_deg', 'max_vertical_speed', 'max_yaw_rate_deg')
+              'sample_period', 'max_tilt_deg', 'max_vertical_speed', 'max_yaw_rate_deg',
+              'tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full')
 
 
 class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
@@ -116,7 +117,9 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
 
         estimate_lag = estimate_delay + estimate_time_constant; position_lag, position_fix_gain = the
         position fix's delay D [s] and gain k [1/s] when the model fuses a delayed position fix, else 0;
-        sample_period = 1 / estimate_rate."""
+        sample_period = 1 / estimate_rate; the firmware's tilt attenuation (anafi_sim.sim.drone_model: a
+        fraction a of the commanded tilt, or with tilt_attenuation_speed v0 > 0 of its part that drives the
+        drone along its velocity, ramped in from v0 to tilt_attenuation_speed_full) is commanded in advance."""
         lag = float(model.get('estimate_delay', 0.0)) + float(model.get('estimate_time_constant', 0.0))
         fusion = bool(model.get('estimate_position_fusion', False))
         return cls(float(model['gravity']), float(model['attitude_time_constant']), float(model['attitude_delay']),
@@ -125,7 +128,34 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
                    float(model.get('estimate_position_fix_delay', 0.0)) if fusion else 0.0,
                    float(model.get('estimate_position_fix_gain', 0.0)) if fusion else 0.0,
                    1.0 / float(model['estimate_rate']) if model.get('estimate_rate') else 0.0,
-                   float(max_tilt_deg), float(max_vertical_speed), float(max_yaw_rate_deg))
+                   float(max_tilt_deg), float(max_vertical_speed), float(max_yaw_rate_deg),
+                   float(model.get('tilt_attenuation', 0.0)), float(model.get('tilt_attenuation_speed', 0.0)),
+                   float(model.get('tilt_attenuation_speed_full', 0.0)))
+
+    def tilt_gain(self, speed):
+        """Fraction of a commanded (driving) tilt the firmware delivers at horizontal ``speed`` [m/s]."""
+        a, v0 = self.tilt_attenuation, self.tilt_attenuation_speed
+        if a > 0.0 and v0 > 0.0:
+            a *= min(1.0, max(0.0, (speed - v0) / max(self.tilt_attenuation_speed_full - v0, 1e-9)))
+        return 1.0 - a
+
+    def governed(self, acceleration, velocity, inverse):
+        """Horizontal tilt acceleration (fwd, left) [m/s^2] the firmware delivers for a commanded one
+        (``inverse`` False) or the one to command for a wanted one (True), at the horizontal ``velocity``
+        (fwd, left) [m/s], both in the stability axes (linear in the tilt: small angles)."""
+        speed = math.hypot(velocity[0], velocity[1])
+        gain = self.tilt_gain(speed)
+        if gain >= 1.0:
+            return float(acceleration[0]), float(acceleration[1])
+        if self.tilt_attenuation_speed <= 0.0:                  # constant: the whole tilt
+            k = 1.0 / gain if inverse else gain
+            return float(acceleration[0]) * k, float(acceleration[1]) * k
+        u = (velocity[0] / speed, velocity[1] / speed)
+        drive = acceleration[0] * u[0] + acceleration[1] * u[1]
+        if drive <= 0.0:                                        # braking / sideways: delivered whole
+            return float(acceleration[0]), float(acceleration[1])
+        k = (1.0 - gain) / gain if inverse else -(1.0 - gain)
+        return float(acceleration[0] + k * drive * u[0]), float(acceleration[1] + k * drive * u[1])
 
     def check(self):
         for key, value in zip(MODEL_KEYS, self):
@@ -536,7 +566,9 @@ class PreviewMpc(Controller):
         result.u0 = (float(ax), float(ay), 0.0)
         result.vz_command = float(u0[2])
         result.disturbance = tuple(float(x) for x in d_w)
-        roll, pitch = attitude_for_acceleration(float(u0[0]), float(u0[1]), m.gravity)
+        vh0 = R.dot(v0[:2])                          # velocity at t0 in the stability axes (the governor's)
+        u_cmd = m.governed(u0[:2], vh0, inverse=True)
+        roll, pitch = attitude_for_acceleration(u_cmd[0], u_cmd[1], m.gravity)
         # yaw: P on the error at t0 plus the reference's yaw rate
         yaw_err = math.degrees(wrap_angle(math.radians(yaw_ref[0]) - yaw))
         yaw_rate_ref = (yaw_ref[1] - yaw_ref[0]) / dt
@@ -549,6 +581,7 @@ class PreviewMpc(Controller):
             for i, q in enumerate(quanta):
                 command[i], realised[i] = self._quantise(i, command[i], q)
             fwd, left = tilt_acceleration(math.radians(realised[0]), math.radians(realised[1]), m.gravity)
+            fwd, left = m.governed((fwd, left), vh0, inverse=False)
             ax, ay = stability_to_world(fwd, left, yaw)
         # the command buffer of the Smith predictor: what the firmware will apply
         self.commands.append((t0, float(ax), float(ay), float(realised[3])))

@@ -440,3 +440,22 @@ def test_lag_compensation_follows_the_fused_fix_on_a_line_and_on_a_circle():
     f_circ, s_circ = _lag_compensation_errors(circle)
     assert f_line < 0.1 and s_line < 0.1                   # a line: both (uncorrected ~0.7 m); measured 0.06
     assert f_circ < 0.08 and s_circ > 5.0 * f_circ         # a turn: the v D shift over-corrects (0.03 vs 0.63)
+
+
+def test_prediction_model_commands_the_firmware_tilt_attenuation_in_advance():
+    """With the speed-gated attenuation in the model the commanded driving tilt is raised so that the firmware
+    (anafi_sim.sim.drone_model.delivered_tilt) delivers the wanted one; braking and sideways tilt are unchanged."""
+    gated = PredictionModel.from_params(dict(PARAMS, tilt_attenuation=0.2, tilt_attenuation_speed=4.0,
+                                             tilt_attenuation_speed_full=5.0),
+                                        MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG)
+    assert gated.tilt_gain(3.0) == 1.0 and gated.tilt_gain(4.5) == pytest.approx(0.9) and gated.tilt_gain(6.0) == \
+        pytest.approx(0.8)
+    v = (0.6 * 6.0, 0.8 * 6.0)
+    for wanted in ((1.0, 0.5), (-1.0, 0.2), (0.8, -0.6)):
+        command = gated.governed(wanted, v, inverse=True)
+        assert gated.governed(command, v, inverse=False) == pytest.approx(wanted, abs=1e-12)
+    assert gated.governed((1.2, 1.6), v, inverse=True) == pytest.approx((1.5, 2.0))     # all driving: / 0.8
+    assert gated.governed((-1.2, -1.6), v, inverse=True) == pytest.approx((-1.2, -1.6))  # braking: whole
+    plain = PredictionModel.from_params(dict(PARAMS, tilt_attenuation=0.0), MAX_TILT_DEG, MAX_VERTICAL_SPEED,
+                                        MAX_YAW_RATE_DEG)
+    assert plain.governed((1.2, 1.6), v, inverse=True) == (1.2, 1.6)                    # no attenuation

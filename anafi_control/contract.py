@@ -159,6 +159,10 @@ def check_timeout(name, value, allow_zero=False):
 
 
 #: defaults of the waypoint limits (= the controller YAMLs anafi_sim/config/mpc.yaml and pid.yaml)
+#: defaults of the input gate's timeouts [s], every controller's (its YAML can set others): state older than
+#: state_timeout -> SILENT (> 0), waypoint older than waypoint_timeout -> HOLD (>= 0; 0 = never stale)
+TIMEOUT_DEFAULTS = collections.OrderedDict([('state_timeout', 0.5), ('waypoint_timeout', 1.0)])
+
 LIMIT_DEFAULTS = collections.OrderedDict([
     ('geofence_radius', 250.0),     # [m] horizontal distance of a waypoint from the first state received
     ('min_altitude', 0.5),          # [m] lowest waypoint z (world ENU)
@@ -245,7 +249,8 @@ class InputGate(object):
     for a HOLD key, None for a SILENT key.
     """
 
-    def __init__(self, state_timeout=0.5, waypoint_timeout=1.0, twist_frame='child', extra_counters=(),
+    def __init__(self, state_timeout=TIMEOUT_DEFAULTS['state_timeout'],
+                 waypoint_timeout=TIMEOUT_DEFAULTS['waypoint_timeout'], twist_frame='child', extra_counters=(),
                  on_clock_jump=None, limits=None):
         self.state_timeout = check_timeout('state_timeout', state_timeout)
         self.waypoint_timeout = check_timeout('waypoint_timeout', waypoint_timeout, allow_zero=True)
@@ -388,7 +393,8 @@ class Controller(object):
     #: to the trajectory generator's preview (trajectory_msgs/MultiDOFJointTrajectory, command/trajectory)
     PREVIEW = False
 
-    def __init__(self, state_timeout=0.5, waypoint_timeout=1.0, twist_frame='child', limits=None):
+    def __init__(self, state_timeout=TIMEOUT_DEFAULTS['state_timeout'],
+                 waypoint_timeout=TIMEOUT_DEFAULTS['waypoint_timeout'], twist_frame='child', limits=None):
         self.gate = InputGate(state_timeout, waypoint_timeout, twist_frame, self.COUNTERS, self._clock_jumped,
                               limits)
         self.counters = self.gate.counters

@@ -32,8 +32,8 @@ import math
 
 import numpy as np
 
-from anafi_control.contract import (BAD_OUTPUT, LIMIT_DEFAULTS, OK, SOLVER_FAILED, Controller, CycleOutput,
-                                    hover_output)
+from anafi_control.contract import (BAD_OUTPUT, LIMIT_DEFAULTS, OK, SOLVER_FAILED, TIMEOUT_DEFAULTS, Controller,
+                                    CycleOutput, hover_output)
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc import DRONE_POS, REF_POS, CumulativeErrorMpc, attitude_from_acceleration
 from anafi_control.pid import PidController
@@ -49,8 +49,8 @@ EXTRA_COUNTERS = ('waypoint_jumps', 'reconfigurations', 'solved_inaccurate', 've
 #: defaults of the tracking parameters (= anafi_sim/config/mpc.yaml, checked by test/unit/test_mpc_defaults.py)
 DEFAULTS = {
     'rate': 10.0,                 # [Hz] cycle (solve) rate, = 1/dt
-    'state_timeout': 0.5,         # [s] state older than this -> hover
-    'waypoint_timeout': 1.0,      # [s] waypoint older than this -> hover
+    'state_timeout': TIMEOUT_DEFAULTS['state_timeout'],        # [s] state older than this -> silent
+    'waypoint_timeout': TIMEOUT_DEFAULTS['waypoint_timeout'],  # [s] waypoint older -> hold; 0 = never stale
     'twist_in_child_frame': True,  # nav_msgs/Odometry: twist in child_frame_id (body)
     'cum_reset_distance': 1.0,    # [m] waypoint jump that resets carried cumulative errors
 }
@@ -103,11 +103,10 @@ class MpcTracking(Controller):
             cfg.update(yaw_config)
         self.yaw_config = cfg
         self.yaw_pid = PidController(**cfg)
-        for name, value in (('state_timeout', state_timeout), ('waypoint_timeout', waypoint_timeout),
-                            ('cum_reset_distance', cum_reset_distance)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-                    math.isfinite(value) and value > 0.0):
-                raise ValueError('%s must be a positive number, got %r' % (name, value))
+        value = cum_reset_distance          # the timeouts: the input gate's rule (contract.check_timeout)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+                math.isfinite(value) and value > 0.0):
+            raise ValueError('cum_reset_distance must be a positive number, got %r' % (value,))
         self.cum_reset_distance = float(cum_reset_distance)
         self.twist_in_child_frame = bool(twist_in_child_frame)
         Controller.__init__(self, state_timeout, waypoint_timeout,

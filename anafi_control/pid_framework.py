@@ -60,7 +60,8 @@ import collections
 import copy
 import math
 
-from anafi_control.contract import BAD_OUTPUT, BAD_STATE, HOVER, OK, Controller, CycleOutput, hover_output
+from anafi_control.contract import (BAD_OUTPUT, BAD_STATE, HOVER, OK, TIMEOUT_DEFAULTS, Controller, CycleOutput,
+                                    hover_output)
 from anafi_control.frames import is_finite, world_to_stability
 from anafi_control.pid import PidController
 
@@ -217,8 +218,8 @@ class PidFramework(object):
 DEFAULTS = {
     'rate': 30.0,               # [Hz] relative-state cycle (every loop stepped once)
     'command_rate': 10.0,       # [Hz] PilotingCommand output
-    'state_timeout': 0.5,       # [s] state older than this -> hover
-    'waypoint_timeout': 1.0,    # [s] waypoint older than this -> hold position; 0 = never stale
+    'state_timeout': TIMEOUT_DEFAULTS['state_timeout'],        # [s] state older than this -> silent
+    'waypoint_timeout': TIMEOUT_DEFAULTS['waypoint_timeout'],  # [s] waypoint older -> hold; 0 = never stale
 }
 
 

@@ -50,8 +50,8 @@ import scipy.sparse as sparse
 
 import osqp
 
-from anafi_control.contract import (LIMIT_DEFAULTS, OK, SOLVER_FAILED, Controller, CycleOutput, ReferenceSample,
-                                    hover_output)
+from anafi_control.contract import (LIMIT_DEFAULTS, OK, SOLVER_FAILED, TIMEOUT_DEFAULTS, Controller, CycleOutput,
+                                    ReferenceSample, hover_output)
 from anafi_control.frames import quaternion_to_euler, stability_to_world, world_to_stability, wrap_angle
 from anafi_control.target_estimator import DEFAULTS as ESTIMATOR_DEFAULTS, TargetEstimator
 
@@ -85,8 +85,8 @@ DEFAULTS = collections.OrderedDict([
     ('quantise', True),                  # whole bridge percents, rounding error carried to the next cycle
     ('estimator_window', ESTIMATOR_DEFAULTS['window']),      # [s] target estimator's waypoint history
     ('estimator_max_rate', ESTIMATOR_DEFAULTS['max_rate']),  # [rad/s] its largest turn rate
-    ('state_timeout', 0.5),              # [s] contract: older state -> silent
-    ('waypoint_timeout', 1.0),           # [s] contract: older waypoint -> hold
+    ('state_timeout', TIMEOUT_DEFAULTS['state_timeout']),        # [s] contract: older state -> silent
+    ('waypoint_timeout', TIMEOUT_DEFAULTS['waypoint_timeout']),  # [s] contract: older waypoint -> hold (0: never)
     ('twist_in_child_frame', True),      # nav_msgs/Odometry twist in the body frame
     ('eps_abs', 1e-4), ('eps_rel', 1e-4), ('max_iter', 4000),
     ('accept_inaccurate', True),         # OSQP 'solved inaccurate' is used (else solver_failed)

@@ -73,7 +73,7 @@ class Run(object):
                'mirror:=' + args.mirror, 'record:=' + args.record, 'out_dir:=' + runs_dir,
                'run_name:=' + self.name, 'plot:=false', 'progress_period:=0',
                'telemetry_port:=%d' % harness.free_port(), 'pid_mode:=' + args.pid_mode,
-               'ready_timeout:=%g' % args.ready_timeout]
+               'ready_timeout:=%g' % args.ready_timeout] + (['sync:=true'] if args.sync else [])
         self.t0 = time.monotonic()
         self.epoch0 = time.time()
         self.proc = harness.start(cmd, env=child_env(ros_home, self.port), log=self.files['log'])
@@ -146,6 +146,10 @@ def parse_args(argv):
                          'at about 1.7; a higher request only magnifies CPU hiccups in simulated time)')
     ap.add_argument('--jobs', type=int, default=1, help='runs in parallel (default 1; 2 cores: keep 1)')
     ap.add_argument('--mirror', default='true', choices=('true', 'false'))
+    ap.add_argument('--sync', action='store_true',
+                    help='lockstep (experiment.launch sync:=true): simulation time waits for every control '
+                         'period\'s command, so the results do not depend on the machine\'s load; --rtf is then '
+                         'a ceiling (the distributed PID graph is not held: use --rtf 0.5 for it)')
     ap.add_argument('--record', default='true', choices=('true', 'false'))
     ap.add_argument('--pid-mode', default='distributed', choices=('distributed', 'single'))
     ap.add_argument('--ready-timeout', type=float, default=90.0, help='s wall for a run to come up')
@@ -316,7 +320,8 @@ def main(argv=None):
     meta = {'command': cmd.strip(), 'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M'),
             'machine': '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0,
                                                    platform.python_version()),
-            'rtf': '%g' % args.rtf, 'wall_s': round(wall, 1), 'mirror': args.mirror, 'pid_mode': args.pid_mode}
+            'rtf': '%g' % args.rtf, 'wall_s': round(wall, 1), 'mirror': args.mirror, 'pid_mode': args.pid_mode,
+            'sync': bool(args.sync)}
     report_path = write_report(args, records, meta)
     ok = sum(1 for r in records if r['ok'])
     print('batch done: %d of %d runs ok, %.0f s wall (%.1f min); report %s' % (ok, len(records), wall, wall / 60.0,

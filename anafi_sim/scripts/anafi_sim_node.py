@@ -41,7 +41,7 @@ from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publish
                                 start_diagnostics_thread)
 from anafi_sim.ros.wire_types import piloting_command_class
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
-from anafi_sim.sim.clock import Lockstep, SimClock, StartHold
+from anafi_sim.sim.clock import SYNC_DEFAULTS, Lockstep, SimClock, StartHold
 from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
 from anafi_sim.sim.simulator import SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
@@ -76,11 +76,12 @@ class AnafiSimNode(object):
         prefix = p.string('telemetry_prefix', DEFAULT_PREFIX)
         auto_takeoff = p.flag('auto_takeoff', True)
         sync = p.flag('sync', False)
-        sync_period = p.positive('sync_period', 0.1)            # s sim, the controller's command period
-        sync_timeout = p.positive('sync_timeout', 1.0)          # s wall per period
-        sync_max_missed = p.integer('sync_max_missed', 5, minimum=1)
-        sync_settle = p.number('sync_settle', 3.0, minimum=0.0)  # s wall
-        sync_start_timeout = p.positive('sync_start_timeout', 60.0)
+        d = SYNC_DEFAULTS
+        sync_period = p.positive('sync_period', d['sync_period'])            # s sim, the controller's period
+        sync_timeout = p.positive('sync_timeout', d['sync_timeout'])         # s wall per period
+        sync_max_missed = p.integer('sync_max_missed', d['sync_max_missed'], minimum=1)
+        sync_settle = p.number('sync_settle', d['sync_settle'], minimum=0.0)  # s wall
+        sync_start_timeout = p.positive('sync_start_timeout', d['sync_start_timeout'])
         if sync and not publish_clock:
             raise ValueError('~sync needs ~publish_clock true (lockstep holds the simulation clock)')
         mapping = PilotingMapping(p.positive('max_tilt_deg', MAX_TILT_DEG),

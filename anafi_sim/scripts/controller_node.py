@@ -48,7 +48,7 @@ from dynamic_reconfigure.server import Server
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 
-from anafi_control.contract import WAITING, health
+from anafi_control.contract import TIMEOUT_DEFAULTS, WAITING, health
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, RECONFIGURABLE, MpcTracking,
                                         predicted_positions, reference_positions)
@@ -88,8 +88,9 @@ class Adapter(object):
 
     def build(self, p):
         """The contract.Controller, from the node's ParamReader ``p`` (and rospy.get_param for mappings)."""
-        return self.controller_class(state_timeout=p.positive('state_timeout', 0.5),
-                                     waypoint_timeout=p.positive('waypoint_timeout', 1.0),
+        return self.controller_class(state_timeout=p.positive('state_timeout', TIMEOUT_DEFAULTS['state_timeout']),
+                                     waypoint_timeout=p.number('waypoint_timeout', TIMEOUT_DEFAULTS['waypoint_timeout'],
+                                                               minimum=0.0),
                                      limits=waypoint_limits(p))
 
     def setup(self):
@@ -122,7 +123,7 @@ class MpcAdapter(Adapter):
         self.frame_id = p.ros_name('frame_id', 'world')
         return self.controller_class(mpc_params, yaw_config,
                                      state_timeout=p.positive('state_timeout', d['state_timeout']),
-                                     waypoint_timeout=p.positive('waypoint_timeout', d['waypoint_timeout']),
+                                     waypoint_timeout=p.number('waypoint_timeout', d['waypoint_timeout'], minimum=0.0),
                                      twist_in_child_frame=p.flag('twist_in_child_frame', d['twist_in_child_frame']),
                                      cum_reset_distance=p.positive('cum_reset_distance', d['cum_reset_distance']),
                                      limits=waypoint_limits(p))

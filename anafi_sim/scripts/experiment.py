@@ -5,11 +5,11 @@
                       [--wind X,Y[,Z]] [--gust STD] [--gust-vertical STD] [--gust-tau S]
                       [--param KEY=VALUE ...] [--schedule KEY=VALUE ...] [--sync-schedule]
                       [--state-source estimate|truth]
-                      [--engine inprocess|ros] [--no-plot] --out DIR
+                      [--engine inprocess|ros [--sync] [--rtf R]] [--no-plot] --out DIR
         -> DIR/<scenario>_<controller>.yaml (the evaluator's summary), .csv (reference log), .png; one
            'RESULT ...' line on stdout (exit 0 when the summary is final).
-    experiment.py batch [--engine inprocess|ros] [--workers N] [--scheduler ADDRESS] [--scenarios ...]
-                        [--controllers mpc,pid,preview_mpc] [--runs-dir DIR] [--no-plots] --out DIR
+    experiment.py batch [--engine inprocess|ros [--sync] [--rtf R]] [--workers N] [--scheduler ADDRESS]
+                        [--scenarios ...] [--controllers mpc,pid,preview_mpc] [--runs-dir DIR] [--no-plots] --out DIR
         -> DIR/experiments.yaml (the ROS batch's schema) and DIR/report.md (the paper's tables), plots.
     experiment.py sweep SPEC.yaml [--workers N] [--scheduler ADDRESS] [--no-plot] --out DIR
         -> DIR/runs.csv (every run's metrics), DIR/summary.md, DIR/e_mu.png (anafi_sim/config/sweeps/).
@@ -17,7 +17,8 @@
 The in-process engine (anafi_sim.experiments.engine) needs no ROS master: the same cores as the nodes on
 virtual time, bit-for-bit deterministic for a seed. ``--engine ros`` runs the real graph instead
 (experiment.launch through benchmarks/run_experiments.py: needs a ROS environment, takes the seed and wind of
-sim.yaml). Workers: processes on this machine (concurrent.futures); ``--scheduler`` sends the same tasks to a
+sim.yaml; ``--sync``: in lockstep, experiment.launch sync:=true, so that its results do not depend on the
+machine's load). Workers: processes on this machine (concurrent.futures); ``--scheduler`` sends the same tasks to a
 Dask distributed scheduler (python3-distributed; the workers need this package importable). Progress: a
 tqdm bar on a terminal, one line per finished run otherwise (on stderr).
 """
@@ -79,6 +80,12 @@ def _ros_batch(out_dir, scenarios, controllers, runs_dir, extra=()):
     return subprocess.call(cmd)
 
 
+def _in_process_only(args):
+    if args.sync:
+        raise ValueError('--sync is for --engine ros (lockstep ROS runs); the in-process engine runs on virtual '
+                         'time anyway (--sync-schedule gives it the lockstep\'s schedule)')
+
+
 def cmd_run(args):
     wind = _wind(args)
     params = _key_values(args.param, '--param')
@@ -97,7 +104,8 @@ def cmd_run(args):
             raise ValueError('--engine ros runs experiment.launch as it is: controller mpc or pid, the seed and wind '
                              'of sim.yaml, no --param / --schedule / --state-source / --name')
         rc = _ros_batch(args.out, [args.scenario], [args.controller], args.out,
-                        ['--no-plots', '--retries', '0', '--report', os.path.join(args.out, 'ros_batch.md')])
+                        ['--no-plots', '--retries', '0', '--report', os.path.join(args.out, 'ros_batch.md'),
+                         '--rtf', str(args.rtf)] + (['--sync'] if args.sync else []))
         summary_path = os.path.join(args.out, name + '.yaml')
         summary = yaml.safe_load(open(summary_path)) if os.path.isfile(summary_path) else None
         run_info = os.path.join(args.out, name + '.run.yaml')
@@ -113,6 +121,7 @@ def cmd_run(args):
             from anafi_sim.experiments.plots import plot_run
             plot_run(csv_path, os.path.join(args.out, name + '.png'), summary=summary, title=name)
     else:
+        _in_process_only(args)
         record = run_task(task)
     print(result_line(record, name))
     return 0 if record['ok'] else 1
@@ -140,13 +149,15 @@ def cmd_batch(args):
     command = 'anafi_sim/scripts/experiment.py ' + ' '.join(sys.argv[1:])
     if args.engine == 'ros':
         runs_dir = os.path.abspath(args.runs_dir or os.path.join(out, 'runs'))
-        extra = ['--rtf', str(args.rtf)] + (['--no-plots'] if args.no_plots else [])
+        extra = ['--rtf', str(args.rtf)] + (['--no-plots'] if args.no_plots else []) + (
+            ['--sync'] if args.sync else [])
         rc = _ros_batch(out, scenarios, controllers, runs_dir, extra)
         md = os.path.join(out, 'experiments.md')
         if os.path.isfile(md):
             shutil.move(md, os.path.join(out, 'report.md'))
         print('ROS batch: %s, %s' % (os.path.join(out, 'experiments.yaml'), os.path.join(out, 'report.md')))
         return rc
+    _in_process_only(args)
     records, meta, report_path = batch(out, scenarios, controllers, workers=args.workers, scheduler=args.scheduler,
                                        runs_dir=args.runs_dir, plots=not args.no_plots, command=command)
     ok = sum(1 for r in records if r['ok'])
@@ -192,6 +203,9 @@ def parser():
     run.add_argument('--state-source', default='estimate', choices=('estimate', 'truth'))
     run.add_argument('--name', default=None, help='run name (default SCENARIO_CONTROLLER)')
     run.add_argument('--engine', default='inprocess', choices=('inprocess', 'ros'))
+    run.add_argument('--sync', action='store_true',
+                     help='--engine ros: lockstep (experiment.launch sync:=true), results independent of the load')
+    run.add_argument('--rtf', type=float, default=2.0, help='--engine ros: requested real-time factor')
     run.add_argument('--no-plot', action='store_true')
     run.add_argument('--out', required=True, help='output folder')
     run.set_defaults(func=cmd_run)
@@ -206,6 +220,8 @@ def parser():
     bat.add_argument('--runs-dir', default=None, help='per-run summaries and CSVs (default OUT/runs)')
     bat.add_argument('--no-plots', action='store_true')
     bat.add_argument('--rtf', type=float, default=2.0, help='--engine ros: requested real-time factor')
+    bat.add_argument('--sync', action='store_true',
+                     help='--engine ros: lockstep (experiment.launch sync:=true), results independent of the load')
     bat.add_argument('--out', required=True)
     bat.set_defaults(func=cmd_batch)
 

@@ -199,6 +199,16 @@ controller silent'), waits (control periods waited for), timeouts, disarms (time
 for max_missed periods), longest and mean wait [s wall]."""
 
 
+#: defaults of the lockstep (anafi_sim_node.py ~sync_*: the node reads them from here)
+SYNC_DEFAULTS = {
+    'sync_period': 0.1,         # s sim, the controller's command period (10 Hz)
+    'sync_timeout': 1.0,        # s wall to wait for a period's command (experiment.launch passes its own, 5)
+    'sync_max_missed': 5,       # time-outs in a row -> the controller is taken for silent, free-running
+    'sync_settle': 3.0,         # s wall the number of /clock subscribers must stay the same before time starts
+    'sync_start_timeout': 60.0,  # s wall at most before time starts anyway
+}
+
+
 class Lockstep(object):
     """Lockstep of the simulated Anafi with a controller (``~sync``): thread-safe, wall-clock waits.
 
@@ -213,7 +223,7 @@ class Lockstep(object):
     ``close()`` ends any wait (shutdown).
     """
 
-    def __init__(self, period, dt, timeout=1.0, max_missed=5):
+    def __init__(self, period, dt, timeout=SYNC_DEFAULTS['sync_timeout'], max_missed=SYNC_DEFAULTS['sync_max_missed']):
         if not period > 0 or not dt > 0 or not timeout > 0 or not max_missed >= 1:
             raise ValueError('need period, dt, timeout > 0 and max_missed >= 1, got %r, %r, %r, %r'
                              % (period, dt, timeout, max_missed))
@@ -307,7 +317,7 @@ class StartHold(object):
     ``timeout`` s after the first call (``timed_out`` then True). Nodes that create their timers while time
     is 0 run them in phase with 0 (rospy.Timer and rospy.Rate count periods from their creation)."""
 
-    def __init__(self, settle=3.0, timeout=60.0):
+    def __init__(self, settle=SYNC_DEFAULTS['sync_settle'], timeout=SYNC_DEFAULTS['sync_start_timeout']):
         if not settle >= 0 or not timeout > 0:
             raise ValueError('need settle >= 0 and timeout > 0, got %r, %r' % (settle, timeout))
         self.settle, self.timeout = float(settle), float(timeout)

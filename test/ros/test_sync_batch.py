@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
-"""rostest (sync_batch.test): ``experiment.py batch --engine ros`` produces experiments.yaml and report.md.
+"""rostest (sync_batch.test): ``experiment.py batch --engine ros --sync`` produces experiments.yaml and report.md.
 
-Runs ``anafi_sim/scripts/experiment.py batch --engine ros --scenarios static_wp0 --controllers mpc --no-plots
---out OUT`` (the ROS batch: benchmarks/run_experiments.py starts experiment.launch on a private master of its
-own and stops it) and checks OUT/experiments.yaml (the batch schema: meta, one record for static_wp0 / mpc, ok,
-a final evaluator summary with a finite e_mu) and OUT/report.md (the report names the scenario).
+Runs ``anafi_sim/scripts/experiment.py batch --engine ros --sync --scenarios static_wp0 --controllers mpc
+--no-plots --out OUT`` (the ROS batch in lockstep: benchmarks/run_experiments.py starts experiment.launch
+sync:=true on a private master of its own and stops it) and checks OUT/experiments.yaml (the batch schema: meta
+with sync true, one record for static_wp0 / mpc, ok, a final evaluator summary with a finite e_mu), that the
+simulator ran in lockstep (its "lockstep" diagnostic in the run's bag) and OUT/report.md (names the scenario).
 """
 import math
 import os
@@ -21,6 +22,8 @@ import yaml
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'experiment.py')
+sys.path.insert(0, os.path.join(ROOT, 'benchmarks'))
+import bench_sync  # noqa: E402  (benchmarks/ is not a package)
 
 
 class TestBatchEngineRos(unittest.TestCase):
@@ -28,20 +31,23 @@ class TestBatchEngineRos(unittest.TestCase):
         out = tempfile.mkdtemp(prefix='anafi_batch_ros_')
         log = os.path.join(out, 'batch.log')
         with open(log, 'wb') as f:
-            rc = subprocess.call([sys.executable, SCRIPT, 'batch', '--engine', 'ros', '--scenarios', 'static_wp0',
-                                  '--controllers', 'mpc', '--no-plots', '--out', out], stdout=f,
+            rc = subprocess.call([sys.executable, SCRIPT, 'batch', '--engine', 'ros', '--sync', '--scenarios',
+                                  'static_wp0', '--controllers', 'mpc', '--no-plots', '--out', out], stdout=f,
                                  stderr=subprocess.STDOUT, timeout=280)
         try:
             self.assertEqual(rc, 0, 'experiment.py batch --engine ros exit %d' % rc)
             with open(os.path.join(out, 'experiments.yaml')) as f:
                 data = yaml.safe_load(f)
             self.assertIn('meta', data)
+            self.assertIs(data['meta'].get('sync'), True)
             records = data['records']
             self.assertEqual([(r['scenario'], r['controller']) for r in records], [('static_wp0', 'mpc')])
             record = records[0]
             self.assertTrue(record['ok'], record.get('error'))
             self.assertEqual(record['summary']['state'], 'final')
             self.assertTrue(math.isfinite(record['summary']['estimate']['e_mu']))
+            lockstep = bench_sync.lockstep_figures(os.path.join(out, 'runs', 'static_wp0_mpc.bag'))
+            self.assertGreater(int(lockstep.get('lockstep periods waited', 0)), 50, 'simulator: %s' % lockstep)
             with open(os.path.join(out, 'report.md')) as f:
                 text = f.read()
             self.assertIn('static_wp0', text)

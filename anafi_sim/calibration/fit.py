@@ -1151,11 +1151,12 @@ def fit_descent(logs, vertical_time_constant, delay, saturated=0.99):
     return DescentFit(limit, per_file, -MAX_VERTICAL_SPEED, climb, replay, tuple(per_file))
 
 
-QuantumFit = collections.namedtuple('QuantumFit', ['steps', 'on_grid', 'truth_on_grid', 'samples'])
+QuantumFit = collections.namedtuple('QuantumFit', ['steps', 'on_grid', 'truth_on_grid', 'samples', 'grids'])
 QuantumFit.__doc__ = ('Quantisation of the estimate: {column: step} (0 where none is found), {column: fraction '
                       'of the estimate\'s values on that grid}, {column: the same fraction for the truth (what '
                       'chance gives)}, {column: values tested}; measured where the float16 storage of the logs is '
-                      'at least 4x finer than the step.')
+                      'at least 4x finer than the step. grids: {position column: (step [m], concentration of the '
+                      'estimate, of the truth)} of the grids that are no power of two (``estimate_grid``).')
 
 QUANTUM_CANDIDATES = tuple(2.0 ** -n for n in range(3, 10))     # 1/8 .. 1/512 (fixed-point steps)
 
@@ -1177,6 +1178,40 @@ def estimate_quantum(values, hit=0.98, min_samples=50):
     return 0.0
 
 
+GRID_RANGE = (0.004, 0.05)      # m, the steps ``estimate_grid`` searches (GPS-like position grids)
+
+
+def grid_concentration(series, step):
+    """Mean over the ``series`` (value arrays, one per log: each flight may have its own grid offset) of
+    |mean(exp(2 pi i v / step))|: 1 when every value lies on one grid of ``step`` (any offset), ~0 for values
+    spread over it. Only the values whose float16 storage is 8x finer than the step count, and only series
+    whose values span 20 steps at least (a few neighbouring grid points fit a band of steps)."""
+    out = []
+    for values in series:
+        v = np.asarray(values, dtype=np.float64)
+        v = v[np.isfinite(v) & (np.abs(v) < 128.0 * step)]
+        if v.size >= 20 and np.ptp(v) >= 20.0 * step:
+            out.append(abs(np.mean(np.exp(2j * np.pi * v / step))))
+    return float(np.mean(out)) if out else float('nan')
+
+
+def estimate_grid(series, step_range=GRID_RANGE, resolution=1e-5, hit=0.9):
+    """(step [m], concentration) of the coarsest grid, power of two or not, on which the values of ``series``
+    (``grid_concentration``) lie with a concentration >= ``hit``; (0.0, best concentration) when none. The
+    coarsest: the values of a grid of step q also lie on q / 2, q / 3, ... but not on 2 q."""
+    steps = np.arange(step_range[1], step_range[0], -resolution)
+    conc = np.array([grid_concentration(series, q) for q in steps])
+    above = np.nonzero(np.nan_to_num(conc) >= hit)[0]
+    if above.size == 0:
+        return 0.0, float(np.nanmax(conc)) if np.isfinite(conc).any() else float('nan')
+    first = above[0]                             # the coarsest step over the threshold: refine to its peak
+    last = first
+    while last + 1 < len(steps) and conc[last + 1] >= hit:
+        last += 1
+    best = first + int(np.argmax(conc[first:last + 1]))
+    return round(float(steps[best]), 6), float(conc[best])
+
+
 def fit_quantisation(logs, columns=('x', 'y', 'z', 'vx', 'vy', 'vz', 'roll', 'pitch', 'yaw')):
     """``QuantumFit`` of the estimate columns of the clean logs (the truth columns as the control)."""
     clean = [log for log in logs if is_clean(log)]
@@ -1193,7 +1228,15 @@ def fit_quantisation(logs, columns=('x', 'y', 'z', 'vx', 'vy', 'vz', 'roll', 'pi
         on_grid[name] = quantum_fraction(_informative(est, probe), probe)
         truth[name] = quantum_fraction(_informative(tru, probe), probe)
         samples[name] = int(_informative(est, probe).size)
-    return QuantumFit(steps, on_grid, truth, samples)
+    grids = collections.OrderedDict()
+    for name in ('x', 'y'):        # no power-of-two grid: search any step (per log, for its own grid offset)
+        if name in steps and steps[name] == 0.0:
+            step, conc = estimate_grid([log.columns[name + '_anafi'] for log in clean])
+            if step > 0.0:
+                steps[name] = step
+                grids[name] = (step, conc, grid_concentration([log.columns[name + '_sphinx'] for log in clean],
+                                                              step))
+    return QuantumFit(steps, on_grid, truth, samples, grids)
 
 
 YawBiasFit = collections.namedtuple('YawBiasFit', ['bias', 'per_file', 'spread', 'by_controller', 'turn'])

@@ -6,7 +6,7 @@ number comes from the fits in ``fit``.
 """
 import numpy as np
 
-from anafi_sim.calibration.fit import MODEL_KEYS, steady_state_pitch, table3
+from anafi_sim.calibration.fit import GRID_RANGE, MODEL_KEYS, steady_state_pitch, table3
 from anafi_sim.experiments.reference_log import STATE_NAMES
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF
 
@@ -29,6 +29,12 @@ def _effect_comments(cal):
     clean_lags = [v for name, v in lags.items() if name in fu.files]
 
     def quantum(columns):
+        grids = [c for c in columns if c in qu.grids]
+        if grids:
+            return ('grid %s (no power of two): phase concentration %s of the estimate, %s of the truth (2^-22 deg '
+                    'of longitude/latitude at ~48.8 deg)' % ('/'.join('%.5f' % qu.grids[c][0] for c in grids),
+                                                            '/'.join('%.3f' % qu.grids[c][1] for c in grids),
+                                                            '/'.join('%.2f' % qu.grids[c][2] for c in grids)))
         found = [c for c in columns if qu.steps[c] > 0.0]
         if not found:
             return ('none found: %s on no power-of-two grid (on 1/256: %s of the estimate, %s of the truth)'
@@ -587,13 +593,32 @@ def format_effects(cal):
     add('| column | step found | estimate on grid | truth on grid | values tested |')
     add('|---|---|---|---|---|')
     for name, step in qu.steps.items():
+        if name in qu.grids:
+            add('| %s | none of the powers of two (1/256 shown; grid below) | %.3f | %.3f | %d |'
+                % (name, qu.on_grid[name], qu.truth_on_grid[name], qu.samples[name]))
+            continue
         add('| %s | %s | %.3f | %.3f | %d |' % (name, ('1/%d' % round(1.0 / step)) if step else 'none (1/256 shown)',
                                                qu.on_grid[name], qu.truth_on_grid[name], qu.samples[name]))
     add('')
+    if qu.grids:
+        add('The horizontal position estimate is on a grid that is no power of two (`estimate_grid`: the coarsest '
+            'step in %g..%g m whose grid, with any offset per log, holds the values with a phase concentration '
+            '|mean exp(2 pi i v / step)| >= 0.9; logs whose values span 20 steps at least; the truth is the '
+            'control):' % GRID_RANGE)
+        add('')
+        add('| column | step [m] | estimate concentration | truth concentration |')
+        add('|---|---|---|---|')
+        for name, (step, conc, conc_truth) in qu.grids.items():
+            add('| %s | %.5f | %.3f | %.3f |' % (name, step, conc, conc_truth))
+        add('')
+        add('Both steps are 2^-22 deg of longitude (x, east) and latitude (y, north) at a latitude of about 48.8 '
+            'deg (0.0175 m and 0.0265 m): consistent with a geographic position of that resolution behind the '
+            'estimate (an inference, the logs do not say how it is computed). The model rounds x and y to these '
+            'steps (grid through the origin).')
+        add('')
     add('Not identifiable from these float16 logs: any quantisation finer than the float16 storage (attitude, '
-        'and every column above a few m or m/s); the x/y estimate near the origin is on no power-of-two grid '
-        '(its steps are uneven, consistent with a geodetic conversion); rounding cannot be told from truncation '
-        '(a constant offset of half a step, absorbed by the estimate offsets).')
+        'and every column above a few m or m/s); rounding cannot be told from truncation (a constant offset of '
+        'half a step, absorbed by the estimate offsets).')
     if rp.on_grid:
         add('Replayed estimate on its grid: %s.' % ', '.join('%s %.3f' % kv for kv in rp.on_grid.items()))
     add('')

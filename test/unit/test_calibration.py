@@ -314,6 +314,17 @@ def test_quantum_detection_finds_the_grid_and_not_float16_noise():
     assert cal.estimate_quantum(np.float16(raw[:20]).astype(float)) == 0.0       # too few values to tell
 
 
+def test_estimate_grid_finds_a_grid_of_any_step_and_offset_and_not_in_noise():
+    rng = np.random.default_rng(4)
+    step = 0.0213
+    series = [offset + step * np.round(rng.uniform(-1.5, 2.5, 400) / step) for offset in (0.0, 0.0071, -0.013)]
+    found, conc = cal.estimate_grid(series)
+    assert found == pytest.approx(step, abs=2e-5) and conc > 0.99          # the coarsest, not step / 2
+    noise = [rng.uniform(-1.5, 2.5, 400) for _ in range(3)]
+    assert cal.estimate_grid(noise)[0] == 0.0
+    assert cal.grid_concentration(noise, step) < 0.3
+
+
 # ----------------------------------------------------------------------------------------- PID replay
 def test_reconstructed_pid_commands_have_the_bridge_signs():
     t = np.arange(0.0, 6.0, 0.05)
@@ -489,6 +500,12 @@ def test_real_log_effects(real):
     for column in ('z', 'vx', 'vy', 'vz'):
         assert f.quanta.on_grid[column] > 0.98 and f.quanta.truth_on_grid[column] < 0.3
     assert all(value == 1.0 for value in f.replay.on_grid.values())
+    # the horizontal position estimate: on grids of no power of two (0.0175 m east, 0.0265 m north), the truth not
+    assert p['estimate_quantum_x'] == pytest.approx(0.01749, abs=2e-5)
+    assert p['estimate_quantum_y'] == pytest.approx(0.02651, abs=2e-5)
+    for column in ('x', 'y'):
+        step, conc, conc_truth = f.quanta.grids[column]
+        assert conc > 0.98 and conc_truth < 0.3, column
     # yaw bias: between the per-log extremes
     assert f.yaw.spread[0] <= p['estimate_yaw_bias'] <= f.yaw.spread[1]
 

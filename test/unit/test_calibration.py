@@ -14,12 +14,13 @@ import yaml
 from scipy.signal import lfilter
 
 from anafi_control import frames
+from anafi_sim import paths
 from anafi_sim.calibration import fit as cal
 from anafi_sim.calibration import plot, report
 from anafi_sim.experiments.reference_log import COLUMNS, STATE_NAMES, ReferenceLog, read_log
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-LOG_DIR = os.path.join(os.path.dirname(REPO), 'shared', 'reference_logs')
+REPO = paths.checkout()
+LOG_DIR = paths.reference_logs_dir()
 G = 9.81
 
 

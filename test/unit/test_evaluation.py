@@ -12,11 +12,12 @@ import sys
 import numpy as np
 import pytest
 
+from anafi_sim import paths
 from anafi_sim.experiments import evaluation as ev
 from anafi_sim.experiments.reference_log import read_log, write_log
 
-REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-REFERENCE_LOGS = os.path.join(REPO, '..', 'shared', 'reference_logs')
+REPO = paths.checkout()
+REFERENCE_LOGS = paths.reference_logs_dir()
 CLI = os.path.join(REPO, 'anafi_sim', 'scripts', 'evaluate_log.py')
 
 

@@ -493,9 +493,11 @@ def format_effects(cal):
     add('### Tilt attenuation')
     add('')
     ts = f.tilt_speed
-    add('Model: above a horizontal speed the firmware delivers less roll/pitch than commanded: (1 - a r) of it, '
-        'r = clip((|v| - v0) / (v1 - v0), 0, 1), |v| the true horizontal speed when the PCMD arrives (before the '
-        'max-tilt clamp; the hover brake is not attenuated). Fitted: a = %.4f, v0 = %.2f m/s, v1 = %.2f m/s.'
+    add('Model: above a horizontal speed the firmware delivers less roll/pitch than commanded, as a speed '
+        'governor: of the part of the commanded tilt that drives the drone along its velocity it delivers '
+        '(1 - a r), r = clip((|v| - v0) / (v1 - v0), 0, 1), |v| the true horizontal speed when the PCMD arrives; '
+        'a braking or sideways tilt is delivered whole (before the max-tilt clamp; the hover brake is not '
+        'attenuated; `drone_model.delivered_tilt`). Fitted: a = %.4f, v0 = %.2f m/s, v1 = %.2f m/s.'
         % (ts.attenuation, ts.speed, ts.speed_full))
     add('')
     add('Fit (`fit_tilt_attenuation_speed`): with eq. (15) the paper\'s MPC command is a function of the '
@@ -516,7 +518,8 @@ def format_effects(cal):
         'as the tilt); at %.2f m/s it is %.3f. v1 = the fastest log\'s speed, a = 1 - its gain, v0 = the '
         'fastest slower log within the tolerance. The logs have no speed between v0 and v1 nor above v1: the '
         'linear ramp between them and the constant fraction above are assumptions, and so is the speed being '
-        'the ground speed (the logs have no wind to tell it from the airspeed). The 5 m/s cells are the '
+        'the ground speed (the logs have no wind to tell it from the airspeed) and braking and sideways tilt '
+        'being delivered whole (the logs show steady fast flight only). The 5 m/s cells are the '
         'check: with it the stand-in\'s ground-truth error of x_straight_5_mpc, which the fit does not use, '
         'moves from about 0.6x to about 1.1x of Sphinx\'s (docs/fidelity.md).'
         % (ts.speed, 100.0 * ts.tolerance, ts.speed_full, 1.0 - ts.attenuation))

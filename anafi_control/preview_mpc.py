@@ -104,7 +104,8 @@ EXTRA_COUNTERS = ('previews', 'rejected_previews', 'preview_cycles', 'estimator_
 MODEL_KEYS = ('gravity', 'attitude_time_constant', 'attitude_delay', 'vertical_speed_time_constant',
               'drag_linear', 'drag_quadratic', 'estimate_lag', 'position_lag', 'position_fix_gain',
               'sample_period', 'max_tilt_deg', 'max_vertical_speed', 'max_yaw_rate_deg',
-              'tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full')
+              'tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full',
+              'vertical_acceleration_limit')
 
 
 class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
@@ -119,7 +120,9 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
         position fix's delay D [s] and gain k [1/s] when the model fuses a delayed position fix, else 0;
         sample_period = 1 / estimate_rate; the firmware's tilt attenuation (anafi_sim.sim.drone_model: a
         fraction a of the commanded tilt, or with tilt_attenuation_speed v0 > 0 of its part that drives the
-        drone along its velocity, ramped in from v0 to tilt_attenuation_speed_full) is commanded in advance."""
+        drone along its velocity, ramped in from v0 to tilt_attenuation_speed_full) is commanded in advance;
+        vertical_acceleration_limit [m/s^2] (0 = none) clips the vertical loop in the forward prediction and the
+        disturbance estimate (the QP's model stays linear: the limit binds only on large steps)."""
         lag = float(model.get('estimate_delay', 0.0)) + float(model.get('estimate_time_constant', 0.0))
         fusion = bool(model.get('estimate_position_fusion', False))
         return cls(float(model['gravity']), float(model['attitude_time_constant']), float(model['attitude_delay']),
@@ -130,7 +133,14 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
                    1.0 / float(model['estimate_rate']) if model.get('estimate_rate') else 0.0,
                    float(max_tilt_deg), float(max_vertical_speed), float(max_yaw_rate_deg),
                    float(model.get('tilt_attenuation', 0.0)), float(model.get('tilt_attenuation_speed', 0.0)),
-                   float(model.get('tilt_attenuation_speed_full', 0.0)))
+                   float(model.get('tilt_attenuation_speed_full', 0.0)),
+                   float(model.get('vertical_acceleration_limit', 0.0)))
+
+    def vertical_acceleration(self, command, vz):
+        """Vertical acceleration [m/s^2] of the firmware's vertical-speed loop at ``vz`` [m/s] under ``command``."""
+        acc = (command - vz) / self.vertical_speed_time_constant
+        limit = self.vertical_acceleration_limit
+        return max(-limit, min(limit, acc)) if limit > 0.0 else acc
 
     def tilt_gain(self, speed):
         """Fraction of a commanded (driving) tilt the firmware delivers at horizontal ``speed`` [m/s]."""
@@ -385,7 +395,7 @@ class PreviewMpc(Controller):
         k = m.drag_linear + m.drag_quadratic * speed
         acc_h = 0.5 * (prev['a'] + new['a']) - k * vm[:2]
         uz = self._command_at(ts - 0.5 * h)
-        acc_z = ((uz[3] if uz is not None else vm[2]) - vm[2]) / m.vertical_speed_time_constant
+        acc_z = m.vertical_acceleration(uz[3] if uz is not None else vm[2], vm[2])
         residual = (new['v'] - prev['v']) / h - np.array([acc_h[0], acc_h[1], acc_z])
         d = self.disturbance + (h / max(tc, h)) * (residual - self.disturbance)
         limit = self.u_max[0]
@@ -476,7 +486,11 @@ class PreviewMpc(Controller):
             k = kl + kq * math.hypot(v[0], v[1])
             v[0] += h * (a[0] - k * v[0] + d[0])
             v[1] += h * (a[1] - k * v[1] + d[1])
-            v[2] += cz * (uz - v[2]) + h * d[2]
+            dvz = cz * (uz - v[2])
+            if m.vertical_acceleration_limit > 0.0:
+                cap = m.vertical_acceleration_limit * h
+                dvz = max(-cap, min(cap, dvz))
+            v[2] += dvz + h * d[2]
             p[0] += h * v[0]
             p[1] += h * v[1]
             p[2] += h * v[2]

@@ -29,7 +29,11 @@ fitted by ``anafi_sim/calibration/fit.py``, see docs/calibration.md):
   delivered whole: the logs show steady fast flight only, see
   docs/calibration.md);
 - ``max_descent_speed`` [m/s]: the firmware descends at most this fast,
-  whatever the commanded vertical speed (0 = no limit beyond the PCMD's).
+  whatever the commanded vertical speed (0 = no limit beyond the PCMD's);
+- ``vertical_acceleration_limit`` A [m/s^2]: the vertical-speed loop accelerates
+  at most this much (up and down): a large step ramps at A, a small one follows
+  the first order (0 = no limit). Its fit refits ``vertical_speed_time_constant``
+  with it (``EFFECT_GROUPS``).
 
 The estimate's effects (position fusion, yaw bias, quantisation) are
 ``anafi_sim/sim/state_estimate.py``'s. With every effect off the model is bit
@@ -86,6 +90,7 @@ EFFECTS_OFF = collections.OrderedDict((
     ('tilt_attenuation_speed', 0.0),       # m/s, v0: no attenuation below this horizontal speed (0 = at any speed)
     ('tilt_attenuation_speed_full', 0.0),  # m/s, v1 > v0: the full fraction from this speed on (ramp v0..v1)
     ('max_descent_speed', 0.0),      # m/s, firmware descent limit (0 = none)
+    ('vertical_acceleration_limit', 0.0),  # m/s^2, vertical-speed loop acceleration limit (0 = none)
 ))
 EFFECTS_OFF.update(state_estimate.EFFECTS_OFF)
 # The effects by name and their keys (the estimate's delay/smoothing, refitted on velocity and attitude alone
@@ -95,6 +100,7 @@ EFFECT_GROUPS = collections.OrderedDict((
                          'estimate_delay', 'estimate_time_constant')),
     ('tilt_attenuation', ('tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full')),
     ('max_descent_speed', ('max_descent_speed',)),
+    ('vertical_acceleration_limit', ('vertical_acceleration_limit', 'vertical_speed_time_constant')),
     ('yaw_bias', ('estimate_yaw_bias',)),
     ('quantisation', ('estimate_quantum_x', 'estimate_quantum_y', 'estimate_quantum_z', 'estimate_quantum_velocity')),
 ))
@@ -171,7 +177,7 @@ def validate_model_params(params):
     if given:
         effects = state_estimate.validate_effects(params)
         for key in ('tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full',
-                    'max_descent_speed'):
+                    'max_descent_speed', 'vertical_acceleration_limit'):
             value = params.get(key, EFFECTS_OFF[key])
             if not _is_number(value) or value < 0.0:
                 raise ValueError('model parameter %s must be a finite number >= 0, got %r' % (key, value))
@@ -254,6 +260,7 @@ class AnafiModel(object):
         self._tilt_speed = effects['tilt_attenuation_speed']
         self._tilt_speed_full = effects['tilt_attenuation_speed_full']
         self._max_descent = effects['max_descent_speed']
+        self._vz_accel_limit = effects['vertical_acceleration_limit']
         self._max_tilt = math.radians(self.mapping.max_tilt_deg)
         self._max_vs = self.mapping.max_vertical_speed
         self._max_yaw_rate = math.radians(self.mapping.max_yaw_rate_deg)
@@ -516,6 +523,9 @@ class AnafiModel(object):
         zbz = cp * cr
         vert_drag = self._drag_vert * avz
         az_des = (vz_sp - vz0) * self._c_vz
+        limit = self._vz_accel_limit
+        if limit > 0.0:                              # the firmware ramps a large vertical-speed step
+            az_des = -limit if az_des < -limit else (limit if az_des > limit else az_des)
         thrust = (az_des + g + vert_drag) / zbz
         tmax = self.settings['max_specific_thrust']
         thrust = 0.0 if thrust < 0.0 else (tmax if thrust > tmax else thrust)

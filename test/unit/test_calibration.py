@@ -108,6 +108,37 @@ def test_first_order_response_matches_independent_integration():
 
 
 # ----------------------------------------------------------------------------------------- drag
+def test_rate_limited_response_is_the_simulators_vertical_loop():
+    """fit.rate_limited_response (the vertical fit's model) against AnafiModel's vertical speed for a climb step
+    that ramps at the limit and a small one that does not; limit 0 is the first order."""
+    from anafi_sim.sim.bridge import PilotingMapping
+    from anafi_sim.sim.drone_model import AnafiModel
+    params = dict(gravity=9.81, attitude_time_constant=0.2, attitude_delay=0.0, yaw_rate_time_constant=0.1,
+                  vertical_speed_time_constant=0.1, drag_linear=0.2, drag_quadratic=0.02, drag_vertical=0.2,
+                  estimate_delay=0.0, estimate_time_constant=0.0, estimate_rate=20.0, estimate_float16=False,
+                  vertical_acceleration_limit=3.0)
+    dt = 0.005
+    for gaz_pct in (100, 10):
+        drone = AnafiModel(params, mapping=PilotingMapping())
+        drone.reset(0.0, 0.0, 20.0, 0.0, flying=True)
+        t_out, vz = [], []
+        t = 0.0
+        for k in range(200):
+            if k % 20 == 0:
+                drone.set_command(0, 0, 0, gaz_pct, t)
+            drone.step(dt, t)
+            t += dt
+            t_out.append(t)
+            vz.append(drone.vz)
+        u = gaz_pct / 100.0 * 2.0
+        model = cal.rate_limited_response([0.0, 1.0], [u, u], 0.1, 3.0, 0.0, np.array(t_out), step=dt)
+        assert np.max(np.abs(model - np.array(vz))) < 0.01 * u + 1e-3, gaz_pct
+    t = np.linspace(0.0, 2.0, 81)
+    first = cal.first_order_response([0.0, 0.5, 1.0], [1.0, -0.5, 0.3], 0.15, 0.1, t, hold=True, initial=0.0)
+    assert np.max(np.abs(cal.rate_limited_response([0.0, 0.5, 1.0], [1.0, -0.5, 0.3], 0.15, 0.0, 0.1, t,
+                                                   step=0.002) - first)) < 0.01
+
+
 def simulate_drag_log(dl, dq, dv, trim_pitch, duration=80.0, h=1e-3, rate=20.0):
     """Model translation (a = T z - g e_z - drag, T from the vertical profile) driven by set attitudes."""
     n = int(duration / h)
@@ -496,6 +527,17 @@ def test_real_log_effects(real):
     for name in f.descent.files:
         before, after = f.descent.replay[name]
         assert after < 0.2 * before
+    # vertical acceleration limit: the climbs ramp at ~6 m/s^2; the limited loop fits every static step better
+    # (the MPC ones are a check: not in the fit) with a shorter small-signal lag than the single first order
+    ve = f.vertical
+    assert set(ve.files) == {'static_waypoint_yaw_0_pid', 'static_waypoint_yaw_180_pid'}
+    assert 4.0 < p['vertical_acceleration_limit'] == ve.limit < 9.0 and 3.0 < ve.all_static[0] < 9.0
+    assert p['vertical_speed_time_constant'] == ve.time_constant < 0.6 * ve.first_order[0]
+    assert ve.first_order[0] == pytest.approx(result.commands.vertical.time_constant, abs=0.01)
+    assert ve.rms < 0.85 * ve.first_order[1]
+    assert set(ve.per_file) == {'static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('pid', 'mpc')}
+    for name, (before, after) in ve.per_file.items():
+        assert after < 0.9 * before, name
     # quantisation: z and the velocities of the estimate on a 1/256 grid, the truth not
     assert p['estimate_quantum_z'] == p['estimate_quantum_velocity'] == 1.0 / 256.0
     for column in ('z', 'vx', 'vy', 'vz'):
@@ -515,6 +557,7 @@ def test_report_has_a_section_per_effect(real):
     logs, result = real
     text = report.format_report(result, logs)
     for title in ('### Position estimate: fusion', '### Tilt attenuation', '### Vertical asymmetry: descent limit',
+                  '### Vertical speed: acceleration limit',
                   '### Yaw estimate bias', '### Estimate quantisation'):
         assert title in text
     assert 'anafi_model_fitted.yaml' in text and 'cannot identify' in text

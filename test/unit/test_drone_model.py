@@ -448,6 +448,28 @@ def test_max_descent_speed_limits_descent_not_climb():
     assert unlimited.vz == pytest.approx(-2.0, abs=1e-3)
 
 
+def test_vertical_acceleration_limit_ramps_a_large_step_and_leaves_a_small_one():
+    """tau 0.3 s, A 2 m/s^2: a 2 m/s step (first-order start 6.7 m/s^2) ramps at A up and down until (c - v) / tau
+    < A; a 0.5 m/s step (1.7 m/s^2) never reaches the limit and is the first order bit for bit."""
+    for pcmd, sign in (((0, 0, 0, 100), 1.0), ((0, 0, 0, -100), -1.0)):
+        model = flying_model(z=50.0, vertical_acceleration_limit=2.0)
+        previous, t = model.vz, model.time
+        for _ in range(10):
+            t = run(model, 0.05, pcmd=pcmd, t0=t, command_period=0.05)
+            assert abs(model.vz - previous) <= 2.0 * 0.05 + 1e-9               # never faster than A
+            previous = model.vz
+        assert model.vz == pytest.approx(sign * 1.0, abs=0.01)                  # 0.5 s at 2 m/s^2
+        run(model, 3.0, pcmd=pcmd)
+        assert model.vz == pytest.approx(sign * 2.0, abs=1e-3)                  # the command is reached
+    unlimited = flying_model(z=50.0)
+    run(unlimited, 0.5, pcmd=(0, 0, 0, 100))
+    assert unlimited.vz > 1.5                                                   # the first order alone
+    small, plain = flying_model(vertical_acceleration_limit=2.0), flying_model()
+    for model in (small, plain):
+        run(model, 2.0, pcmd=(0, 0, 0, 25))
+    assert small.truth_sample() == plain.truth_sample()
+
+
 def test_every_effect_off_is_bit_for_bit_the_model_without_them():
     from anafi_sim.sim.drone_model import EFFECTS_OFF
     plain = flying_model(settings={'wind_x': 1.0, 'gust_std_horizontal': 0.5}, seed=3)
@@ -464,6 +486,7 @@ def test_every_effect_off_is_bit_for_bit_the_model_without_them():
     ('tilt_attenuation', 1.0), ('tilt_attenuation', -0.1), ('tilt_attenuation', float('nan')),
     ('tilt_attenuation_speed', -1.0), ('tilt_attenuation_speed_full', 'fast'),
     ('max_descent_speed', -1.0), ('max_descent_speed', 'fast'), ('max_descent_speed', True),
+    ('vertical_acceleration_limit', -1.0), ('vertical_acceleration_limit', float('nan')),
     ('estimate_position_fusion', 'yes'), ('estimate_position_fix_gain', -0.2), ('estimate_quantum_x', float('inf'))])
 def test_bad_effect_values_raise_value_error(key, value):
     with pytest.raises(ValueError, match=key):
@@ -482,6 +505,7 @@ def test_fitted_config_file_is_valid_and_has_every_effect_on():
     assert list(fitted) == list(MODEL_KEYS)
     assert fitted['estimate_position_fusion'] is True
     assert fitted['tilt_attenuation'] > 0.0 and fitted['max_descent_speed'] > 0.0
+    assert fitted['vertical_acceleration_limit'] > 0.0
     shipped = load_model_params(DEFAULT_MODEL_FILE)
     for key in MODEL_KEYS:                                             # the same fit, only the effects differ
         if key not in EFFECTS_OFF and key not in ('estimate_delay', 'estimate_time_constant'):

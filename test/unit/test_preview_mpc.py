@@ -101,9 +101,12 @@ def test_discretised_model_predicts_the_stand_in_pitch_step(pitch_deg):
 
 
 def test_discretised_model_predicts_the_stand_in_climb():
+    """A climb command small enough that the vertical acceleration limit does not bind (the QP's model is linear;
+    the limit is in the forward prediction: next test)."""
     drone = hovering()
     mapping = drone.mapping
-    pcmd = mapping.to_pcmd(0.0, 0.0, 0.0, 1.0)
+    pcmd = mapping.to_pcmd(0.0, 0.0, 0.0, 0.4)
+    assert 0.4 / MODEL.vertical_speed_time_constant < (MODEL.vertical_acceleration_limit or float('inf'))
     gaz = mapping.pcmd_to_setpoints(*pcmd)[3]
     Ad, Bd, _ = discretise(MODEL, PHYSICS_DT)
     x = np.zeros(8)
@@ -140,6 +143,32 @@ def test_smith_predictor_predicts_the_stand_in_with_quadratic_drag():
     p, v, a = ctrl._propagate(t)
     assert np.linalg.norm(v - np.array(drone.velocity())) < 0.05 * np.linalg.norm(drone.velocity())
     assert np.linalg.norm(p - np.array(drone.position())) < 0.03
+
+
+def test_smith_predictor_predicts_a_full_climb_with_the_acceleration_limit():
+    """A 2 m/s climb step: the shipped vertical_acceleration_limit binds (the loop ramps); the forward prediction
+    clips like the stand-in and follows it, the first order alone would run ahead."""
+    assert MODEL.vertical_acceleration_limit > 0.0
+    drone = hovering()
+    mapping = drone.mapping
+    pcmd = mapping.to_pcmd(0.0, 0.0, 0.0, 2.0)
+    gaz = mapping.pcmd_to_setpoints(*pcmd)[3]
+    errors = {}
+    for name, model in (('limited', TRUTH_MODEL), ('linear', TRUTH_MODEL._replace(vertical_acceleration_limit=0.0))):
+        drone = hovering()
+        ctrl = PreviewMpc(model, {'quantise': False, 'disturbance_time_constant': 0.0})
+        feed_state(ctrl, drone, 0.0)
+        ctrl.commands.append((MODEL.attitude_delay, 0.0, 0.0, gaz))
+        t = 0.0
+        for k in range(int(0.3 / PHYSICS_DT)):
+            if k % 40 == 0:
+                drone.set_command(*(pcmd + (t,)))
+            drone.step(PHYSICS_DT, t)
+            t += PHYSICS_DT
+        p, v, _ = ctrl._propagate(t)
+        errors[name] = abs(v[2] - drone.vz)
+    assert errors['limited'] < 0.03
+    assert errors['linear'] > 3.0 * errors['limited']
 
 
 def test_attitude_mapping_round_trip():

@@ -358,7 +358,11 @@ def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs')
         'the logger\'s timing (20 Hz samples); the vertical speed shows a fast rise to ~94 % of the command '
         'then a slow creep that one time constant averages; during the 180 deg turn the measured roll/pitch '
         'do not follow the replayed command the way a first-order loop would (rms above), so that coupling is '
-        'not captured; in the two garbage logs the drone descended at ~1.5 m/s under a saturated -2 m/s '
+        'not captured (the measured tilt turns with the body, ~27 deg along its nose at 100 deg/s of yaw, where '
+        'the replayed command already points back at the waypoint; ruled out offline, rms of roll/pitch in the '
+        'turns of both yaw-180 logs: a stability-frame rotation of the controllers with the opposite yaw sign or '
+        'none, 0.35-0.37 rad against 0.16-0.18 rad; the command held as a world-frame tilt, 0.18 rad; a tilt '
+        'rate limit of 50-120 deg/s, 0.17 rad); in the two garbage logs the drone descended at ~1.5 m/s under a saturated -2 m/s '
         'command (modelled as max_descent_speed, section (f)). Refit once the project\'s controllers fly the same '
         'waypoints in closed loop (issue 2: "attitude response from closed-loop replays").')
     add('')

@@ -105,7 +105,7 @@ MODEL_KEYS = ('gravity', 'attitude_time_constant', 'attitude_delay', 'vertical_s
               'drag_linear', 'drag_quadratic', 'estimate_lag', 'position_lag', 'position_fix_gain',
               'sample_period', 'max_tilt_deg', 'max_vertical_speed', 'max_yaw_rate_deg',
               'tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full',
-              'vertical_acceleration_limit')
+              'vertical_acceleration_limit', 'tilt_rate_limit')
 
 
 class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
@@ -122,7 +122,8 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
         fraction a of the commanded tilt, or with tilt_attenuation_speed v0 > 0 of its part that drives the
         drone along its velocity, ramped in from v0 to tilt_attenuation_speed_full) is commanded in advance;
         vertical_acceleration_limit [m/s^2] (0 = none) clips the vertical loop in the forward prediction and the
-        disturbance estimate (the QP's model stays linear: the limit binds only on large steps)."""
+        disturbance estimate, tilt_rate_limit [rad/s] (0 = none) the tilt acceleration's rate (g x R) in the
+        forward prediction (the QP's model stays linear: the limits bind only on large steps)."""
         lag = float(model.get('estimate_delay', 0.0)) + float(model.get('estimate_time_constant', 0.0))
         fusion = bool(model.get('estimate_position_fusion', False))
         return cls(float(model['gravity']), float(model['attitude_time_constant']), float(model['attitude_delay']),
@@ -134,7 +135,8 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
                    float(max_tilt_deg), float(max_vertical_speed), float(max_yaw_rate_deg),
                    float(model.get('tilt_attenuation', 0.0)), float(model.get('tilt_attenuation_speed', 0.0)),
                    float(model.get('tilt_attenuation_speed_full', 0.0)),
-                   float(model.get('vertical_acceleration_limit', 0.0)))
+                   float(model.get('vertical_acceleration_limit', 0.0)),
+                   float(model.get('tilt_rate_limit', 0.0)))
 
     def vertical_acceleration(self, command, vz):
         """Vertical acceleration [m/s^2] of the firmware's vertical-speed loop at ``vz`` [m/s] under ``command``."""
@@ -481,8 +483,14 @@ class PreviewMpc(Controller):
                 active = cmds[i]
                 i += 1
             ux, uy, uz = (a[0], a[1], v[2]) if active is None else active[1:]
-            a[0] += ca * (ux - a[0])
-            a[1] += ca * (uy - a[1])
+            dax, day = ca * (ux - a[0]), ca * (uy - a[1])
+            if m.tilt_rate_limit > 0.0:                  # the firmware turns the tilt at most at R
+                cap = m.gravity * m.tilt_rate_limit * h
+                norm = math.hypot(dax, day)
+                if norm > cap:
+                    dax, day = dax * cap / norm, day * cap / norm
+            a[0] += dax
+            a[1] += day
             k = kl + kq * math.hypot(v[0], v[1])
             v[0] += h * (a[0] - k * v[0] + d[0])
             v[1] += h * (a[1] - k * v[1] + d[1])

@@ -1171,6 +1171,83 @@ def rate_limited_response(t_u, u, time_constant, limit, delay, t_out, step=ESTIM
     return np.interp(t_out, grid, out)
 
 
+def rate_limited_tilt_response(t_u, roll_u, pitch_u, time_constant, rate, delay, t_out, step=ESTIMATE_STEP):
+    """(roll, pitch)(t_out) [rad] of the roll/pitch loop with a tilt-rate limit, discretised as ``AnafiModel``
+    does: each step moves the tilt vector by the exact first-order step toward the setpoint (held after each
+    sample (t_u, roll_u, pitch_u), delayed by ``delay`` [s]), shortened to ``rate`` x step when longer
+    (``rate`` [rad/s] <= 0: the first order). Starts level."""
+    t_u = np.asarray(t_u, dtype=np.float64)
+    t_out = np.asarray(t_out, dtype=np.float64)
+    grid = np.arange(min(t_u[0], t_out[0]), t_out[-1] + 2.0 * step, step)
+    a, b = grid - 0.5 * step - delay, grid + 0.5 * step - delay
+    targets = (_held_means(t_u, np.asarray(roll_u, dtype=np.float64), a, b),
+               _held_means(t_u, np.asarray(pitch_u, dtype=np.float64), a, b))
+    c = 1.0 - math.exp(-step / time_constant) if time_constant > 1e-6 else 1.0
+    cap = float(rate) * step if rate > 0.0 else float('inf')
+    roll = pitch = 0.0
+    out = np.empty((len(grid), 2))
+    for k, (rs, ps) in enumerate(zip(*targets)):   # a clipped vector loop: step it (5 ms)
+        out[k] = roll, pitch
+        dr, dp = c * (rs - roll), c * (ps - pitch)
+        norm = math.sqrt(dr * dr + dp * dp)
+        if norm > cap:
+            dr, dp = dr * cap / norm, dp * cap / norm
+        roll += dr
+        pitch += dp
+    return np.interp(t_out, grid, out[:, 0]), np.interp(t_out, grid, out[:, 1])
+
+
+TiltRateFit = collections.namedtuple('TiltRateFit', [
+    'rate', 'time_constant', 'rms', 'first_order', 'per_file', 'all_static', 'files'])
+TiltRateFit.__doc__ = (
+    'Roll/pitch loop with a tilt-rate limit: rate [rad/s], time_constant [s] (with the attitude delay), rms '
+    '[rad] (outside the yaw turns, a constant offset per log and axis removed: the trim); first_order (time '
+    'constant [s], rms [rad]) of the same data without the limit; {file: (rms first order, rms limited)} for '
+    'every static log (the MPC ones: a check, not fitted); all_static (rate, time constant, rms) of the fit on '
+    'all four; files (the fit\'s).')
+
+
+def fit_tilt_rate_limit(logs, delay, window=20.0, turn_rate=0.1):
+    """``TiltRateFit``: the firmware's roll/pitch response as a first order whose tilt vector turns at most at a
+    fitted rate, against the PID replays of the static steps (``fit_command_responses``' windows and calm
+    samples, |yaw rate| <= ``turn_rate``), delay = the attitude ``delay``. A single first order has to fit the
+    30 deg steps (Sphinx's tilt ramps) and the small corrections at once; the MPC static logs (commands
+    recomputed, eq. 15) are the check."""
+    series = []
+    for log in logs:
+        if not (is_clean(log) and log.name.startswith('static')):
+            continue
+        pid = log.name.endswith('_pid')
+        tr = reconstruct_pid_commands(log) if pid else reconstruct_mpc_commands(log)
+        t0 = log.t[tr.start_index]
+        calm = (log.t >= t0 - 0.5) & (log.t <= t0 + window) & (np.abs(measured_yaw_rate(log)) <= turn_rate)
+        series.append((log.name, pid, tr, log.t[calm], log.roll_sphinx[calm], log.pitch_sphinx[calm]))
+    used = [s for s in series if s[1]]
+    if not used:
+        raise ValueError('fit_tilt_rate_limit: no clean static-waypoint PID log')
+
+    def cost(group, tau, rate):
+        if tau <= 0.01 or tau > 1.0 or (rate is not None and rate <= 0.05):
+            return 1e9
+        parts = []
+        for _, _, tr, t, roll, pitch in group:
+            r, p = rate_limited_tilt_response(tr.t, tr.roll, tr.pitch, tau, rate or 0.0, delay, t)
+            for e in (roll - r, pitch - p):
+                parts.append(e - np.mean(e))
+        return float(np.sqrt(np.mean(np.concatenate(parts) ** 2)))
+
+    def fit(group):
+        res = minimize(lambda q: cost(group, q[0], q[1]), [0.12, 1.4], method='Nelder-Mead',
+                       options={'xatol': 1e-4, 'fatol': 1e-7, 'maxiter': 400})
+        return float(res.x[1]), float(res.x[0]), float(res.fun)
+
+    rate, tau, rms = fit(used)
+    res = minimize_scalar(lambda tau_: cost(used, tau_, None), bounds=(0.02, 0.6), method='bounded')
+    first = (float(res.x), float(res.fun))
+    per_file = collections.OrderedDict((s[0], (cost([s], first[0], None), cost([s], tau, rate))) for s in series)
+    return TiltRateFit(rate, tau, rms, first, per_file, fit(series), tuple(s[0] for s in used))
+
+
 VerticalLimitFit = collections.namedtuple('VerticalLimitFit', [
     'limit', 'time_constant', 'rms', 'first_order', 'per_file', 'all_static', 'files'])
 VerticalLimitFit.__doc__ = (
@@ -1349,12 +1426,13 @@ def fit_yaw_bias(logs, estimate):
 
 
 Effects = collections.namedtuple('Effects', ['fusion', 'tilt', 'descent', 'quanta', 'yaw', 'estimate_chain',
-                                             'replay', 'tilt_speed', 'vertical'])
+                                             'replay', 'tilt_speed', 'vertical', 'tilt_rate'])
 Effects.__doc__ = ('The fidelity effects: PositionFusionFit, TiltFit (constant attenuation, static PID logs), '
                    'DescentFit, QuantumFit, YawBiasFit, the FirstOrderFit of the estimate delay/smoothing on '
                    'velocity and attitude alone (the position has its own model once the fusion is on), '
                    'EstimateReplay (open-loop check), TiltSpeedFit (the model\'s speed-gated attenuation, '
-                   'straight MPC logs), VerticalLimitFit (the vertical-speed loop\'s acceleration limit).')
+                   'straight MPC logs), VerticalLimitFit (the vertical-speed loop\'s acceleration limit), TiltRateFit '
+                   '(the roll/pitch loop\'s tilt-rate limit).')
 
 # The effects calibrate() writes ON into anafi_model.yaml (the others keep their off values; every fitted value
 # is in anafi_model_fitted.yaml). Chosen by the closed-loop replay of the shared logs (docs/fidelity.md): the
@@ -1362,7 +1440,8 @@ Effects.__doc__ = ('The fidelity effects: PositionFusionFit, TiltFit (constant a
 # fifth at 5 m/s) brings the 5 m/s MPC cells and Table 3's 5 m/s MPC cell in and leaves the slower logs alone;
 # the descent limit is seen only in x_straight_2/3_pid, where Sphinx's drone sank below the ground under a
 # wrapped z estimate - not normal flight - so it stays off. Edit and rerun scripts/calibrate_model.py.
-SHIPPED_EFFECTS = ('position_fusion', 'tilt_attenuation', 'vertical_acceleration_limit', 'yaw_bias', 'quantisation')
+SHIPPED_EFFECTS = ('position_fusion', 'tilt_attenuation', 'tilt_rate_limit', 'vertical_acceleration_limit', 'yaw_bias',
+                   'quantisation')
 
 
 def fit_effects(logs, params, commands, estimate, trim_pitch=0.0):
@@ -1378,6 +1457,7 @@ def fit_effects(logs, params, commands, estimate, trim_pitch=0.0):
     tilt = fit_tilt_attenuation(logs, commands.attitude)
     descent = fit_descent(logs, params['vertical_speed_time_constant'], params['attitude_delay'])
     vertical = fit_vertical_acceleration_limit(logs, params['attitude_delay'])
+    tilt_rate = fit_tilt_rate_limit(logs, params['attitude_delay'])
     quanta = fit_quantisation(logs)
     yaw = fit_yaw_bias(logs, estimate)
     fitted = collections.OrderedDict(params)
@@ -1387,6 +1467,8 @@ def fit_effects(logs, params, commands, estimate, trim_pitch=0.0):
     fitted['max_descent_speed'] = descent.max_descent_speed
     fitted['vertical_acceleration_limit'] = vertical.limit
     fitted['vertical_speed_time_constant'] = vertical.time_constant
+    fitted['tilt_rate_limit'] = tilt_rate.rate
+    fitted['attitude_time_constant'] = tilt_rate.time_constant
     fitted['estimate_position_fusion'] = True
     fitted['estimate_position_fix_delay'] = fusion.fix_delay
     fitted['estimate_position_fix_gain'] = fusion.fix_gain
@@ -1410,7 +1492,7 @@ def fit_effects(logs, params, commands, estimate, trim_pitch=0.0):
     fitted['tilt_attenuation'] = tilt_speed.attenuation
     fitted['tilt_attenuation_speed'] = tilt_speed.speed
     fitted['tilt_attenuation_speed_full'] = tilt_speed.speed_full
-    return Effects(fusion, tilt, descent, quanta, yaw, chain, replay, tilt_speed, vertical), fitted
+    return Effects(fusion, tilt, descent, quanta, yaw, chain, replay, tilt_speed, vertical, tilt_rate), fitted
 
 
 # --------------------------------------------------------------------------- everything

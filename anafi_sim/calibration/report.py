@@ -63,6 +63,10 @@ def _effect_comments(cal):
         'max_descent_speed': 'm/s, truth descent under the saturated -2 m/s command (x_straight_2/3_pid, the '
                              'only saturated descents): vz replay rms %s m/s'
                              % ', '.join('%.2f -> %.3f' % de.replay[n] for n in de.files),
+        'tilt_rate_limit': 'rad/s, R: the roll/pitch loop turns the tilt at most this fast (%.1f deg/s; refits '
+                           'attitude_time_constant to %.4f s); PID replay of the steps outside the turns rms %.4f -> '
+                           '%.4f rad' % (np.degrees(f.tilt_rate.rate), f.tilt_rate.time_constant,
+                                         f.tilt_rate.first_order[1], f.tilt_rate.rms),
         'vertical_acceleration_limit': 'm/s^2, A: the vertical-speed loop ramps at most this fast (refits '
                                        'vertical_speed_time_constant to %.4f s); PID replay of the climbs rms %.4f '
                                        '-> %.4f m/s' % (f.vertical.time_constant, f.vertical.first_order[1],
@@ -119,6 +123,9 @@ def format_model_yaml(cal, log_names, fitted=False):
         comments['estimate_delay'] = ('s, velocity/roll/pitch estimate vs truth (static logs; the position has the '
                                       'fusion): effective lag %.3f s minus half a hold period' % chain.delay)
         comments['estimate_time_constant'] = 's, same fit (rms %.4f, R^2 %.4f)' % (chain.rms, chain.r2)
+    if p.get('tilt_rate_limit', 0.0) > 0.0:               # the small-signal lag of the limited loop
+        comments['attitude_time_constant'] = ('s, with tilt_rate_limit: PID replay of the steps outside the turns '
+                                              '(rms %.4f rad)' % cal.effects.tilt_rate.rms)
     if p.get('vertical_acceleration_limit', 0.0) > 0.0:   # the small-signal lag of the limited loop
         comments['vertical_speed_time_constant'] = ('s, with vertical_acceleration_limit: PID replay of the climbs '
                                                     'with attitude_delay (rms %.3f m/s)' % cal.effects.vertical.rms)
@@ -177,6 +184,9 @@ def format_summary(cal):
     for name, (before, after) in f.descent.replay.items():
         if name in f.descent.files:
             out.append('  descent limit %-17s vz rms %.3f -> %.3f m/s' % (name, before, after))
+    out.append('  tilt rate limit                 R %.1f deg/s, tau %.4f s: steps roll/pitch rms %.4f -> %.4f rad'
+               % (np.degrees(f.tilt_rate.rate), f.tilt_rate.time_constant, f.tilt_rate.first_order[1],
+                  f.tilt_rate.rms))
     out.append('  vertical acceleration limit     A %.2f m/s^2, tau %.4f s: climbs vz rms %.4f -> %.4f m/s'
                % (f.vertical.limit, f.vertical.time_constant, f.vertical.first_order[1], f.vertical.rms))
     for note in cal.notes:
@@ -586,6 +596,31 @@ def format_effects(cal):
         '(their truth is valid), both at the same command, so a speed cap, a reduced gain for descents or a '
         'limit that depends on the max vertical speed setting are indistinguishable; the cap is the simplest '
         'model consistent with both. drag_vertical remains unidentified (section (a)).')
+    add('')
+
+    tr = f.tilt_rate
+    add('### Attitude: tilt-rate limit')
+    add('')
+    add('Model: the roll/pitch loop of section (c) moves the tilt vector (roll, pitch) by its exact first-order step, '
+        'shortened to `tilt_rate_limit` R [rad/s] x dt when longer (`AnafiModel`), with its own time constant. Why: '
+        'the static steps command ~30 deg at once; Sphinx\'s tilt ramps toward it, while the small corrections '
+        'afterwards are faster than the single first order that has to average both (tau %.4f s, rms %.4f rad). '
+        'Fit: the same PID replays, windows and calm samples (|yaw rate| <= 0.1 rad/s) as section (c), delay = '
+        'attitude_delay, a constant offset per log and axis removed (the trim), (R, tau) by Nelder-Mead: R = %.3f '
+        'rad/s (%.1f deg/s), tau = %.4f s, rms %.4f rad. Per static log (the MPC ones with their recomputed '
+        'commands: a check, not fitted), roll/pitch rms [rad]:'
+        % (tr.first_order[0], tr.first_order[1], tr.rate, np.degrees(tr.rate), tr.time_constant, tr.rms))
+    add('')
+    add('| log | first order (tau %.4f s) | limited (R %.1f deg/s, tau %.4f s) |'
+        % (tr.first_order[0], np.degrees(tr.rate), tr.time_constant))
+    add('|---|---|---|')
+    for name, (before, after) in tr.per_file.items():
+        add('| %s%s | %.4f | %.4f |' % (name, '' if name in tr.files else ' (check)', before, after))
+    add('')
+    add('The same fit on all four static logs gives R = %.1f deg/s, tau = %.4f s (rms %.4f rad). What the logs '
+        'cannot identify: whether the firmware limits the tilt rate itself or the body rates (the same thing '
+        'without yaw); the turns of the yaw-180 logs stay unexplained by it (section (c)).'
+        % (np.degrees(tr.all_static[0]), tr.all_static[1], tr.all_static[2]))
     add('')
 
     ve = f.vertical

@@ -30,6 +30,10 @@ fitted by ``anafi_sim/calibration/fit.py``, see docs/calibration.md):
   docs/calibration.md);
 - ``max_descent_speed`` [m/s]: the firmware descends at most this fast,
   whatever the commanded vertical speed (0 = no limit beyond the PCMD's);
+- ``tilt_rate_limit`` R [rad/s]: the roll/pitch loop moves the tilt (the vector
+  (roll, pitch)) at most this fast: a large attitude step ramps at R, a small
+  one follows the first order (0 = no limit); its fit refits
+  ``attitude_time_constant`` with it (``EFFECT_GROUPS``);
 - ``vertical_acceleration_limit`` A [m/s^2]: the vertical-speed loop accelerates
   at most this much (up and down): a large step ramps at A, a small one follows
   the first order (0 = no limit). Its fit refits ``vertical_speed_time_constant``
@@ -91,6 +95,7 @@ EFFECTS_OFF = collections.OrderedDict((
     ('tilt_attenuation_speed_full', 0.0),  # m/s, v1 > v0: the full fraction from this speed on (ramp v0..v1)
     ('max_descent_speed', 0.0),      # m/s, firmware descent limit (0 = none)
     ('vertical_acceleration_limit', 0.0),  # m/s^2, vertical-speed loop acceleration limit (0 = none)
+    ('tilt_rate_limit', 0.0),        # rad/s, roll/pitch loop: largest rate of the tilt vector (0 = none)
 ))
 EFFECTS_OFF.update(state_estimate.EFFECTS_OFF)
 # The effects by name and their keys (the estimate's delay/smoothing, refitted on velocity and attitude alone
@@ -101,6 +106,7 @@ EFFECT_GROUPS = collections.OrderedDict((
     ('tilt_attenuation', ('tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full')),
     ('max_descent_speed', ('max_descent_speed',)),
     ('vertical_acceleration_limit', ('vertical_acceleration_limit', 'vertical_speed_time_constant')),
+    ('tilt_rate_limit', ('tilt_rate_limit', 'attitude_time_constant')),
     ('yaw_bias', ('estimate_yaw_bias',)),
     ('quantisation', ('estimate_quantum_x', 'estimate_quantum_y', 'estimate_quantum_z', 'estimate_quantum_velocity')),
 ))
@@ -177,7 +183,7 @@ def validate_model_params(params):
     if given:
         effects = state_estimate.validate_effects(params)
         for key in ('tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full',
-                    'max_descent_speed', 'vertical_acceleration_limit'):
+                    'max_descent_speed', 'vertical_acceleration_limit', 'tilt_rate_limit'):
             value = params.get(key, EFFECTS_OFF[key])
             if not _is_number(value) or value < 0.0:
                 raise ValueError('model parameter %s must be a finite number >= 0, got %r' % (key, value))
@@ -261,6 +267,7 @@ class AnafiModel(object):
         self._tilt_speed_full = effects['tilt_attenuation_speed_full']
         self._max_descent = effects['max_descent_speed']
         self._vz_accel_limit = effects['vertical_acceleration_limit']
+        self._tilt_rate_limit = effects['tilt_rate_limit']
         self._max_tilt = math.radians(self.mapping.max_tilt_deg)
         self._max_vs = self.mapping.max_vertical_speed
         self._max_yaw_rate = math.radians(self.mapping.max_yaw_rate_deg)
@@ -492,8 +499,16 @@ class AnafiModel(object):
         # Attitude: first order towards the setpoints; Euler rates -> body rates.
         roll0, pitch0, yaw0 = self.roll, self.pitch, self.yaw
         c_att = self._c_att
-        roll = roll0 + c_att * (roll_sp - roll0)
-        pitch = pitch0 + c_att * (pitch_sp - pitch0)
+        d_roll = c_att * (roll_sp - roll0)
+        d_pitch = c_att * (pitch_sp - pitch0)
+        if self._tilt_rate_limit > 0.0:             # the firmware turns the tilt at most this fast
+            cap = self._tilt_rate_limit * dt
+            norm = math.sqrt(d_roll * d_roll + d_pitch * d_pitch)
+            if norm > cap:
+                d_roll *= cap / norm
+                d_pitch *= cap / norm
+        roll = roll0 + d_roll
+        pitch = pitch0 + d_pitch
         self.yaw_rate += self._c_yaw * (yaw_rate_sp - self.yaw_rate)
         yaw = yaw0 + self.yaw_rate * dt
         if yaw >= math.pi or yaw < -math.pi:

@@ -408,7 +408,7 @@ def _controllers(state_timeout=None, waypoint_timeout=None):
     kw = dict((k, v) for k, v in (('state_timeout', state_timeout), ('waypoint_timeout', waypoint_timeout))
               if v is not None)
     model = PredictionModel(9.81, 0.18, 0.12, 0.16, 0.2, 0.02, 0.02, 0.2, 0.26, 0.05, 30.64, 2.0, 180.0,
-                            0.0, 0.0, 0.0, 0.0)
+                            0.0, 0.0, 0.0, 0.0, 0.0)
     return (MpcTracking(**kw), PidTracking(**kw), PreviewMpc(model, kw))
 
 

@@ -470,6 +470,26 @@ def test_vertical_acceleration_limit_ramps_a_large_step_and_leaves_a_small_one()
     assert small.truth_sample() == plain.truth_sample()
 
 
+def test_tilt_rate_limit_ramps_a_large_tilt_step_and_leaves_a_small_one():
+    """tau 0.2 s, R 1 rad/s: a full-tilt roll+pitch step (first-order start ~3.8 rad/s) turns the tilt vector at
+    R exactly, in the commanded direction; a 2 % step (~0.05 rad/s) is the first order bit for bit."""
+    model = flying_model(tilt_rate_limit=1.0)
+    previous, t = (model.roll, model.pitch), model.time
+    for _ in range(6):
+        t = run(model, 0.05, pcmd=(60, 80, 0, 0), t0=t, command_period=0.05)
+        step = math.hypot(model.roll - previous[0], model.pitch - previous[1])
+        assert step == pytest.approx(1.0 * 0.05, rel=1e-6)                       # at R, not faster
+        previous = (model.roll, model.pitch)
+    assert model.roll / model.pitch == pytest.approx(60.0 / 80.0, rel=1e-6)      # along the command
+    unlimited = flying_model()
+    run(unlimited, 0.3, pcmd=(60, 80, 0, 0))
+    assert math.hypot(unlimited.roll, unlimited.pitch) > 1.3 * math.hypot(model.roll, model.pitch)   # 0.42 vs 0.30
+    small, plain = flying_model(tilt_rate_limit=1.0), flying_model()
+    for m in (small, plain):
+        run(m, 2.0, pcmd=(2, -2, 0, 0))
+    assert small.truth_sample() == plain.truth_sample()
+
+
 def test_every_effect_off_is_bit_for_bit_the_model_without_them():
     from anafi_sim.sim.drone_model import EFFECTS_OFF
     plain = flying_model(settings={'wind_x': 1.0, 'gust_std_horizontal': 0.5}, seed=3)
@@ -487,6 +507,7 @@ def test_every_effect_off_is_bit_for_bit_the_model_without_them():
     ('tilt_attenuation_speed', -1.0), ('tilt_attenuation_speed_full', 'fast'),
     ('max_descent_speed', -1.0), ('max_descent_speed', 'fast'), ('max_descent_speed', True),
     ('vertical_acceleration_limit', -1.0), ('vertical_acceleration_limit', float('nan')),
+    ('tilt_rate_limit', -0.5), ('tilt_rate_limit', 'fast'),
     ('estimate_position_fusion', 'yes'), ('estimate_position_fix_gain', -0.2), ('estimate_quantum_x', float('inf'))])
 def test_bad_effect_values_raise_value_error(key, value):
     with pytest.raises(ValueError, match=key):
@@ -505,7 +526,7 @@ def test_fitted_config_file_is_valid_and_has_every_effect_on():
     assert list(fitted) == list(MODEL_KEYS)
     assert fitted['estimate_position_fusion'] is True
     assert fitted['tilt_attenuation'] > 0.0 and fitted['max_descent_speed'] > 0.0
-    assert fitted['vertical_acceleration_limit'] > 0.0
+    assert fitted['vertical_acceleration_limit'] > 0.0 and fitted['tilt_rate_limit'] > 0.0
     shipped = load_model_params(DEFAULT_MODEL_FILE)
     for key in MODEL_KEYS:                                             # the same fit, only the effects differ
         if key not in EFFECTS_OFF and key not in ('estimate_delay', 'estimate_time_constant'):

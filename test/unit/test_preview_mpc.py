@@ -171,6 +171,32 @@ def test_smith_predictor_predicts_a_full_climb_with_the_acceleration_limit():
     assert errors['linear'] > 3.0 * errors['limited']
 
 
+def test_smith_predictor_predicts_a_full_tilt_step_with_the_tilt_rate_limit():
+    """A full-tilt step: the shipped tilt_rate_limit binds (the tilt ramps); the forward prediction caps the tilt
+    acceleration's rate like the stand-in and follows it, the first order alone would run ahead."""
+    assert MODEL.tilt_rate_limit > 0.0
+    mapping = PilotingMapping()
+    pcmd = mapping.to_pcmd(0.0, 30.0, 0.0, 0.0)
+    roll, pitch, _, _ = mapping.pcmd_to_setpoints(*pcmd)
+    fwd, left = tilt_acceleration(roll, pitch, MODEL.gravity)
+    errors = {}
+    for name, model in (('limited', TRUTH_MODEL), ('linear', TRUTH_MODEL._replace(tilt_rate_limit=0.0))):
+        drone = hovering()
+        ctrl = PreviewMpc(model, {'quantise': False, 'disturbance_time_constant': 0.0})
+        feed_state(ctrl, drone, 0.0)
+        ctrl.commands.append((MODEL.attitude_delay, fwd, left, 0.0))
+        t = 0.0
+        for k in range(int(0.35 / PHYSICS_DT)):
+            if k % 40 == 0:
+                drone.set_command(*(pcmd + (t,)))
+            drone.step(PHYSICS_DT, t)
+            t += PHYSICS_DT
+        _, v, _ = ctrl._propagate(t)
+        errors[name] = abs(v[0] - drone.vx)
+    assert errors['limited'] < 0.03
+    assert errors['linear'] > 3.0 * errors['limited']
+
+
 def test_attitude_mapping_round_trip():
     for fwd, left in ((0.0, 0.0), (2.0, -1.0), (-4.0, 3.0)):
         roll, pitch = attitude_for_acceleration(fwd, left, 9.81)

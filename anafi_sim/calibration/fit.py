@@ -1439,9 +1439,11 @@ Effects.__doc__ = ('The fidelity effects: PositionFusionFit, TiltFit (constant a
 # position fusion brings the ground-truth cells in; the speed-gated tilt attenuation (none up to 4 m/s, about a
 # fifth at 5 m/s) brings the 5 m/s MPC cells and Table 3's 5 m/s MPC cell in and leaves the slower logs alone;
 # the descent limit is seen only in x_straight_2/3_pid, where Sphinx's drone sank below the ground under a
-# wrapped z estimate - not normal flight - so it stays off. Edit and rerun scripts/calibrate_model.py.
-SHIPPED_EFFECTS = ('position_fusion', 'tilt_attenuation', 'tilt_rate_limit', 'vertical_acceleration_limit', 'yaw_bias',
-                   'quantisation')
+# wrapped z estimate - not normal flight - so it stays off; the vertical acceleration limit fits every static
+# climb better and moves the cells by 1-2 %; the tilt-rate limit fits the attitude of every static step better
+# open loop, but in closed loop it shrinks the step overshoots away from Sphinx's (PID 1.13x -> 0.77x, MPC
+# 0.84x -> 0.72x) for one more cell in the band, so it stays off. Edit and rerun scripts/calibrate_model.py.
+SHIPPED_EFFECTS = ('position_fusion', 'tilt_attenuation', 'vertical_acceleration_limit', 'yaw_bias', 'quantisation')
 
 
 def fit_effects(logs, params, commands, estimate, trim_pitch=0.0):

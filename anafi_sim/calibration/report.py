@@ -372,7 +372,8 @@ def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs')
         'the replayed command already points back at the waypoint; ruled out offline, rms of roll/pitch in the '
         'turns of both yaw-180 logs: a stability-frame rotation of the controllers with the opposite yaw sign or '
         'none, 0.35-0.37 rad against 0.16-0.18 rad; the command held as a world-frame tilt, 0.18 rad; a tilt '
-        'rate limit of 50-120 deg/s, 0.17 rad); in the two garbage logs the drone descended at ~1.5 m/s under a saturated -2 m/s '
+        'rate limit of 50-120 deg/s, 0.17 rad; the tilt applied in the frame of the integrated yaw-rate '
+        'setpoint, either sign, 0.17-0.19 rad); in the two garbage logs the drone descended at ~1.5 m/s under a saturated -2 m/s '
         'command (modelled as max_descent_speed, section (f)). Refit once the project\'s controllers fly the same '
         'waypoints in closed loop (issue 2: "attitude response from closed-loop replays").')
     add('')

@@ -172,16 +172,22 @@ def test_smith_predictor_predicts_a_full_climb_with_the_acceleration_limit():
 
 
 def test_smith_predictor_predicts_a_full_tilt_step_with_the_tilt_rate_limit():
-    """A full-tilt step: the shipped tilt_rate_limit binds (the tilt ramps); the forward prediction caps the tilt
-    acceleration's rate like the stand-in and follows it, the first order alone would run ahead."""
-    assert MODEL.tilt_rate_limit > 0.0
+    """A full-tilt step with the fitted tilt_rate_limit (anafi_model_fitted.yaml; off as shipped): the tilt ramps;
+    the forward prediction caps the tilt acceleration's rate like the stand-in and follows it, the first order
+    alone would run ahead."""
+    fitted = load_model_params(paths.config_path('anafi_model_fitted.yaml'))
+    params = dict(PARAMS, tilt_rate_limit=fitted['tilt_rate_limit'],
+                  attitude_time_constant=fitted['attitude_time_constant'])
+    assert params['tilt_rate_limit'] > 0.0
+    limited = PredictionModel.from_params(params, MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG)._replace(
+        estimate_lag=0.0, position_lag=0.0, sample_period=0.0)
     mapping = PilotingMapping()
     pcmd = mapping.to_pcmd(0.0, 30.0, 0.0, 0.0)
     roll, pitch, _, _ = mapping.pcmd_to_setpoints(*pcmd)
     fwd, left = tilt_acceleration(roll, pitch, MODEL.gravity)
     errors = {}
-    for name, model in (('limited', TRUTH_MODEL), ('linear', TRUTH_MODEL._replace(tilt_rate_limit=0.0))):
-        drone = hovering()
+    for name, model in (('limited', limited), ('linear', limited._replace(tilt_rate_limit=0.0))):
+        drone = hovering(params=params)
         ctrl = PreviewMpc(model, {'quantise': False, 'disturbance_time_constant': 0.0})
         feed_state(ctrl, drone, 0.0)
         ctrl.commands.append((MODEL.attitude_delay, fwd, left, 0.0))

@@ -158,11 +158,11 @@ def check_timeout(name, value, allow_zero=False):
     return float(value)
 
 
-#: defaults of the waypoint limits (= the controller YAMLs anafi_sim/config/mpc.yaml and pid.yaml)
 #: defaults of the input gate's timeouts [s], every controller's (its YAML can set others): state older than
 #: state_timeout -> SILENT (> 0), waypoint older than waypoint_timeout -> HOLD (>= 0; 0 = never stale)
 TIMEOUT_DEFAULTS = collections.OrderedDict([('state_timeout', 0.5), ('waypoint_timeout', 1.0)])
 
+#: defaults of the waypoint limits (= the controller YAMLs anafi_sim/config/mpc.yaml and pid.yaml)
 LIMIT_DEFAULTS = collections.OrderedDict([
     ('geofence_radius', 250.0),     # [m] horizontal distance of a waypoint from the first state received
     ('min_altitude', 0.5),          # [m] lowest waypoint z (world ENU)

@@ -178,6 +178,10 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
                     'max_vertical_speed', 'max_yaw_rate_deg'):
             if not getattr(self, key) > 0.0:
                 raise ValueError('prediction model %s must be > 0' % key)
+        if not self.tilt_attenuation < 1.0:           # as anafi_sim.sim.drone_model validates its model
+            raise ValueError('prediction model tilt_attenuation must be < 1, got %r' % (self.tilt_attenuation,))
+        if self.tilt_attenuation_speed > 0.0 and not self.tilt_attenuation_speed_full > self.tilt_attenuation_speed:
+            raise ValueError('prediction model tilt_attenuation_speed_full must be > tilt_attenuation_speed')
         return self
 
 
@@ -588,7 +592,9 @@ class PreviewMpc(Controller):
         result.u0 = (float(ax), float(ay), 0.0)
         result.vz_command = float(u0[2])
         result.disturbance = tuple(float(x) for x in d_w)
-        vh0 = R.dot(v0[:2])                          # velocity at t0 in the stability axes (the governor's)
+        # velocity at t0 in the stability axes for the governor (the stand-in's firmware gates on its velocity when
+        # the PCMD arrives, attitude_delay before t0: they differ by the acceleration x ~0.12 s)
+        vh0 = R.dot(v0[:2])
         u_cmd = m.governed(u0[:2], vh0, inverse=True)
         roll, pitch = attitude_for_acceleration(u_cmd[0], u_cmd[1], m.gravity)
         # yaw: P on the error at t0 plus the reference's yaw rate

@@ -79,7 +79,8 @@ def models(args, paths_):
     else:
         on = dict(cal.fitted)
         how = 'anafi_sim.calibration.fit.calibrate(logs).fitted (%s missing)' % args.fitted
-    groups = [g for g, keys in F.effect_groups(on).items() if any(shipped.get(k) != off.get(k) for k in keys)]
+    groups = [g for g, keys in F.effect_groups(on).items()           # on: an effect key off its off value
+              if any(shipped.get(k, v) != v for k, v in EFFECTS_OFF.items() if k in keys)]
     name = 'with %s on' % ', '.join(groups) if groups else 'with every effect off'
     return off, dict(on), name, how, dict(shipped)
 
@@ -251,8 +252,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
         '',
         'Configurations: **effects off** = the calibration\'s baseline (`fit.calibrate(logs).baseline`: '
         '`anafi_sim/config/anafi_model.yaml` with every fidelity effect off, the keys an effect refits - the '
-        'estimate\'s delay/smoothing, the vertical time constant - at their values without it); **effects on** = %s (position fusion, tilt attenuation, descent limit, vertical acceleration limit, yaw bias, '
-        'quantisation; '
+        'estimate\'s delay/smoothing, the attitude and vertical time constants - at their values without it); **effects on** = %s (position fusion, tilt attenuation, descent limit, vertical acceleration limit, tilt-rate limit, '
+        'yaw bias, quantisation; '
         'values below); **fusion only** = effects off plus the position fusion\'s keys. %s **shipped '
         'defaults** = `anafi_model.yaml` as committed (%s) and mpc.yaml (`paper_timing: %s`).' % (
             '`%s`' % meta['fitted_model'] if meta['fitted_model'].endswith('.yaml') else meta['fitted_model'],

@@ -1090,8 +1090,13 @@ def fit_tilt_attenuation_speed(logs, model, trim=0.0, tolerance=0.05):
     top = ordered[-1]
     attenuation = max(0.0, 1.0 - top[5])
     below = [row[0] for row in ordered[:-1] if row[5] >= 1.0 - tolerance]
-    speed = max(below) if below else 0.0
+    # no slower log delivers the full tilt: a governor from (almost) standstill (v0 = 0 would mean the constant,
+    # whole-tilt attenuation in the model)
+    speed = max(below) if below else GATE_FLOOR
     return TiltSpeedFit(attenuation, speed, top[0], tolerance, trim, rows, tuple(rows))
+
+
+GATE_FLOOR = 0.01                   # m/s, v0 of a speed governor acting from standstill (0 = constant attenuation)
 
 
 DescentFit = collections.namedtuple('DescentFit', [
@@ -1207,21 +1212,14 @@ TiltRateFit.__doc__ = (
     'all four; files (the fit\'s).')
 
 
-def fit_tilt_rate_limit(logs, delay, window=20.0, turn_rate=0.1):
+def fit_tilt_rate_limit(logs, delay, window=20.0, turn_rate=0.1, baseline_time_constant=None):
     """``TiltRateFit``: the firmware's roll/pitch response as a first order whose tilt vector turns at most at a
     fitted rate, against the PID replays of the static steps (``fit_command_responses``' windows and calm
     samples, |yaw rate| <= ``turn_rate``), delay = the attitude ``delay``. A single first order has to fit the
     30 deg steps (Sphinx's tilt ramps) and the small corrections at once; the MPC static logs (commands
     recomputed, eq. 15) are the check."""
-    series = []
-    for log in logs:
-        if not (is_clean(log) and log.name.startswith('static')):
-            continue
-        pid = log.name.endswith('_pid')
-        tr = reconstruct_pid_commands(log) if pid else reconstruct_mpc_commands(log)
-        t0 = log.t[tr.start_index]
-        calm = (log.t >= t0 - 0.5) & (log.t <= t0 + window) & (np.abs(measured_yaw_rate(log)) <= turn_rate)
-        series.append((log.name, pid, tr, log.t[calm], log.roll_sphinx[calm], log.pitch_sphinx[calm]))
+    series = [(log.name, pid, tr, log.t[m], log.roll_sphinx[m], log.pitch_sphinx[m])
+              for log, pid, tr, m in _static_steps(logs, window, turn_rate)]
     used = [s for s in series if s[1]]
     if not used:
         raise ValueError('fit_tilt_rate_limit: no clean static-waypoint PID log')
@@ -1242,8 +1240,11 @@ def fit_tilt_rate_limit(logs, delay, window=20.0, turn_rate=0.1):
         return float(res.x[1]), float(res.x[0]), float(res.fun)
 
     rate, tau, rms = fit(used)
-    res = minimize_scalar(lambda tau_: cost(used, tau_, None), bounds=(0.02, 0.6), method='bounded')
-    first = (float(res.x), float(res.fun))
+    if baseline_time_constant is None:
+        res = minimize_scalar(lambda tau_: cost(used, tau_, None), bounds=(0.02, 0.6), method='bounded')
+        first = (float(res.x), float(res.fun))
+    else:
+        first = (float(baseline_time_constant), cost(used, float(baseline_time_constant), None))
     per_file = collections.OrderedDict((s[0], (cost([s], first[0], None), cost([s], tau, rate))) for s in series)
     return TiltRateFit(rate, tau, rms, first, per_file, fit(series), tuple(s[0] for s in used))
 
@@ -1258,7 +1259,10 @@ VerticalLimitFit.__doc__ = (
     'check); files (the fit\'s).')
 
 
-def _vertical_series(logs, window):
+def _static_steps(logs, window, turn_rate=None):
+    """[(name, is_pid, CommandTrace, mask over the log's samples)] of the clean static-waypoint logs: the replayed
+    commands (PID framework, or the MPC's by eq. 15) and the window from 0.5 s before the step to ``window`` s
+    after it (without the yaw turns, |yaw rate| > ``turn_rate`` [rad/s], when given)."""
     out = []
     for log in logs:
         if not (is_clean(log) and log.name.startswith('static')):
@@ -1266,12 +1270,14 @@ def _vertical_series(logs, window):
         pid = log.name.endswith('_pid')
         tr = reconstruct_pid_commands(log) if pid else reconstruct_mpc_commands(log)
         t0 = log.t[tr.start_index]
-        win = (log.t >= t0 - 0.5) & (log.t <= t0 + window)
-        out.append((log.name, pid, tr, log.t[win], log.vz_sphinx[win]))
+        mask = (log.t >= t0 - 0.5) & (log.t <= t0 + window)
+        if turn_rate is not None:
+            mask &= np.abs(measured_yaw_rate(log)) <= turn_rate
+        out.append((log, pid, tr, mask))
     return out
 
 
-def fit_vertical_acceleration_limit(logs, delay, window=20.0):
+def fit_vertical_acceleration_limit(logs, delay, window=20.0, baseline_time_constant=None):
     """``VerticalLimitFit``: the firmware's vertical-speed step response as a first order whose acceleration is
     limited, against the PID replays of the static climbs (1 m -> 5 m, the 2 m/s command saturated).
 
@@ -1282,7 +1288,7 @@ def fit_vertical_acceleration_limit(logs, delay, window=20.0):
     ``window`` s after), the attitude ``delay`` (the model delays the whole PCMD). The MPC static logs, whose
     commands can be recomputed (eq. 15), are a check: they climb faster than commanded (2.4 m/s under 2.0),
     which neither model explains (reported, not fitted)."""
-    series = _vertical_series(logs, window)
+    series = [(log.name, pid, tr, log.t[m], log.vz_sphinx[m]) for log, pid, tr, m in _static_steps(logs, window)]
     used = [s for s in series if s[1]]
     if not used:
         raise ValueError('fit_vertical_acceleration_limit: no clean static-waypoint PID log')
@@ -1304,7 +1310,8 @@ def fit_vertical_acceleration_limit(logs, delay, window=20.0):
         return float(res.x), float(res.fun)
 
     limit, tau, rms = fit(used)
-    first = fit_first(used)
+    first = fit_first(used) if baseline_time_constant is None else \
+        (float(baseline_time_constant), cost(used, float(baseline_time_constant), None))
     per_file = collections.OrderedDict(
         (name, (cost([(name, pid, tr, t, y)], first[0], None), cost([(name, pid, tr, t, y)], tau, limit)))
         for name, pid, tr, t, y in series)
@@ -1446,9 +1453,11 @@ Effects.__doc__ = ('The fidelity effects: PositionFusionFit, TiltFit (constant a
 SHIPPED_EFFECTS = ('position_fusion', 'tilt_attenuation', 'vertical_acceleration_limit', 'yaw_bias', 'quantisation')
 
 
-def fit_effects(logs, params, commands, estimate, trim_pitch=0.0):
+def fit_effects(logs, params, commands, estimate, trim_pitch=0.0, shipped=None):
     """Fit every effect and return (``Effects``, the fitted model dict with every effect on). ``trim_pitch``
-    [rad]: the drag fit's offset of the thrust axis against the logged pitch (for the speed-gated attenuation)."""
+    [rad]: the drag fit's offset of the thrust axis against the logged pitch (for the speed-gated attenuation);
+    ``shipped``: the effects the model ships with (default ``SHIPPED_EFFECTS``): the attenuation is measured
+    against closed-loop replays of that model without it."""
     clean = [log for log in logs if is_clean(log)]
     dynamic = [log for log in clean if log.name.startswith('static')] or clean
     channels = ('vx', 'vy', 'vz', 'roll', 'pitch')
@@ -1458,8 +1467,11 @@ def fit_effects(logs, params, commands, estimate, trim_pitch=0.0):
     fusion = fit_position_fusion(logs, estimate.rate, params['estimate_delay'], params['estimate_time_constant'])
     tilt = fit_tilt_attenuation(logs, commands.attitude)
     descent = fit_descent(logs, params['vertical_speed_time_constant'], params['attitude_delay'])
-    vertical = fit_vertical_acceleration_limit(logs, params['attitude_delay'])
-    tilt_rate = fit_tilt_rate_limit(logs, params['attitude_delay'])
+    # the first-order baselines are section (c)'s fits (same data, their own discretisation and offsets)
+    vertical = fit_vertical_acceleration_limit(logs, params['attitude_delay'],
+                                               baseline_time_constant=params['vertical_speed_time_constant'])
+    tilt_rate = fit_tilt_rate_limit(logs, params['attitude_delay'],
+                                    baseline_time_constant=params['attitude_time_constant'])
     quanta = fit_quantisation(logs)
     yaw = fit_yaw_bias(logs, estimate)
     fitted = collections.OrderedDict(params)
@@ -1486,7 +1498,7 @@ def fit_effects(logs, params, commands, estimate, trim_pitch=0.0):
     replay = replay_estimates(logs, before, fitted)
     # the speed-gated attenuation is measured against closed-loop replays of the model that ships without it
     unattenuated = collections.OrderedDict(before)
-    for name in SHIPPED_EFFECTS:
+    for name in (SHIPPED_EFFECTS if shipped is None else shipped):
         if name != 'tilt_attenuation':
             for key in EFFECT_GROUPS[name]:
                 unattenuated[key] = fitted[key]
@@ -1550,7 +1562,7 @@ def calibrate(logs, gravity=GRAVITY, effects=None):
     if commands.yaw is None:
         notes.append('yaw_rate_time_constant: no PID log with a yaw turn; not identified.')
     params.update(EFFECTS_OFF)
-    found, fitted = fit_effects(logs, params, commands, estimate, trim_pitch=drag.trim_pitch)
+    found, fitted = fit_effects(logs, params, commands, estimate, trim_pitch=drag.trim_pitch, shipped=effects_on)
     shipped = collections.OrderedDict(params)
     for name, keys in EFFECT_GROUPS.items():
         if name in effects_on:

@@ -53,7 +53,8 @@ def _effect_comments(cal):
         'estimate_position_fix_gain': '1/s, k, same fit; replayed steady lag %.3f-%.3f s (logged %.3f-%.3f s)'
                                       % (min(v[2] for v in clean_lags), max(v[2] for v in clean_lags),
                                          min(v[0] for v in clean_lags), max(v[0] for v in clean_lags)),
-        'tilt_attenuation': 'a: delivered = (1 - a) x commanded roll/pitch above tilt_attenuation_speed_full; '
+        'tilt_attenuation': 'a: delivered = (1 - a) x the driving part of the commanded roll/pitch above '
+                            'tilt_attenuation_speed_full; '
                             'straight MPC logs: recomputed MPC command vs delivered pitch, relative to the '
                             'stand-in\'s replay: gain %.3f at %.2f m/s' % (1.0 - ts.attenuation, ts.speed_full),
         'tilt_attenuation_speed': 'm/s, v0: none below (relative gain >= %.2f up to this log\'s speed: %s)'
@@ -225,12 +226,18 @@ def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs')
     add('')
     add('## Fitted parameters')
     add('')
+    refit = [(k, name) for name, keys in EFFECT_GROUPS.items() for k in keys
+             if k not in EFFECTS_OFF and name in cal.effects_on and p[k] != cal.baseline[k]]
+    if refit:
+        add('Values of the plain model (effects off); refitted with an effect shipped on in anafi_model.yaml: %s '
+            '(section (f)).' % ', '.join('%s %s (%s)' % (k, _fmt(p[k], 4), name) for k, name in refit))
+        add('')
     add('| key | value | how | quality |')
     add('|---|---|---|---|')
     add('| gravity | %s | fixed | - |' % _fmt(p['gravity']))
     add('| attitude_time_constant | %.4f s | first order + delay, PID command replay -> truth roll/pitch '
         '(static-waypoint PID logs, yaw turns excluded) | rms %.4f rad, R^2 %.3f, %d samples |'
-        % (p['attitude_time_constant'], c.attitude.rms, c.attitude.r2, c.attitude.n))
+        % (c.attitude.time_constant, c.attitude.rms, c.attitude.r2, c.attitude.n))
     add('| attitude_delay | %.4f s | same fit (includes bridge/transport latency after our 10 Hz command) '
         '| as above |' % p['attitude_delay'])
     if c.yaw is not None:
@@ -240,7 +247,7 @@ def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs')
                c.yaw_free.rms))
     add('| vertical_speed_time_constant | %.4f s | PID replay of the 1 m -> 5 m climbs, delay fixed to '
         'attitude_delay | rms %.4f m/s, R^2 %.4f (own delay: tau %.3f s, delay %.3f s) |'
-        % (p['vertical_speed_time_constant'], c.vertical.rms, c.vertical.r2, c.vertical_free.time_constant,
+        % (c.vertical.time_constant, c.vertical.rms, c.vertical.r2, c.vertical_free.time_constant,
            c.vertical_free.delay))
     add('| drag_linear | %.4f 1/s | linear least squares of truth horizontal acceleration on attitude, '
         'velocity (all clean logs, both axes) | +-%.4f; rms %.4f m/s^2, R^2 %.4f, %d samples |'
@@ -252,9 +259,9 @@ def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs')
            d.stderr['drag_vertical'], ', '.join('w%d: %.3f' % kv for kv in d.vertical_by_window.items())))
     add('| estimate_delay | %.4f s | estimate vs truth, first order + delay, static-waypoint logs, '
         'pos/vel/roll/pitch jointly; effective lag %.4f s minus 1/(2 rate) for the model\'s hold | '
-        'rms %.4f (residuals scaled per channel), R^2 %.4f |' % (p['estimate_delay'], e.effective_delay,
+        'rms %.4f (residuals scaled per channel), R^2 %.4f |' % (e.delay, e.effective_delay,
                                                                 e.fit.rms, e.fit.r2))
-    add('| estimate_time_constant | %.4f s | same fit | as above |' % p['estimate_time_constant'])
+    add('| estimate_time_constant | %.4f s | same fit | as above |' % e.time_constant)
     add('| estimate_rate | %.1f Hz | values change at %.1f Hz (%.1f %% of the samples where the truth moved) '
         'in %.0f Hz logs: the rate is at least the log rate, which is all the logs can show | - |'
         % (p['estimate_rate'], e.change_rate, 100.0 * e.change_fraction, e.rate))

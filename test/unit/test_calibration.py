@@ -563,7 +563,7 @@ def test_real_log_effects(real):
     assert set(ve.files) == {'static_waypoint_yaw_0_pid', 'static_waypoint_yaw_180_pid'}
     assert 4.0 < p['vertical_acceleration_limit'] == ve.limit < 9.0 and 3.0 < ve.all_static[0] < 9.0
     assert p['vertical_speed_time_constant'] == ve.time_constant < 0.6 * ve.first_order[0]
-    assert ve.first_order[0] == pytest.approx(result.commands.vertical.time_constant, abs=0.01)
+    assert ve.first_order[0] == result.commands.vertical.time_constant      # section (c)'s fit is the baseline
     assert ve.rms < 0.85 * ve.first_order[1]
     assert set(ve.per_file) == {'static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('pid', 'mpc')}
     for name, (before, after) in ve.per_file.items():
@@ -575,7 +575,7 @@ def test_real_log_effects(real):
     assert math.radians(60) < p['tilt_rate_limit'] == tr.rate < math.radians(120)
     assert math.radians(60) < tr.all_static[0] < math.radians(120)
     assert p['attitude_time_constant'] == tr.time_constant < 0.8 * tr.first_order[0]
-    assert tr.first_order[0] == pytest.approx(result.commands.attitude.time_constant, abs=0.01)
+    assert tr.first_order[0] == result.commands.attitude.time_constant
     assert tr.rms < 0.8 * tr.first_order[1]
     for name, (before, after) in tr.per_file.items():
         assert after < before, name

@@ -404,12 +404,16 @@ def test_bad_limits_are_refused(kw):
 
 def _controllers(state_timeout=None, waypoint_timeout=None):
     """The three controllers built with the given timeouts (None = their defaults)."""
-    from anafi_control.preview_mpc import PredictionModel, PreviewMpc
+    from anafi_control.preview_mpc import PreviewMpc
     kw = dict((k, v) for k, v in (('state_timeout', state_timeout), ('waypoint_timeout', waypoint_timeout))
               if v is not None)
-    model = PredictionModel(9.81, 0.18, 0.12, 0.16, 0.2, 0.02, 0.02, 0.2, 0.26, 0.05, 30.64, 2.0, 180.0,
-                            0.0, 0.0, 0.0, 0.0, 0.0)
-    return (MpcTracking(**kw), PidTracking(**kw), PreviewMpc(model, kw))
+    return (MpcTracking(**kw), PidTracking(**kw), PreviewMpc(_prediction_model(), kw))
+
+
+def _prediction_model():
+    from anafi_control.preview_mpc import PredictionModel
+    return PredictionModel(9.81, 0.18, 0.12, 0.16, 0.2, 0.02, 0.02, 0.2, 0.26, 0.05, 30.64, 2.0, 180.0,
+                           0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def test_every_controller_has_the_contract_timeouts_and_rule():
@@ -420,6 +424,8 @@ def test_every_controller_has_the_contract_timeouts_and_rule():
     for ctl in _controllers(waypoint_timeout=0.0):
         assert ctl.gate.waypoint_timeout == 0.0
     for bad in (dict(waypoint_timeout=-1.0), dict(state_timeout=0.0), dict(waypoint_timeout=float('nan'))):
-        for build in (lambda: MpcTracking(**bad), lambda: PidTracking(**bad)):
+        from anafi_control.preview_mpc import PreviewMpc
+        for build in (lambda: MpcTracking(**bad), lambda: PidTracking(**bad),
+                      lambda: PreviewMpc(_prediction_model(), bad)):
             with pytest.raises(ValueError, match='timeout'):
                 build()

@@ -520,3 +520,17 @@ def test_prediction_model_commands_the_firmware_tilt_attenuation_in_advance():
     plain = PredictionModel.from_params(dict(PARAMS, tilt_attenuation=0.0), MAX_TILT_DEG, MAX_VERTICAL_SPEED,
                                         MAX_YAW_RATE_DEG)
     assert plain.governed((1.2, 1.6), v, inverse=True) == (1.2, 1.6)                    # no attenuation
+    # against the stand-in's firmware itself: the commanded attitude, attenuated by AnafiModel.delivered_tilt,
+    # gives the wanted tilt acceleration (small-angle level), at a yaw and a speed in the ramp and above it
+    drone = AnafiModel(dict(PARAMS, tilt_attenuation=0.2, tilt_attenuation_speed=4.0, tilt_attenuation_speed_full=5.0))
+    for yaw, world_v in ((0.7, (3.6, 2.4)), (-2.0, (-1.0, -5.5))):
+        drone.reset(0.0, 0.0, 10.0, yaw, flying=True)
+        drone.vx, drone.vy = world_v
+        c, sn = math.cos(yaw), math.sin(yaw)
+        v_stab = (c * world_v[0] + sn * world_v[1], -sn * world_v[0] + c * world_v[1])
+        for wanted in ((1.0, 0.5), (-1.0, 0.2), (0.8, -0.6), (0.2, 1.4)):
+            command = gated.governed(wanted, v_stab, inverse=True)
+            roll, pitch = attitude_for_acceleration(command[0], command[1], MODEL.gravity)
+            delivered = drone.delivered_tilt(math.radians(roll), math.radians(pitch))
+            got = tilt_acceleration(delivered[0], delivered[1], MODEL.gravity)
+            assert got == pytest.approx(wanted, abs=0.03), (yaw, wanted)

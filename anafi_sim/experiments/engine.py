@@ -55,14 +55,16 @@ controller_latency    0 ms      wall, the same for any other controller of the c
 pid_coalesce          1 ms      wall, pid_controller.py ``COALESCE_WINDOW``: a loop computes 1 ms after the
                                 message that woke it (messages within the window: one computation)
 pid_latency           0 ms      wall, one pid computation (tens of microseconds)
-controller_phase      0.030 s   start of controller_node.py's timer: the MPC cycled at 30/35 ms past every
-                                100 ms in a recorded ROS run of circle_r1_v1 (set by the node's start-up)
-generator_phase       0.080 s   first tick of the trajectory generator. Its phase against the controller's is
-                                random in ROS (node start-up): the waypoint was 15 ms old at the MPC's cycle
-                                in the recorded circle_r1_v1 run, 95 ms in one of straight_2. The default
-                                makes it 50 ms old, the mean over a random phase. The MPC tracks the waypoint
-                                as received (no extrapolation over its age), so on fast trajectories e_mu
-                                moves with this phase (config/sweeps/schedule_phases.yaml measures how much)
+controller_phase      0.030 s   controller_node.py's cycles (``~timer_phase``, clock.TIMER_PHASES: the node
+                                aligns its timer to it; the MPC cycled at 30/35 ms past every 100 ms in a
+                                recorded ROS run of circle_r1_v1 before the alignment)
+generator_phase       0.080 s   the trajectory generator's ticks (``~timer_phase``, clock.TIMER_PHASES): the
+                                waypoint is 50 ms old at the controller's cycle, the mean over a random phase
+                                (before the nodes aligned their timers each ROS start-up drew one: 15 ms in a
+                                recorded circle_r1_v1 run, 95 ms in one of straight_2). The MPC tracks the
+                                waypoint as received (no extrapolation over its age), so on fast trajectories
+                                e_mu moves with this phase (config/sweeps/schedule_phases.yaml measures how
+                                much)
 relative_state_phase  0.0 s     pid_relative_state's timer (not recorded; its cycles then fall on the
                                 estimate's ticks)
 pid_command_phase     0.0 s     pid_command's timer: commands at 0/5 ms past every 100 ms in a recorded ROS
@@ -99,7 +101,7 @@ from anafi_sim.experiments.schedule import PHYSICS, TIMER, EventLoop, NodeClock,
 from anafi_sim.experiments.trajectory import DONE, Scenario, TrajectoryGenerator, load_scenario
 from anafi_sim.interface.ground_truth import GroundTruthInterface, odometry
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
-from anafi_sim.sim.clock import SimClock
+from anafi_sim.sim.clock import TIMER_PHASES, SimClock
 from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
 from anafi_sim.sim.simulator import SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
@@ -117,7 +119,8 @@ DEFAULT_SCHEDULE = collections.OrderedDict([
     ('state_timeout', 0.5), ('waypoint_timeout', 1.0),
     ('ros_rtf', 2.0), ('message_latency', 0.0005), ('clock_latency', 0.0), ('mpc_latency', 0.0027),
     ('controller_latency', 0.0), ('pid_coalesce', 0.001), ('pid_latency', 0.0),
-    ('controller_phase', 0.030), ('generator_phase', 0.080), ('relative_state_phase', 0.0),
+    ('controller_phase', TIMER_PHASES['controller']), ('generator_phase', TIMER_PHASES['generator']),
+    ('relative_state_phase', 0.0),
     ('pid_command_phase', 0.0), ('preview_horizon', 3.0), ('preview_step', 0.05),
 ])
 #: schedule keys in wall seconds of the ROS graph (times ``ros_rtf`` = simulation seconds)

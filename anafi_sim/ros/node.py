@@ -37,6 +37,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from anafi_sim.interface import ground_truth
 from anafi_sim.ros import topics
 from anafi_sim.ros.params import ParamReader
+from anafi_sim.sim.clock import aligned_start
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 
@@ -62,6 +63,21 @@ def wait_for_clock(poll=0.05):
     if rospy.get_param('/use_sim_time', False):
         while not rospy.is_shutdown() and rospy.get_time() == 0.0:
             time.sleep(poll)
+
+
+def sleep_until_aligned(period, phase):
+    """Sleep (ROS time) until the first instant phase + k x ``period`` [s] (``anafi_sim.sim.clock.aligned_start``;
+    ``phase`` < 0: return at once), so that a timer started next runs on that grid. Waits for /clock first."""
+    if phase < 0.0:
+        return
+    wait_for_clock()
+    now = rospy.get_time()
+    start = aligned_start(now, period, phase)
+    if start > now:
+        try:
+            rospy.sleep(start - now)
+        except rospy.ROSInterruptException:
+            pass
 
 
 def log_lines(lines):

@@ -64,7 +64,8 @@ from anafi_sim.msg import MpcStats
 from anafi_sim.ros import topics
 from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
-                                start_diagnostics_thread)
+                                sleep_until_aligned, start_diagnostics_thread)
+from anafi_sim.sim.clock import TIMER_PHASES
 from anafi_sim.ros.wire_types import piloting_command_class
 
 
@@ -352,6 +353,7 @@ class ControllerNode(object):
         self.rate = p.positive('rate', self.core.RATE)
         self.command_rate = None if self.core.COMMAND_RATE is None else \
             p.positive('command_rate', self.core.COMMAND_RATE)
+        self.timer_phase = p.number('timer_phase', TIMER_PHASES['controller'])
         state_topic = p.ros_name('state_topic', topics.ESTIMATE)
         waypoint_topic = p.ros_name('waypoint_topic', topics.WAYPOINT)
         command_topic = p.ros_name('command_topic', topics.COMMAND)
@@ -417,6 +419,7 @@ class ControllerNode(object):
 
     def run(self):
         start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
+        sleep_until_aligned(1.0 / self.rate, self.timer_phase)      # cycles at timer_phase + k / rate
         timers = [rospy.Timer(rospy.Duration.from_sec(1.0 / self.rate), self._on_cycle)]
         if self.command_rate is not None:
             timers.append(rospy.Timer(rospy.Duration.from_sec(1.0 / self.command_rate), self._on_command))

@@ -46,7 +46,8 @@ from anafi_sim.experiments.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR,
 from anafi_sim.msg import Waypoint
 from anafi_sim.ros import topics
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, namespace_id, private_params,
-                                run_node, start_diagnostics_thread, wait_for_clock)
+                                run_node, sleep_until_aligned, start_diagnostics_thread, wait_for_clock)
+from anafi_sim.sim.clock import TIMER_PHASES
 
 try:
     from std_srvs.srv import Trigger, TriggerResponse
@@ -58,6 +59,7 @@ class TrajectoryGeneratorNode(object):
     def __init__(self):
         p = private_params()
         self.rate = p.positive('rate', 10.0)
+        self.timer_phase = p.number('timer_phase', TIMER_PHASES['generator'])
         self.autostart = p.flag('autostart', True)
         self.wait_for_flying = p.flag('wait_for_flying', True)
         self.hold_when_idle = p.flag('hold_when_idle', True)
@@ -224,6 +226,7 @@ class TrajectoryGeneratorNode(object):
     def run(self):
         start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
         wait_for_clock()
+        sleep_until_aligned(1.0 / self.rate, self.timer_phase)      # ticks at timer_phase + k / rate
         t_start = rospy.get_time()
         warned = False
         rate = rospy.Rate(self.rate)

@@ -199,6 +199,24 @@ controller silent'), waits (control periods waited for), timeouts, disarms (time
 for max_missed periods), longest and mean wait [s wall]."""
 
 
+#: phases [s] of the periodic nodes' first cycles against simulation time (``~timer_phase``): a node starts its
+#: timer at the first instant phase + k x period, so the waypoint is as old at the controller's cycle in every
+#: run. controller 30 ms: the MPC cycled at 30/35 ms past every 100 ms in a recorded ROS run of circle_r1_v1;
+#: generator 80 ms: with it the 10 Hz waypoint is 50 ms old at the controller's cycle, the mean over a random
+#: phase (before the alignment each ROS start-up drew one: 15 and 95 ms were recorded); the in-process engine's
+#: schedule (anafi_sim/experiments/engine.py) uses the same two.
+TIMER_PHASES = {'controller': 0.030, 'generator': 0.080}
+
+
+def aligned_start(now, period, phase):
+    """The first instant >= ``now`` [s] of the grid phase + k x ``period`` (``phase`` < 0: ``now``, no grid)."""
+    if phase < 0.0 or not period > 0.0:
+        return now
+    k = -(-(now - phase) // period)          # ceil without float surprises on exact multiples
+    t = phase + k * period
+    return t if t >= now - 1e-9 else t + period
+
+
 #: defaults of the lockstep (anafi_sim_node.py ~sync_*: the node reads them from here)
 SYNC_DEFAULTS = {
     'sync_period': 0.1,         # s sim, the controller's command period (10 Hz)

@@ -4,7 +4,7 @@ import threading
 import pytest
 
 from anafi_sim.experiments import monitor
-from anafi_sim.sim.clock import (MAX_LAG, Lockstep, Pacer, Periodic, ScaledSteps, SimClock, StartHold, lockstep_values,
+from anafi_sim.sim.clock import (MAX_LAG, TIMER_PHASES, Lockstep, Pacer, Periodic, ScaledSteps, SimClock, StartHold, aligned_start, lockstep_values,
                                  report_values)
 
 
@@ -264,3 +264,25 @@ def test_start_hold_gives_up_after_its_timeout():
     hold = StartHold(settle=2.0, timeout=10.0)
     assert not hold.ready(0.0, 0)
     assert hold.ready(10.0, 0) and hold.timed_out
+
+
+def test_aligned_start_is_the_next_instant_of_the_phase_grid():
+    assert aligned_start(0.0, 0.1, 0.03) == pytest.approx(0.03)
+    assert aligned_start(12.345, 0.1, 0.03) == pytest.approx(12.43)
+    assert aligned_start(12.43, 0.1, 0.03) == pytest.approx(12.43)          # on the grid: now
+    assert aligned_start(12.4300001, 0.1, 0.03) == pytest.approx(12.53)
+    assert aligned_start(7.0, 0.1, 0.08) == pytest.approx(7.08)
+    assert aligned_start(7.25, 0.1, -1.0) == 7.25                          # < 0: no grid
+    for now in (0.0, 0.017, 3.999, 1234.56789):
+        t = aligned_start(now, 0.1, 0.08)
+        assert now - 1e-9 <= t < now + 0.1 and abs(((t - 0.08) / 0.1) - round((t - 0.08) / 0.1)) < 1e-6
+
+
+def test_timer_phases_put_the_waypoint_half_a_period_old_at_the_controllers_cycle():
+    """The generator ticks 50 ms before each controller cycle (10 Hz both): the mean age over a random phase;
+    the engine's schedule uses the same two (one source)."""
+    from anafi_sim.experiments.engine import DEFAULT_SCHEDULE
+    age = (TIMER_PHASES['controller'] - TIMER_PHASES['generator']) % 0.1
+    assert age == pytest.approx(0.05)
+    assert DEFAULT_SCHEDULE['controller_phase'] == TIMER_PHASES['controller']
+    assert DEFAULT_SCHEDULE['generator_phase'] == TIMER_PHASES['generator']

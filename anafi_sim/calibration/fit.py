@@ -26,7 +26,7 @@ import collections
 import math
 
 import numpy as np
-from scipy.optimize import minimize, minimize_scalar
+from scipy.optimize import minimize
 from scipy.signal import lfilter, savgol_filter
 
 from anafi_sim.experiments.reference_log import STATE_NAMES, detect_garbage, tracking_error
@@ -1212,17 +1212,15 @@ TiltRateFit.__doc__ = (
     'all four; files (the fit\'s).')
 
 
-def fit_tilt_rate_limit(logs, delay, window=20.0, turn_rate=0.1, baseline_time_constant=None):
+def fit_tilt_rate_limit(logs, delay, baseline_time_constant, window=20.0, turn_rate=0.1):
     """``TiltRateFit``: the firmware's roll/pitch response as a first order whose tilt vector turns at most at a
     fitted rate, against the PID replays of the static steps (``fit_command_responses``' windows and calm
-    samples, |yaw rate| <= ``turn_rate``), delay = the attitude ``delay``. A single first order has to fit the
-    30 deg steps (Sphinx's tilt ramps) and the small corrections at once; the MPC static logs (commands
-    recomputed, eq. 15) are the check."""
+    samples, |yaw rate| <= ``turn_rate``), delay = the attitude ``delay``; ``baseline_time_constant`` [s]: the
+    first order it is compared with (section (c)'s). A single first order has to fit the 30 deg steps (Sphinx's
+    tilt ramps) and the small corrections at once; the MPC static logs (commands recomputed, eq. 15) are the
+    check."""
     series = [(log.name, pid, tr, log.t[m], log.roll_sphinx[m], log.pitch_sphinx[m])
               for log, pid, tr, m in _static_steps(logs, window, turn_rate)]
-    used = [s for s in series if s[1]]
-    if not used:
-        raise ValueError('fit_tilt_rate_limit: no clean static-waypoint PID log')
 
     def cost(group, tau, rate):
         if tau <= 0.01 or tau > 1.0 or (rate is not None and rate <= 0.05):
@@ -1234,19 +1232,8 @@ def fit_tilt_rate_limit(logs, delay, window=20.0, turn_rate=0.1, baseline_time_c
                 parts.append(e - np.mean(e))
         return float(np.sqrt(np.mean(np.concatenate(parts) ** 2)))
 
-    def fit(group):
-        res = minimize(lambda q: cost(group, q[0], q[1]), [0.12, 1.4], method='Nelder-Mead',
-                       options={'xatol': 1e-4, 'fatol': 1e-7, 'maxiter': 400})
-        return float(res.x[1]), float(res.x[0]), float(res.fun)
-
-    rate, tau, rms = fit(used)
-    if baseline_time_constant is None:
-        res = minimize_scalar(lambda tau_: cost(used, tau_, None), bounds=(0.02, 0.6), method='bounded')
-        first = (float(res.x), float(res.fun))
-    else:
-        first = (float(baseline_time_constant), cost(used, float(baseline_time_constant), None))
-    per_file = collections.OrderedDict((s[0], (cost([s], first[0], None), cost([s], tau, rate))) for s in series)
-    return TiltRateFit(rate, tau, rms, first, per_file, fit(series), tuple(s[0] for s in used))
+    return TiltRateFit(*_fit_limited_loop('fit_tilt_rate_limit', series, cost, (0.12, 1.4), 1e-7,
+                                          baseline_time_constant))
 
 
 VerticalLimitFit = collections.namedtuple('VerticalLimitFit', [
@@ -1277,7 +1264,7 @@ def _static_steps(logs, window, turn_rate=None):
     return out
 
 
-def fit_vertical_acceleration_limit(logs, delay, window=20.0, baseline_time_constant=None):
+def fit_vertical_acceleration_limit(logs, delay, baseline_time_constant, window=20.0):
     """``VerticalLimitFit``: the firmware's vertical-speed step response as a first order whose acceleration is
     limited, against the PID replays of the static climbs (1 m -> 5 m, the 2 m/s command saturated).
 
@@ -1285,13 +1272,11 @@ def fit_vertical_acceleration_limit(logs, delay, window=20.0, baseline_time_cons
     speed rises along a straight line (~5-6 m/s^2), stops sharply at ~94 %% of the command and creeps to it;
     the limited loop separates the ramp (limit) from the small-signal lag (time constant), which is what a
     slow periodic vertical motion sees. Same windows as ``fit_command_responses`` (0.5 s before the step to
-    ``window`` s after), the attitude ``delay`` (the model delays the whole PCMD). The MPC static logs, whose
-    commands can be recomputed (eq. 15), are a check: they climb faster than commanded (2.4 m/s under 2.0),
-    which neither model explains (reported, not fitted)."""
+    ``window`` s after), the attitude ``delay`` (the model delays the whole PCMD); ``baseline_time_constant``
+    [s]: the first order it is compared with (section (c)'s). The MPC static logs, whose commands can be
+    recomputed (eq. 15), are a check: they climb faster than commanded (2.4 m/s under 2.0), which neither
+    model explains (reported, not fitted)."""
     series = [(log.name, pid, tr, log.t[m], log.vz_sphinx[m]) for log, pid, tr, m in _static_steps(logs, window)]
-    used = [s for s in series if s[1]]
-    if not used:
-        raise ValueError('fit_vertical_acceleration_limit: no clean static-waypoint PID log')
 
     def cost(group, tau, limit):
         if tau <= 0.005 or tau > 1.0 or (limit is not None and limit <= 0.5):
@@ -1300,22 +1285,29 @@ def fit_vertical_acceleration_limit(logs, delay, window=20.0, baseline_time_cons
              for _, _, tr, t, y in group]
         return float(np.sqrt(np.mean(np.concatenate(r) ** 2)))
 
+    return VerticalLimitFit(*_fit_limited_loop('fit_vertical_acceleration_limit', series, cost, (0.08, 5.0), 1e-6,
+                                               baseline_time_constant))
+
+
+def _fit_limited_loop(name, series, cost, start, fatol, baseline_time_constant):
+    """The fit of a first-order loop with a limit, shared by the tilt-rate and the vertical fits: ``series``
+    [(log name, is_pid, ...)], ``cost(group, tau, limit)`` its rms (limit None: the plain first order), ``start``
+    (tau, limit) of the Nelder-Mead. Fitted on the PID series, checked per series and on all of them. Returns
+    (limit, tau, rms, (baseline tau, its rms), {log: (rms baseline, rms limited)}, (limit, tau, rms) on all,
+    the fit's log names)."""
+    used = [s for s in series if s[1]]
+    if not used:
+        raise ValueError('%s: no clean static-waypoint PID log' % name)
+
     def fit(group):
-        res = minimize(lambda p: cost(group, p[0], p[1]), [0.08, 5.0], method='Nelder-Mead',
-                       options={'xatol': 1e-4, 'fatol': 1e-6, 'maxiter': 400})
+        res = minimize(lambda q: cost(group, q[0], q[1]), list(start), method='Nelder-Mead',
+                       options={'xatol': 1e-4, 'fatol': fatol, 'maxiter': 400})
         return float(res.x[1]), float(res.x[0]), float(res.fun)
 
-    def fit_first(group):
-        res = minimize_scalar(lambda tau: cost(group, tau, None), bounds=(0.01, 0.6), method='bounded')
-        return float(res.x), float(res.fun)
-
     limit, tau, rms = fit(used)
-    first = fit_first(used) if baseline_time_constant is None else \
-        (float(baseline_time_constant), cost(used, float(baseline_time_constant), None))
-    per_file = collections.OrderedDict(
-        (name, (cost([(name, pid, tr, t, y)], first[0], None), cost([(name, pid, tr, t, y)], tau, limit)))
-        for name, pid, tr, t, y in series)
-    return VerticalLimitFit(limit, tau, rms, first, per_file, fit(series), tuple(s[0] for s in used))
+    first = (float(baseline_time_constant), cost(used, float(baseline_time_constant), None))
+    per_file = collections.OrderedDict((s[0], (cost([s], first[0], None), cost([s], tau, limit))) for s in series)
+    return limit, tau, rms, first, per_file, fit(series), tuple(s[0] for s in used)
 
 
 QuantumFit = collections.namedtuple('QuantumFit', ['steps', 'on_grid', 'truth_on_grid', 'samples', 'grids'])
@@ -1468,10 +1460,8 @@ def fit_effects(logs, params, commands, estimate, trim_pitch=0.0, shipped=None):
     tilt = fit_tilt_attenuation(logs, commands.attitude)
     descent = fit_descent(logs, params['vertical_speed_time_constant'], params['attitude_delay'])
     # the first-order baselines are section (c)'s fits (same data, their own discretisation and offsets)
-    vertical = fit_vertical_acceleration_limit(logs, params['attitude_delay'],
-                                               baseline_time_constant=params['vertical_speed_time_constant'])
-    tilt_rate = fit_tilt_rate_limit(logs, params['attitude_delay'],
-                                    baseline_time_constant=params['attitude_time_constant'])
+    vertical = fit_vertical_acceleration_limit(logs, params['attitude_delay'], params['vertical_speed_time_constant'])
+    tilt_rate = fit_tilt_rate_limit(logs, params['attitude_delay'], params['attitude_time_constant'])
     quanta = fit_quantisation(logs)
     yaw = fit_yaw_bias(logs, estimate)
     fitted = collections.OrderedDict(params)
@@ -1515,9 +1505,9 @@ Calibration = collections.namedtuple('Calibration', ['params', 'drag', 'estimate
 Calibration.__doc__ = ('Result of ``calibrate``: params {MODEL_KEYS: value} (what anafi_model.yaml gets), DragFit, '
                        'EstimateFit, CommandFits, {file: GarbageReport}, [notes on what is not identified / not '
                        'modelled], fitted {MODEL_KEYS: value} with every effect on (anafi_model_fitted.yaml), '
-                       'Effects, effects_on (the names of the EFFECT_GROUPS on in params), baseline {MODEL_KEYS: value} with '
-                       'every effect off (the keys an effect refits, e.g. vertical_speed_time_constant, at their '
-                       'values without it).')
+                       'Effects, effects_on (the names of the EFFECT_GROUPS on in params), baseline {MODEL_KEYS: '
+                       'value} with every effect off (the keys an effect refits, e.g. vertical_speed_time_constant, '
+                       'at their values without it).')
 
 
 def calibrate(logs, gravity=GRAVITY, effects=None):

@@ -424,6 +424,17 @@ def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs')
     return '\n'.join(L)
 
 
+def _limited_loop_table(fit, limit_text):
+    """Markdown rows: per static log the rms of section (c)'s first order and of the limited loop (a
+    ``fit.TiltRateFit`` / ``fit.VerticalLimitFit``); the logs not in the fit marked as checks."""
+    rows = ['| log | first order (tau %.4f s) | limited (%s, tau %.4f s) |' % (fit.first_order[0], limit_text,
+                                                                             fit.time_constant),
+            '|---|---|---|']
+    for name, (before, after) in fit.per_file.items():
+        rows.append('| %s%s | %.4f | %.4f |' % (name, '' if name in fit.files else ' (check)', before, after))
+    return rows
+
+
 def format_effects(cal):
     """Markdown lines of the report's section (f): every fidelity effect, its fit, residuals and limits."""
     f = cal.effects
@@ -619,11 +630,7 @@ def format_effects(cal):
         'commands: a check, not fitted), roll/pitch rms [rad]:'
         % (tr.first_order[0], tr.first_order[1], tr.rate, np.degrees(tr.rate), tr.time_constant, tr.rms))
     add('')
-    add('| log | first order (tau %.4f s) | limited (R %.1f deg/s, tau %.4f s) |'
-        % (tr.first_order[0], np.degrees(tr.rate), tr.time_constant))
-    add('|---|---|---|')
-    for name, (before, after) in tr.per_file.items():
-        add('| %s%s | %.4f | %.4f |' % (name, '' if name in tr.files else ' (check)', before, after))
+    L.extend(_limited_loop_table(tr, 'R %.1f deg/s' % np.degrees(tr.rate)))
     add('')
     add('The same fit on all four static logs gives R = %.1f deg/s, tau = %.4f s (rms %.4f rad). What the logs '
         'cannot identify: whether the firmware limits the tilt rate itself or the body rates (the same thing '
@@ -645,11 +652,7 @@ def format_effects(cal):
         'eq. 15: a check, not fitted), vz rms [m/s]:'
         % (ve.first_order[0], ve.first_order[1], ve.limit, ve.time_constant, ve.rms))
     add('')
-    add('| log | first order (tau %.4f s) | limited (A %.2f, tau %.4f s) |' % (ve.first_order[0], ve.limit,
-                                                                            ve.time_constant))
-    add('|---|---|---|')
-    for name, (before, after) in ve.per_file.items():
-        add('| %s%s | %.4f | %.4f |' % (name, '' if name in ve.files else ' (check)', before, after))
+    L.extend(_limited_loop_table(ve, 'A %.2f' % ve.limit))
     add('')
     add('The same fit on all four static logs gives A = %.3f m/s^2, tau = %.4f s (rms %.4f m/s). What the logs '
         'cannot identify: the MPC static runs climb at up to 2.4 m/s under the 2.0 m/s command and then come '

@@ -145,28 +145,34 @@ def test_smith_predictor_predicts_the_stand_in_with_quadratic_drag():
     assert np.linalg.norm(p - np.array(drone.position())) < 0.03
 
 
+def _forward_prediction_error(model, params, pcmd, command, duration, axis):
+    """|predicted - stand-in| velocity [m/s] along world ``axis`` after ``duration`` [s]: the stand-in (``params``)
+    hovering, streamed ``pcmd`` at 10 Hz from t = 0; the controller (``model``, no disturbance) told that it sent
+    ``command`` (fwd, left, gaz), acting after the attitude delay, and propagating its forward prediction."""
+    drone = hovering(params=params)
+    ctrl = PreviewMpc(model, {'quantise': False, 'disturbance_time_constant': 0.0})
+    feed_state(ctrl, drone, 0.0)
+    ctrl.commands.append((MODEL.attitude_delay,) + tuple(command))
+    t = 0.0
+    for k in range(int(duration / PHYSICS_DT)):
+        if k % 40 == 0:
+            drone.set_command(*(pcmd + (t,)))
+        drone.step(PHYSICS_DT, t)
+        t += PHYSICS_DT
+    _, v, _ = ctrl._propagate(t)
+    return abs(v[axis] - drone.velocity()[axis])
+
+
 def test_smith_predictor_predicts_a_full_climb_with_the_acceleration_limit():
     """A 2 m/s climb step: the shipped vertical_acceleration_limit binds (the loop ramps); the forward prediction
     clips like the stand-in and follows it, the first order alone would run ahead."""
     assert MODEL.vertical_acceleration_limit > 0.0
-    drone = hovering()
-    mapping = drone.mapping
+    mapping = PilotingMapping()
     pcmd = mapping.to_pcmd(0.0, 0.0, 0.0, 2.0)
     gaz = mapping.pcmd_to_setpoints(*pcmd)[3]
     errors = {}
     for name, model in (('limited', TRUTH_MODEL), ('linear', TRUTH_MODEL._replace(vertical_acceleration_limit=0.0))):
-        drone = hovering()
-        ctrl = PreviewMpc(model, {'quantise': False, 'disturbance_time_constant': 0.0})
-        feed_state(ctrl, drone, 0.0)
-        ctrl.commands.append((MODEL.attitude_delay, 0.0, 0.0, gaz))
-        t = 0.0
-        for k in range(int(0.3 / PHYSICS_DT)):
-            if k % 40 == 0:
-                drone.set_command(*(pcmd + (t,)))
-            drone.step(PHYSICS_DT, t)
-            t += PHYSICS_DT
-        p, v, _ = ctrl._propagate(t)
-        errors[name] = abs(v[2] - drone.vz)
+        errors[name] = _forward_prediction_error(model, PARAMS, pcmd, (0.0, 0.0, gaz), 0.3, 2)
     assert errors['limited'] < 0.03
     assert errors['linear'] > 3.0 * errors['limited']
 
@@ -187,18 +193,7 @@ def test_smith_predictor_predicts_a_full_tilt_step_with_the_tilt_rate_limit():
     fwd, left = tilt_acceleration(roll, pitch, MODEL.gravity)
     errors = {}
     for name, model in (('limited', limited), ('linear', limited._replace(tilt_rate_limit=0.0))):
-        drone = hovering(params=params)
-        ctrl = PreviewMpc(model, {'quantise': False, 'disturbance_time_constant': 0.0})
-        feed_state(ctrl, drone, 0.0)
-        ctrl.commands.append((MODEL.attitude_delay, fwd, left, 0.0))
-        t = 0.0
-        for k in range(int(0.35 / PHYSICS_DT)):
-            if k % 40 == 0:
-                drone.set_command(*(pcmd + (t,)))
-            drone.step(PHYSICS_DT, t)
-            t += PHYSICS_DT
-        _, v, _ = ctrl._propagate(t)
-        errors[name] = abs(v[0] - drone.vx)
+        errors[name] = _forward_prediction_error(model, params, pcmd, (fwd, left, 0.0), 0.35, 0)
     assert errors['limited'] < 0.03
     assert errors['linear'] > 3.0 * errors['limited']
 

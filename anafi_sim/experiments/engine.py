@@ -97,7 +97,7 @@ from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler, input_topi
 from anafi_sim import paths
 from anafi_sim.experiments.evaluation import LiveEvaluator
 from anafi_sim.experiments.monitor import ExperimentMonitor
-from anafi_sim.experiments.schedule import PHYSICS, TIMER, EventLoop, NodeClock, Timer, Topic, to_ns, to_s
+from anafi_sim.experiments.schedule import ACTION, PHYSICS, TIMER, EventLoop, NodeClock, Timer, Topic, to_ns, to_s
 from anafi_sim.experiments.trajectory import DONE, Scenario, TrajectoryGenerator, load_scenario
 from anafi_sim.interface.ground_truth import GroundTruthInterface, odometry
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
@@ -505,11 +505,13 @@ class Engine(object):
     DEFAULT_SCHEDULE; model_params: the model dict (default anafi_model.yaml); state_source: 'estimate'
     (drone/odom, the paper) or 'truth' (ground_truth/odom); name: the run's name (default
     SCENARIO_CONTROLLER); max_sim_time: give up after this many simulated seconds (default: the scenario's
-    duration + 120 s).
+    duration + 120 s); actions: [(s after the scenario's start, fn(engine))], called at those simulated times
+    before the physics step of that instant (the step's state, sampled at that time, shows the action) (e.g. the fidelity replay's initial state, ``anafi_sim.experiments.fidelity``).
     """
 
     def __init__(self, scenario, controller='mpc', seed=None, wind=None, settings=None, controller_params=None,
-                 schedule=None, model_params=None, state_source='estimate', name=None, max_sim_time=None):
+                 schedule=None, model_params=None, state_source='estimate', name=None, max_sim_time=None,
+                 actions=None):
         self.scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
         self.controller = controller
         label = controller if isinstance(controller, str) else getattr(controller, '__name__', 'controller')
@@ -535,6 +537,12 @@ class Engine(object):
         else:
             self._factory = controller_factory(controller, controller_params)
         self.max_sim_time = float(max_sim_time) if max_sim_time is not None else self.scenario.duration + 120.0
+        self.actions = []
+        for offset, action in actions or ():
+            offset = float(offset)
+            if not (math.isfinite(offset) and offset >= 0.0) or not callable(action):
+                raise ValueError('actions: (seconds >= 0 after the start, callable), got %r' % ((offset, action),))
+            self.actions.append((offset, action))
 
     # ------------------------------------------------------------------------------------------ wiring
     def _build(self):
@@ -657,6 +665,8 @@ class Engine(object):
             self.started_at = t
             self.cpu_span = [self.timing.seconds, None]
             gen.start(t)
+            for offset, action in self.actions:
+                self.world.loop.at(to_ns(t + offset), action, self, order=ACTION)
         wp, events = gen.update(t)
         for ev in events:
             if ev.kind == 'begin':

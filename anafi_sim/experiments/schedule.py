@@ -5,8 +5,8 @@ Stage: experiments (the clockwork under ``anafi_sim.experiments.engine``). Times
 simulation time (as rospy.Time / rospy.Duration hold them), so periods such as 1/30 s add up exactly as in
 the nodes and two runs order their events identically.
 
-- ``EventLoop``: callbacks at simulation times; events at the same time run by ``order`` (``PHYSICS``
-  first: the simulator's step publishes /clock before anything at that instant looks at the clock, then
+- ``EventLoop``: callbacks at simulation times; events at the same time run by ``order`` (``ACTION``
+  first, then ``PHYSICS``: the simulator's step publishes /clock before anything at that instant looks at the clock, then
   ``DELIVERY`` of messages, then ``TIMER`` callbacks), then first come, first served;
 - ``NodeClock``: what ``rospy.get_time()`` returns in a node under /use_sim_time: the newest /clock value
   it has received. /clock comes after every physics step (a grid of ``period``) and reaches the node
@@ -28,9 +28,9 @@ import itertools
 NS = 1000000000
 """Nanoseconds per second."""
 
-PHYSICS, DELIVERY, TIMER = 0, 1, 2
-"""Orders of events at the same simulation time: the physics step (publishes /clock), message deliveries,
-timer callbacks."""
+ACTION, PHYSICS, DELIVERY, TIMER = -1, 0, 1, 2
+"""Orders of events at the same simulation time: an action on the simulated world (it changes the state the
+step of that instant starts from), the physics step (publishes /clock), message deliveries, timer callbacks."""
 
 
 def to_ns(seconds):

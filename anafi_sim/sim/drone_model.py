@@ -103,6 +103,7 @@ EFFECTS_OFF.update(state_estimate.EFFECTS_OFF)
 EFFECT_GROUPS = collections.OrderedDict((
     ('position_fusion', ('estimate_position_fusion', 'estimate_position_fix_delay', 'estimate_position_fix_gain',
                          'estimate_delay', 'estimate_time_constant')),
+    ('velocity_error', ('estimate_velocity_error_time_constant',)),
     ('tilt_attenuation', ('tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full')),
     ('max_descent_speed', ('max_descent_speed',)),
     ('vertical_acceleration_limit', ('vertical_acceleration_limit', 'vertical_speed_time_constant')),
@@ -308,6 +309,19 @@ class AnafiModel(object):
         else:
             self.state = LANDED
             self.z = 0.0
+
+    def translate(self, dx, dy, dz=0.0):
+        """Move the drone by (dx, dy, dz) [m], everything else as it is (velocities, attitude, commands in
+        flight, the hover-brake hold point moves along): a translation of the world, e.g. to start a replay
+        from a logged position. z stays >= 0."""
+        dx, dy, dz = float(dx), float(dy), float(dz)
+        if not all(math.isfinite(v) for v in (dx, dy, dz)):
+            raise ValueError('translate needs finite offsets, got %r' % ((dx, dy, dz),))
+        self.x += dx
+        self.y += dy
+        self.z = max(0.0, self.z + dz)
+        if self._hold is not None:
+            self._hold = (self._hold[0] + dx, self._hold[1] + dy, self._hold[2] + dz)
 
     def set_command(self, roll_pct, pitch_pct, yaw_pct, gaz_pct, t):
         """One PCMD (integer percents, bridge signs) received at sim time ``t`` [s]."""

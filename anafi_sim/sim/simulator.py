@@ -73,6 +73,12 @@ class SimulatedAnafi(object):
             raise ValueError("event must be 'takeoff' or 'land', got %r" % (event,))
         self.events.append(event)
 
+    def translate(self, dx, dy, dz=0.0):
+        """Move the drone and its estimate by (dx, dy, dz) [m] (``AnafiModel.translate``,
+        ``StateEstimate.translate``): call between steps (same thread as ``step``)."""
+        self.model.translate(dx, dy, dz)
+        self.estimate.translate(dx, dy, dz)
+
     # ------------------------------------------------------------ loop
     def start(self, wall):
         """Time 0 at wall time ``wall`` [s] (takes off with ``auto_takeoff``)."""

@@ -547,3 +547,19 @@ def test_unreadable_model_file_is_a_value_error(tmp_path):
     wrong.write_text(yaml.safe_dump(dict(PARAMS, tilt_attenuation=1.5)))
     with pytest.raises(ValueError, match='tilt_attenuation'):
         load_model_params(str(wrong))
+
+
+def test_translate_moves_the_drone_and_nothing_else():
+    """A translation of the world: a moved copy flies the same commands to the same positions + d."""
+    a, b = flying_model(z=5.0), flying_model(z=5.0)
+    for m in (a, b):
+        run(m, 2.0, pcmd=(5, 10, 0, 20))
+    b.translate(1.0, -2.0, 0.5)
+    assert b.position() == pytest.approx((a.position()[0] + 1.0, a.position()[1] - 2.0, a.position()[2] + 0.5))
+    assert b.velocity() == pytest.approx(a.velocity())
+    for m in (a, b):                 # no command: the firmware brakes and holds a point that moved along
+        run(m, 8.0, pcmd=None, t0=2.0)
+    assert b.position() == pytest.approx((a.position()[0] + 1.0, a.position()[1] - 2.0, a.position()[2] + 0.5),
+                                         abs=1e-9)
+    with pytest.raises(ValueError):
+        b.translate(float('nan'), 0.0)

@@ -199,3 +199,17 @@ def test_run_task_writes_the_summary_and_the_csv(short, tmp_path):
     assert line.startswith('RESULT short_circle_pid  ok  e_mu ') and '\n' not in line
     bad = run_task(make_task('no_such_scenario', 'pid'))
     assert not bad['ok'] and 'no_such_scenario' in bad['error']
+
+
+def test_actions_run_once_at_their_time_after_the_start(short):
+    from anafi_sim.experiments.schedule import to_ns
+    seen = []
+    engine = Engine(short, 'mpc', actions=[(0.5, lambda e: seen.append((e.world.loop.now, e.started_at,
+                                                                       e.sim.model.position())))])
+    assert engine.run().ok
+    assert len(seen) == 1
+    now, started, position = seen[0]
+    assert now == to_ns(started + 0.5) and position[2] > 1.0
+    for bad in ([(-1.0, lambda e: None)], [(0.5, 'not callable')], [(float('nan'), lambda e: None)]):
+        with pytest.raises(ValueError):
+            Engine(short, 'mpc', actions=bad)

@@ -317,6 +317,22 @@ ErrorStats = collections.namedtuple('ErrorStats', ['mean', 'max', 'std', 'n_vali
 ErrorStats.__doc__ = 'mean, max, std [m] of an error series over its valid samples, and sample counts.'
 
 
+def line_value(t, values, ok, at):
+    """A logged quantity at time ``at`` [s] from a least-squares line through (t, values)[ok]: the columns
+    are stored as float16 (x of x_straight_5 is on a 0.125-0.25 m grid), a line through a second of samples
+    recovers the value below that step. NaN with fewer than two samples."""
+    t = np.asarray(t, dtype=np.float64)
+    values = np.asarray(values, dtype=np.float64)
+    ok = np.asarray(ok, dtype=bool) & np.isfinite(values)
+    if np.count_nonzero(ok) < 2:
+        return float('nan')
+    tt, vv = t[ok], values[ok]
+    if np.ptp(tt) <= 0.0:
+        return float(np.mean(vv))
+    slope, intercept = np.polyfit(tt - tt[0], vv, 1)
+    return float(slope * (at - tt[0]) + intercept)
+
+
 class TrackingError(object):
     """Per-sample tracking error of a log: ``e`` (3-D) and ``e_h`` (horizontal) [m].
 

@@ -25,6 +25,11 @@ Effects switched by keys that are OFF by default (``EFFECTS_OFF``; fitted by
   [1/s]. In steady flight at velocity v the position trails the truth by D v
   (plus the hold); in a transient shorter than 1/k the lag has no time to
   build up (it approaches D v as 1 - exp(-k t)).
+- ``estimate_velocity_error_time_constant`` [s]: the velocity estimate has an
+  error of its own, added to the published velocity (and integrated by the
+  fusion), that decays with this time constant (0 = no such state). Nothing
+  in the model creates it: ``add_velocity_error`` sets it (a replay starting
+  from a logged estimate; Sphinx's logs start with errors their approach left).
 - ``estimate_yaw_bias`` [rad]: added to the published yaw.
 - quantisation of the published values to multiples of ``estimate_quantum_x``,
   ``estimate_quantum_y``, ``estimate_quantum_z`` [m] and
@@ -47,6 +52,7 @@ EFFECTS_OFF = collections.OrderedDict((
     ('estimate_position_fusion', False),     # bool: velocity-integrated position corrected toward a delayed fix
     ('estimate_position_fix_delay', 0.0),    # s, D (only with the fusion)
     ('estimate_position_fix_gain', 0.0),     # 1/s, k (only with the fusion; 0 = dead reckoning)
+    ('estimate_velocity_error_time_constant', 0.0),  # s, decay of the velocity estimate's own error (0 = none)
     ('estimate_yaw_bias', 0.0),              # rad, added to the yaw
     ('estimate_quantum_x', 0.0),             # m, step of the published x (0 = off)
     ('estimate_quantum_y', 0.0),             # m
@@ -120,12 +126,23 @@ class StateEstimate(object):
         self.fix_delay = e['estimate_position_fix_delay']
         self.fix_gain = e['estimate_position_fix_gain']
         self.yaw_bias = e['estimate_yaw_bias']
+        self.velocity_error_time_constant = e['estimate_velocity_error_time_constant']
         # (index in the values, quantum) of the quantised outputs
         self._quanta = tuple((i, q) for i, q in enumerate((
             e['estimate_quantum_x'], e['estimate_quantum_y'], e['estimate_quantum_z'],
             e['estimate_quantum_velocity'], e['estimate_quantum_velocity'], e['estimate_quantum_velocity']))
             if q > 0.0)
         self.reset()
+
+    def _output(self, values):
+        """The published form of (x, y, z, vx, vy, vz, roll, pitch, yaw) (yaw bias already added): quantised,
+        float16 when so configured; a tuple."""
+        values = list(values)
+        for i, quantum in self._quanta:
+            values[i] = _quantise(values[i], quantum)
+        if self.float16:
+            values = [float(v) for v in np.asarray(values, dtype=np.float16)]
+        return tuple(values)
 
     def reset(self):
         """Forget the history (e.g. after a simulator restart)."""
@@ -140,6 +157,9 @@ class StateEstimate(object):
         self._fused = None                  # fused position [x, y, z]
         self._fix_dt = None
         self._fix_coef = 0.0
+        self._velocity_error = [0.0, 0.0, 0.0]   # the velocity estimate's own error [m/s] (decays)
+        self._error_dt = None
+        self._error_coef = 1.0
         self.stamp = None          # caller time at which the current output was sampled [s]
         self.samples = 0           # number of output changes (sample instants)
 
@@ -202,27 +222,99 @@ class StateEstimate(object):
             for i in range(8):
                 smooth[i] += c * (delayed[i] - smooth[i])
             smooth[8] = _wrap(smooth[8] + c * _wrap(delayed[8] - smooth[8]))
+        dt = 0.0 if self._t_last is None else t - self._t_last
+        velocity = smooth[3:6]
+        error = self._velocity_error
+        if error[0] or error[1] or error[2]:
+            if dt != self._error_dt:
+                self._error_dt = dt
+                self._error_coef = math.exp(-dt / self.velocity_error_time_constant)
+            c = self._error_coef
+            for i in range(3):
+                error[i] *= c
+            velocity = [velocity[i] + error[i] for i in range(3)]
         if self.fusion:
-            self._fuse(t, 0.0 if self._t_last is None else t - self._t_last, (x, y, z), smooth[3:6])
+            self._fuse(t, dt, (x, y, z), velocity)
         self._t_last = t
 
         if self._next_sample is not None and t < self._next_sample:
             return False
         values = list(smooth)
+        values[3:6] = velocity
         values[8] = _wrap(values[8])
-        if self.fusion:
-            values[0:3] = self._fused
         if self.yaw_bias:
             values[8] = _wrap(values[8] + self.yaw_bias)
-        for i, quantum in self._quanta:
-            values[i] = _quantise(values[i], quantum)
-        if self.float16:
-            values = [float(v) for v in np.asarray(values, dtype=np.float16)]
-        self._values = tuple(values)
+        if self.fusion:
+            values[0:3] = self._fused
+        self._values = self._output(values)
         self.stamp = t
         self.samples += 1
         self._next_sample = (math.floor(t * self.rate + 1e-6) + 1.0) / self.rate
         return True
+
+    def translate(self, dx, dy, dz=0.0):
+        """The world moved by (dx, dy, dz) [m] (``AnafiModel.translate``): every stored position moves along
+        (truth history, fixes, smoothed and fused position, the current output), so the estimate's errors
+        stay what they were."""
+        d = (float(dx), float(dy), float(dz))
+        if not all(math.isfinite(v) for v in d):
+            raise ValueError('translate needs finite offsets, got %r' % (d,))
+
+        def moved(p):
+            return (p[0] + d[0], p[1] + d[1], p[2] + d[2]) + tuple(p[3:])
+        self._history = collections.deque((t, moved(row)) for t, row in self._history)
+        self._fixes = collections.deque((t, moved(p)) for t, p in self._fixes)
+        if self._smooth is not None:
+            self._smooth = list(moved(self._smooth))
+        if self._fused is not None:
+            self._fused = list(moved(self._fused))
+        if self._values is not None:
+            self._values = self._output(moved(self._values))
+
+    @property
+    def fused_position(self):
+        """(x, y, z) [m] of the fusion's state (before hold and quantisation), None without the fusion or
+        before the first update."""
+        return tuple(self._fused) if self.fusion and self._fused is not None else None
+
+    def add_position_error(self, dx, dy, dz=0.0):
+        """Add (dx, dy, dz) [m] to the fused position (the estimate's own state: it decays as the fusion
+        corrects toward the fix, 1/``estimate_position_fix_gain``), e.g. to start a replay from a logged
+        estimate error. Only with ``estimate_position_fusion`` (without it the position is the delayed truth
+        and holds no error of its own): returns False and changes nothing then, or before the first update."""
+        d = (float(dx), float(dy), float(dz))
+        if not all(math.isfinite(v) for v in d):
+            raise ValueError('add_position_error needs finite offsets, got %r' % (d,))
+        if not self.fusion or self._fused is None:
+            return False
+        for i in range(3):
+            self._fused[i] += d[i]
+        if self._values is not None:
+            self._values = self._output(tuple(self._fused) + tuple(self._values[3:]))
+        return True
+
+    def add_velocity_error(self, dvx, dvy, dvz=0.0):
+        """Add (dvx, dvy, dvz) [m/s] to the velocity estimate's own error (it decays with
+        ``estimate_velocity_error_time_constant``; the fusion integrates it), e.g. to start a replay from a
+        logged velocity estimate. Returns False and changes nothing when that time constant is 0 (off)."""
+        d = (float(dvx), float(dvy), float(dvz))
+        if not all(math.isfinite(v) for v in d):
+            raise ValueError('add_velocity_error needs finite values, got %r' % (d,))
+        if self.velocity_error_time_constant <= 0.0:
+            return False
+        for i in range(3):
+            self._velocity_error[i] += d[i]
+        if self._values is not None:
+            values = list(self._values)
+            for i in range(3):
+                values[3 + i] += d[i]
+            self._values = self._output(values)
+        return True
+
+    @property
+    def velocity_error(self):
+        """(x, y, z) [m/s] of the velocity estimate's own error now."""
+        return tuple(self._velocity_error)
 
     def values(self):
         """(x, y, z, vx, vy, vz, roll, pitch, yaw) of the current estimate, or None before the first update."""

@@ -357,6 +357,28 @@ def test_fused_position_response_matches_independent_integration():
     assert ramp[-1] == pytest.approx(2.0 * t[-1] - 0.25 * 2.0, abs=0.01)          # steady: D x speed behind
 
 
+def test_velocity_error_fit_recovers_the_decay():
+    """Straight-line logs whose velocity estimate starts off the truth by b0 and decays with T = 3 s (plus a
+    1/256 m/s quantisation): the fit finds T and b0; a static log does not enter it."""
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 12.0, 0.05)
+    logs = []
+    for name, b0 in (('x_straight_a_mpc', (-0.05, 0.03)), ('x_straight_b_pid', (0.02, -0.10)),
+                     ('static_waypoint_c_pid', (0.3, 0.3))):
+        truth = dict((s, np.zeros_like(t)) for s in STATE_NAMES)
+        truth['vx'] = 3.0 + 0.01 * rng.standard_normal(len(t))
+        est = dict(truth)
+        for axis, b in zip(('vx', 'vy'), b0):
+            est[axis] = np.round((truth[axis] + b * np.exp(-t / 3.0)) * 256.0) / 256.0
+        logs.append(make_log(t + 10.0, truth, est, name=name))
+    fit = cal.fit_velocity_error(logs)
+    assert fit.time_constant == pytest.approx(3.0, rel=0.05)
+    assert fit.files == ('x_straight_a_mpc', 'x_straight_b_pid')
+    assert fit.per_series[('x_straight_b_pid', 'y')][0] == pytest.approx(-0.10, abs=0.005)
+    assert fit.rms < 0.2 * fit.rms_zero
+    assert cal.fit_velocity_error(logs[2:]).time_constant == 0.0           # no straight line: not identified
+
+
 def test_lag_along_motion():
     t = np.arange(0.0, 5.0, 0.05)
     v = np.column_stack((np.full_like(t, 2.0), np.zeros_like(t)))
@@ -592,12 +614,18 @@ def test_real_log_effects(real):
         assert conc > 0.98 and conc_truth < 0.3, column
     # yaw bias: between the per-log extremes
     assert f.yaw.spread[0] <= p['estimate_yaw_bias'] <= f.yaw.spread[1]
+    # the velocity estimate's own error: decays in ~4 s; the decay explains most of it where it is large
+    ve = f.velocity_error
+    assert 2.0 < p['estimate_velocity_error_time_constant'] == ve.time_constant < 8.0
+    assert ve.rms < 0.6 * ve.rms_zero
+    b0, zero, fitted = ve.per_series[('x_straight_4_pid', 'y')]
+    assert -0.15 < b0 < -0.07 and fitted < 0.3 * zero
 
 
 def test_report_has_a_section_per_effect(real):
     logs, result = real
     text = report.format_report(result, logs)
-    for title in ('### Position estimate: fusion', '### Tilt attenuation', '### Vertical asymmetry: descent limit',
+    for title in ('### Position estimate: fusion', '### Velocity estimate: an error', '### Tilt attenuation', '### Vertical asymmetry: descent limit',
                   '### Vertical speed: acceleration limit', '### Attitude: tilt-rate limit',
                   '### Yaw estimate bias', '### Estimate quantisation'):
         assert title in text

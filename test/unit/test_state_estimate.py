@@ -207,3 +207,73 @@ def test_every_effect_off_is_bit_for_bit_the_plain_estimate():
 def test_bad_effect_values_raise_value_error(key, value):
     with pytest.raises(ValueError, match=key):
         make(**{key: value})
+
+
+# ------------------------------------------------------------------ translation and an estimate error (replays)
+@pytest.mark.parametrize('extra', [{}, FUSION, dict(FUSION, estimate_quantum_x=0.02)])
+def test_translating_the_world_moves_the_estimate_by_the_same_offset(extra):
+    """Two estimators fed the same cruise, one with the world moved by d at 10 s: from then on its outputs
+    are the other's + d (the errors it carries - lag, fusion state - are unchanged)."""
+    d = (0.3, -0.2, 0.1)
+    a = make(delay=0.05, tau=0.02, rate=20.0, **extra)
+    b = make(delay=0.05, tau=0.02, rate=20.0, **extra)
+    feed(a, cruise(2.0), 10.0)
+    feed(b, cruise(2.0), 10.0)
+    b.translate(*d)
+    moved = lambda t: tuple(v + (d[i] if i < 3 else 0.0) for i, v in enumerate(cruise(2.0)(t)))
+    out_a = feed(a, cruise(2.0), 12.0, t0=10.0 + DT)
+    out_b = feed(b, moved, 12.0, t0=10.0 + DT)
+    q = extra.get('estimate_quantum_x', 0.0)
+    for (_, va), (_, vb) in zip(out_a, out_b):
+        for i in range(3):
+            assert vb[i] == pytest.approx(va[i] + d[i], abs=q + 1e-9)
+        assert vb[3:] == pytest.approx(va[3:])
+
+
+def test_a_position_error_added_to_the_fusion_decays_at_its_gain():
+    k = FUSION['estimate_position_fix_gain']
+    a = make(delay=0.0, tau=0.0, rate=1000.0, **FUSION)
+    b = make(delay=0.0, tau=0.0, rate=1000.0, **FUSION)
+    for est in (a, b):
+        feed(est, cruise(3.0), 30.0)
+    assert b.add_position_error(0.0, 0.1, 0.0) is True
+    assert b.position()[1] - a.position()[1] == pytest.approx(0.1)          # visible at once
+    assert b.fused_position[1] - a.fused_position[1] == pytest.approx(0.1)
+    feed(a, cruise(3.0), 30.0 + 1.0 / k, t0=30.0 + DT)
+    feed(b, cruise(3.0), 30.0 + 1.0 / k, t0=30.0 + DT)
+    assert b.position()[1] - a.position()[1] == pytest.approx(0.1 * math.exp(-1.0), abs=0.002)
+
+
+def test_without_the_fusion_an_estimate_error_cannot_be_held():
+    est = make()
+    assert est.add_position_error(0.1, 0.0) is False           # before the first update too
+    feed(est, cruise(1.0), 1.0)
+    before = est.values()
+    assert est.fused_position is None
+    assert est.add_position_error(0.1, 0.0) is False
+    assert est.values() == before
+    with pytest.raises(ValueError):
+        est.translate(float('nan'), 0.0)
+    with pytest.raises(ValueError):
+        make(**FUSION).add_position_error(float('inf'), 0.0)
+
+
+def test_a_velocity_error_decays_and_the_fusion_integrates_it():
+    """An error of the velocity estimate set at 30 s: published at once, decays as exp(-t/T); the fused
+    position drifts by its integral (less what the fix corrects)."""
+    T = 4.0
+    a = make(delay=0.0, tau=0.0, rate=1000.0, **FUSION)
+    b = make(delay=0.0, tau=0.0, rate=1000.0, estimate_velocity_error_time_constant=T, **FUSION)
+    for est in (a, b):
+        feed(est, cruise(3.0), 30.0)
+    assert a.add_velocity_error(0.0, -0.1) is False              # no such state without the time constant
+    assert b.add_velocity_error(0.0, -0.1) is True
+    assert b.velocity()[1] == pytest.approx(-0.1) and b.velocity_error == pytest.approx((0.0, -0.1, 0.0))
+    feed(a, cruise(3.0), 30.0 + T, t0=30.0 + DT)
+    feed(b, cruise(3.0), 30.0 + T, t0=30.0 + DT)
+    assert b.velocity()[1] == pytest.approx(-0.1 * math.exp(-1.0), abs=1e-3)
+    assert b.velocity()[0] == pytest.approx(a.velocity()[0])
+    drift = b.position()[1] - a.position()[1]
+    integral = -0.1 * T * (1.0 - math.exp(-1.0))                 # what dead reckoning would accumulate
+    assert integral < drift < 0.5 * integral                     # the fix takes part of it back (k = 0.3)
+    assert a.position()[1] == pytest.approx(1.0)

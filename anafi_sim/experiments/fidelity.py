@@ -20,7 +20,10 @@ shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenari
    resampled at the log's own sample times:
    ``standin_log`` has the log's time and waypoint columns, so both are evaluated by the same function.
    The drone takes off at the heading at which its estimate shows the log's first estimated yaw
-   (``initial_yaw``).
+   (``initial_yaw``). Just before log time 0 the replay is put in the log's initial state
+   (``log_initial_state``, ``initial_state_action``; ``replay_plan(initial_state=False)``: not): the truth at
+   the log's position and, as far as the model has the states, the estimate's position and velocity errors
+   at the log's (Sphinx's lines start with errors their approach left, which decay within the log).
 3. ``cells``: e_mu and e_max against the estimate and against ground truth with
    ``reference_log.tracking_error`` (the function the paper's Table 3 recomputation uses, garbage excluded);
    in a log whose 3-D estimate error is all garbage (x_straight_2/3_pid: z_anafi wrapped at 16 bit, the drone
@@ -49,8 +52,8 @@ import numpy as np
 from anafi_sim.experiments import report
 from anafi_sim.experiments.engine import Engine
 from anafi_sim.experiments.evaluation import interpolate
-from anafi_sim.experiments.reference_log import (COLUMNS, STATE_NAMES, WAYPOINT_COLUMNS, ReferenceLog, read_log,
-                                                 tracking_error)
+from anafi_sim.experiments.reference_log import (COLUMNS, STATE_NAMES, WAYPOINT_COLUMNS, ReferenceLog, detect_garbage,
+                                                 line_value, read_log, tracking_error)
 from anafi_sim.experiments.trajectory import Phase, Scenario, WaypointSample
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, load_model_params
 
@@ -67,15 +70,26 @@ APPROACH_MOVING = 10.0       # s, hover at the line's start before the lead-in (
 APPROACH_STATIC = 5.0        # s, hover at the hover point before the log's own hover
 TAIL = 0.3                   # s, replay beyond the log's last sample (the evaluator needs an estimate after it)
 
+INITIAL_WINDOW = 1.0         # s, line fit of the log's first positions for its initial state (float16 steps)
+INITIAL_AHEAD = 0.05         # s, the initial state is set this long before log time 0 (the 20 Hz estimate and
+                             # the 100 Hz truth samples around log time 0 then all show it)
+
 ReplayPlan = collections.namedtuple('ReplayPlan', 'log name controller scenario tick_log_time tick_tau '
-                                                  'scenario_offset ticks slips markers moving shift')
+                                                  'scenario_offset ticks slips markers moving shift initial_state')
 ReplayPlan.__doc__ = ('How a log is replayed: log (ReferenceLog), name, controller (pid|mpc), scenario (Scenario), '
                       'tick_log_time (log time [s] of tick 0), tick_tau (trajectory time [s] of tick 0), '
                       'scenario_offset (scenario time [s] of log time 0), ticks (number of waypoint changes '
                       'replayed), slips (changes not a whole number of periods after the previous one: the logger\'s phase '
                       'slipped; counted to the nearest tick, at least one), markers '
                       '(all-zero rows replaced by the hover point), moving (the log starts in motion), shift ((x, y) [m] '
-                      'subtracted from the waypoints for the replay and added back to the stand-in\'s positions).')
+                      'subtracted from the waypoints for the replay and added back to the stand-in\'s positions), '
+                      'initial_state (``InitialState`` the replay is put in at log time 0, or None).')
+
+InitialState = collections.namedtuple('InitialState', 'truth estimate velocity_error')
+InitialState.__doc__ = ('A log\'s state at log time 0: truth (x, y, z) [m], the estimate\'s position (x, y, z) [m] '
+                        'as the estimator held it then and the velocity estimate\'s error (vx, vy, vz) [m/s] '
+                        '(estimate - truth) (``log_initial_state``); NaN for what the log does not give (garbage). '
+                        'The heading is set at take-off (``initial_yaw``).')
 
 Variant = collections.namedtuple('Variant', 'name label model_params controller_params schedule plan controllers')
 Variant.__new__.__defaults__ = (None, None, None, None, None)
@@ -167,13 +181,70 @@ class ReplayTrajectory(object):
         return None
 
 
-def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latency=None, controller=None):
+def log_initial_state(log, window=INITIAL_WINDOW, estimate_rate=20.0, at=-INITIAL_AHEAD):
+    """``InitialState`` of ``log`` at log time ``at`` [s] (default just before the first sample): per axis a
+    line through the first ``window`` s (``reference_log.line_value``: the columns are float16) of the truth,
+    of the estimate and of the velocity estimate's error; the truth at ``at``, the estimate half an
+    estimate period later (a held value is on average that old when logged: ``standin_log`` reads the
+    stand-in's estimate the same way). An axis whose estimate column
+    has garbage in the window is NaN (x_straight_2/3_pid: z wrapped, the truth sank under it)."""
+    t = log.t
+    first = t <= t[0] + float(window)
+    garbage = detect_garbage(log)
+    c = log.columns
+    truth, estimate, velocity = [], [], []
+    for axis in ('x', 'y', 'z'):
+        bad = garbage.mask(axis + '_anafi', axis + '_sphinx', 'v%s_anafi' % axis, 'v%s_sphinx' % axis)
+        if np.any(bad & first):
+            truth.append(float('nan'))
+            estimate.append(float('nan'))
+            velocity.append(float('nan'))
+            continue
+        ok = first & ~bad
+        truth.append(line_value(t, c[axis + '_sphinx'], ok, t[0] + at))
+        estimate.append(line_value(t, c[axis + '_anafi'], ok, t[0] + at + 0.5 / float(estimate_rate)))
+        velocity.append(line_value(t, np.asarray(c['v%s_anafi' % axis], dtype=np.float64)
+                                   - np.asarray(c['v%s_sphinx' % axis], dtype=np.float64), ok, t[0] + at))
+    return InitialState(tuple(truth), tuple(estimate), tuple(velocity))
+
+
+def initial_state_action(plan):
+    """fn(engine) that puts the replay of ``plan`` in the log's initial state (``plan.initial_state``, run
+    ``INITIAL_AHEAD`` before log time 0): the drone (and its estimate's history) translated so that the truth
+    is the log's; with the position fusion, the fused position moved to the log's estimate; with the velocity
+    error state, the velocity estimate's error set to the log's. These are the estimate's errors of that
+    moment (Sphinx's lines start with errors left by each run's approach), which then decay by the model's
+    dynamics. An axis without a value (NaN) is left as it is."""
+    state = plan.initial_state
+    shift = (plan.shift[0], plan.shift[1], 0.0)
+
+    def action(engine):
+        sim = engine.sim
+        m = sim.model
+        now = (m.x + shift[0], m.y + shift[1], m.z)
+        move = [state.truth[i] - now[i] if math.isfinite(state.truth[i]) else 0.0 for i in range(3)]
+        sim.translate(*move)
+        estimate = sim.estimate
+        fused = estimate.fused_position
+        if fused is not None:
+            error = [state.estimate[i] - (fused[i] + shift[i]) if math.isfinite(state.estimate[i]) else 0.0
+                     for i in range(3)]
+            estimate.add_position_error(*error)
+        now = estimate.velocity_error
+        estimate.add_velocity_error(*[state.velocity_error[i] - now[i] if math.isfinite(state.velocity_error[i])
+                                      else 0.0 for i in range(3)])
+    return action
+
+
+def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latency=None, controller=None,
+                initial_state=True):
     """The ``ReplayPlan`` of ``log`` (see the module doc).
 
     rate [Hz]: the waypoint stream's; lead [s]: lead-in for a log that starts in motion; approach [s]: hover
     at the start first (default ``APPROACH_MOVING`` / ``APPROACH_STATIC``); latency [s]: how long before the
     logger's first sample of a new waypoint it was published (default half the log's sample period);
-    controller: 'pid' | 'mpc' (default from the log's name).
+    controller: 'pid' | 'mpc' (default from the log's name); initial_state: put the replay in the log's state
+    at log time 0 (``log_initial_state``, ``initial_state_action``).
     """
     if controller is None:
         controller = parse_name(log.name)[1]
@@ -247,7 +318,8 @@ def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latenc
                         description='closed-loop replay of the reference log %s' % log.name)
     scenario_offset = float(approach) + tau_log0        # scenario time of log time 0
     return ReplayPlan(log, log.name, controller, scenario, tick_log_time, first_tick_tau, scenario_offset,
-                      len(changes), slips, markers, moving, shift)
+                      len(changes), slips, markers, moving, shift,
+                      log_initial_state(log) if initial_state else None)
 
 
 # ---------------------------------------------------------------------------------------------- runs
@@ -378,7 +450,9 @@ def run_replay(plan, variant=None, seed=None):
                         schedule=variant.schedule if variant is not None else None,
                         model_params=model,
                         name='%s_%s' % (plan.name, name),
-                        max_sim_time=plan.scenario.duration + 60.0)
+                        max_sim_time=plan.scenario.duration + 60.0,
+                        actions=[(plan.scenario_offset - INITIAL_AHEAD, initial_state_action(plan))]
+                        if plan.initial_state is not None else None)
         result = engine.run()
     except (ValueError, RuntimeError, KeyError) as error:
         return Replay(plan, variant, False, '%s: %s' % (type(error).__name__, error), None, {}, {}, {})

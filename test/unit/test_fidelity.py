@@ -28,28 +28,20 @@ LOG_DIR = paths.reference_logs_dir()   # <checkout>/../shared/reference_logs
 LOGS = tuple('static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('mpc', 'pid')) + tuple(
     'x_straight_%d_%s' % (v, c) for v in range(1, 6) for c in ('mpc', 'pid'))
 
-# (log, source, stat) -> ratio stand-in / Sphinx measured with the shipped defaults (position fusion on, descent
-# limit off, yaw bias and quantisation on, speed-gated tilt attenuation on; MPC paper_timing false; the timing of
-# mpc.yaml) where it is outside +-15 % (benchmarks/fidelity.py, docs/fidelity.md). Do not widen the band:
-# update this list when a model change moves a cell, and say so in the change.
+# (log, source, stat) -> ratio stand-in / Sphinx measured with the shipped defaults (position fusion and the
+# velocity error's decay on, descent limit off, yaw bias and quantisation on, speed-gated tilt attenuation on; MPC
+# paper_timing false; the timing of mpc.yaml; the replay starts from the log's initial state) where it is outside
+# +-15 % (benchmarks/fidelity.py, docs/fidelity.md). Do not widen the band: update this list when a model change
+# moves a cell, and say so in the change.
 KNOWN_OFF = {
-    ('static_waypoint_yaw_180_mpc', 'estimate', 'e_mu'): 0.76,   # paper_timing true would give 0.88
+    ('static_waypoint_yaw_180_mpc', 'estimate', 'e_mu'): 0.78,   # the yaw turn's coupling (docs/calibration.md)
     ('static_waypoint_yaw_180_mpc', 'truth', 'e_mu'): 0.76,
-    ('x_straight_1_mpc', 'truth', 'e_mu'): 0.67,
-    ('x_straight_1_mpc', 'truth', 'e_max'): 0.62,
-    ('x_straight_2_mpc', 'estimate', 'e_max'): 0.53,
-    ('x_straight_2_mpc', 'truth', 'e_max'): 0.76,
-    ('x_straight_2_pid', 'truth', 'e_mu'): 0.83,        # horizontal (the log's z estimate is garbage)
-    ('x_straight_2_pid', 'truth', 'e_max'): 0.80,       # horizontal
-    ('x_straight_3_mpc', 'estimate', 'e_max'): 0.64,
-    ('x_straight_3_mpc', 'truth', 'e_mu'): 0.74,
-    ('x_straight_3_mpc', 'truth', 'e_max'): 0.68,
-    ('x_straight_3_pid', 'truth', 'e_mu'): 0.73,        # horizontal
-    ('x_straight_3_pid', 'truth', 'e_max'): 0.70,       # horizontal
-    ('x_straight_4_mpc', 'truth', 'e_mu'): 0.57,
-    ('x_straight_4_mpc', 'truth', 'e_max'): 0.42,
-    ('x_straight_5_mpc', 'estimate', 'e_max'): 0.73,    # Sphinx's glitch at 8.7 s
-    ('x_straight_5_mpc', 'truth', 'e_max'): 0.75,
+    ('x_straight_2_mpc', 'estimate', 'e_max'): 0.54,    # Sphinx's glitches
+    ('x_straight_2_mpc', 'truth', 'e_max'): 0.74,
+    ('x_straight_3_mpc', 'estimate', 'e_max'): 0.63,
+    ('x_straight_3_pid', 'truth', 'e_mu'): 0.80,        # horizontal (the log's z estimate is garbage, no normal flight)
+    ('x_straight_5_mpc', 'estimate', 'e_max'): 0.75,    # Sphinx's glitch at 8.7 s
+    ('x_straight_5_mpc', 'truth', 'e_max'): 0.76,
 }
 
 
@@ -166,6 +158,47 @@ def test_the_replay_takes_off_at_the_heading_the_controller_saw():
     yaw_est = np.degrees(rep.standin.columns['yaw_anafi'])
     assert yaw_est[90] == pytest.approx(-2.0, abs=0.5)          # hovering before the step, as logged
     assert np.nanmin(yaw_est[100:160]) < -90.0                   # then turning clockwise
+
+
+def test_the_initial_state_is_a_line_through_the_first_second_of_float16_columns():
+    """Truth and estimate on a float16 grid (x ~ 200 m: 0.125 m steps) with a 1 m lag and a 5 cm lateral
+    estimate error: the line fit recovers them at log time 0 (the estimate half a 20 Hz period later)."""
+    log = line_log(speed=5.0, x0=200.0, n=60)
+    t = log.t
+    log.columns['x_sphinx'] = np.asarray(200.0 + 5.0 * t, dtype=np.float16).astype(float)
+    log.columns['x_anafi'] = np.asarray(199.0 + 5.0 * t, dtype=np.float16).astype(float)
+    log.columns['y_sphinx'] = np.full(len(t), 0.08)
+    log.columns['y_anafi'] = np.full(len(t), 0.03)
+    state = F.log_initial_state(log, at=0.0)
+    assert state.truth == pytest.approx((200.0, 0.08, 7.0), abs=0.02)
+    assert state.estimate == pytest.approx((199.0 + 5.0 * 0.025, 0.03, 7.0), abs=0.02)
+    state = F.log_initial_state(log)                    # default: just before log time 0
+    assert state.truth[0] == pytest.approx(200.0 - 5.0 * F.INITIAL_AHEAD, abs=0.02)
+    # a garbage z (16-bit wrap) leaves z alone in both
+    log.columns['z_anafi'][3] = 65280.0
+    state = F.log_initial_state(log)
+    assert math.isnan(state.truth[2]) and math.isnan(state.estimate[2]) and math.isfinite(state.truth[1])
+    assert F.replay_plan(log, initial_state=False).initial_state is None
+
+
+def test_the_replay_starts_from_the_logs_state_and_its_estimate_error_decays():
+    """A line whose log starts 0.3 m left of the line on the truth and 0.1 m on the estimate: the replay is
+    there at log time 0 (not settled on the line, where it is without the initial state); then the
+    estimate's error decays at the fusion's gain while the controller brings the estimate back."""
+    log = line_log(speed=2.0, x0=100.0, n=200)
+    t = log.t
+    log.columns['x_sphinx'] = log.columns['x_anafi'] + 2.0 * 0.233
+    log.columns['y_sphinx'] = np.full(len(t), 0.3)
+    log.columns['y_anafi'] = np.full(len(t), 0.1)
+    model = load_model_params()
+    assert model['estimate_position_fusion']
+    rep = F.run_replay(F.replay_plan(log), F.Variant('shipped', 'shipped', model))
+    settled = F.run_replay(F.replay_plan(log, initial_state=False), F.Variant('shipped', 'shipped', model))
+    assert rep.ok and settled.ok, (rep.error, settled.error)
+    y_truth, y_est = rep.standin.columns['y_sphinx'], rep.standin.columns['y_anafi']
+    assert y_truth[0] == pytest.approx(0.3, abs=0.02) and y_est[0] == pytest.approx(0.1, abs=0.03)
+    assert abs(settled.standin.columns['y_sphinx'][0]) < 0.05
+    assert abs(y_truth[-1] - y_est[-1]) < 0.2 * 0.5        # the 0.2 m truth-estimate gap decays (1/k ~ 4 s)
 
 
 def test_log_names_say_the_controller():

@@ -36,6 +36,7 @@ from anafi_sim.experiments.reference_log import read_log
 from anafi_sim.sim.drone_model import EFFECTS_OFF, load_model_params
 
 STEPS = ('replay', 'ablation', 'phases', 'table3')
+PLOTTED = ('off', 'settled', 'shipped')       # the variants in each log's figure: before (settled start) / after
 AGES = (0.005, 0.030, 0.055, 0.080)          # s, waypoint age at the MPC's cycle
 COMMAND = 'python benchmarks/fidelity.py'
 
@@ -190,7 +191,7 @@ def main(argv=None):
                 name = os.path.splitext(os.path.basename(p))[0]
                 series = [(v.label, new[(name, v.name)]['series']) for v in variants
                           if (name, v.name) in new and new[(name, v.name)].get('series')
-                          and v.name in ('off', 'on', 'on_pt')]
+                          and v.name in PLOTTED]
                 F.plot_replay(os.path.join(args.figures, name + '.png'), read_log(p), series,
                               title='%s: Sphinx (black) vs the stand-in' % name)
         elif step == 'ablation':
@@ -250,7 +251,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
         'that its truth is the log\'s (a line through the first second of the float16 columns), the fused '
         'position estimate moved to the logged estimate and the velocity estimate\'s error set to the logged one '
         '(each only where the model has that state: without the fusion the position estimate holds no error of '
-        'its own); from there the model\'s dynamics take over. '
+        'its own, and the drone is translated so that its estimate, the controller\'s input, is the log\'s); from '
+        'there the model\'s dynamics take over. '
         'The stand-in\'s estimate (its 20 Hz samples '
         'as a 20 Hz logger with a drifting phase sees them on average, like Sphinx\'s 19.5 Hz estimate in the '
         '20 Hz logs) and ground truth (interpolated) are resampled at the log\'s own sample times and evaluated '
@@ -307,9 +309,9 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
     lines += ['',
               'Reading of the tables at the time of writing. **The initial state** (shipped defaults against '
               '"shipped, settled start", the same model replayed from a start settled on the line, the method '
-              'before): 37 -> 46 cells within +-10 %, mean |ln ratio| 0.139 -> 0.077; it moves the ground-truth '
-              'cells of the MPC lines, x_straight_1/3/4_mpc e_mu 0.67 / 0.73 / 0.59 -> 0.98 / 1.04 / 1.07 and e_max '
-              '0.59 / 0.68 / 0.43 -> 0.99 / 0.95 / 0.98. Sphinx\'s lines start with the estimate off the truth by '
+              'before): 37 -> 46 cells within +-10 %, mean |ln ratio| 0.139 -> 0.078; it moves the ground-truth '
+              'cells of the MPC lines, x_straight_1/3/4_mpc e_mu 0.67 / 0.73 / 0.59 -> 0.94 / 1.02 / 1.05 and e_max '
+              '0.59 / 0.68 / 0.43 -> 1.00 / 0.96 / 0.99. Sphinx\'s lines start with the estimate off the truth by '
               'more than the steady lag (x_straight_4_mpc: lag 0.262 s in the first 2 s, 0.23 s at the end) and by up '
               'to 19 cm across the line (x_straight_4_pid), with a velocity estimate off by up to 0.11 m/s across it '
               '(docs/calibration.md), all decaying within the log: the history of each run (take-off, approach), '
@@ -318,23 +320,25 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
               'is 0.084 / 0.160 / 0.186 m against Sphinx\'s 0.090 / 0.158 / 0.177 m: the decay is the model\'s '
               '(fusion gain k, velocity-error time constant T), not set from the log. The lag\'s drift follows '
               '(x_straight_4_mpc, 2 s bins: Sphinx 0.262, 0.253, 0.245, 0.237 s; the replay 0.263, 0.258, 0.253, '
-              '0.248 s). **The position fusion** is the effect that moves the ground-truth cells (Sphinx\'s truth '
-              'runs ahead of its estimate): without it the stand-in\'s truth e_mu on the MPC lines is 1.4-3.6x '
+              '0.248 s; x_straight_1_mpc: 0.249, 0.247, 0.241, 0.237 s and 0.256, 0.254, 0.251, 0.246 s). **The '
+              'position fusion** is the effect that moves the ground-truth cells (Sphinx\'s truth '
+              'runs ahead of its estimate): without it the stand-in\'s truth e_mu on the MPC lines is 1.4-4.0x '
               'Sphinx\'s, with it alone 0.61-0.97x, with the velocity error and the attenuation (shipped) '
-              '0.92-1.07x; the velocity error acts only through the fusion (alone it changes nothing: the '
-              'position estimate without the fusion is the delayed truth). **The tilt attenuation**, gated by '
+              '0.94-1.05x; the velocity error acts mostly through the fusion (alone it moves one cell: the '
+              'controllers see it in the velocity estimate, but without the fusion the position does not '
+              'integrate it). **The tilt attenuation**, gated by '
               'speed (none up to 4 m/s, a fifth at 5 m/s), leaves every slower log as it was and brings the 5 m/s '
               'cells in: x_straight_5_mpc 0.81 -> 1.00 against the estimate and 0.61 -> 1.05 against ground truth '
               '(fusion only -> shipped), Table 3\'s 5 m/s MPC cell 0.75 -> 0.96. **The tilt-rate limit** (effects '
               'on, off as shipped) brings static_waypoint_yaw_0_mpc closer (0.94 / 0.91 -> 0.97 / 0.94) and the '
               'attitude history of the static PID steps closer when it is the only effect (roll / pitch rms against '
-              'Sphinx 0.54 / 1.20 -> 0.34 / 0.92 deg and 3.34 / 4.56 -> 2.97 / 4.29 deg against all off), but it '
+              'Sphinx 0.53 / 1.23 -> 0.33 / 0.90 deg and 3.35 / 4.58 -> 3.01 / 4.34 deg against all off), but it '
               'shrinks the yaw-0 step overshoots away from Sphinx\'s (overshoot = `step_response.overshoot` of the '
               'ground truth, the norm of the per-axis overshoots, as test/ros/test_mpc_closed_loop.py measures it; '
               'shipped -> effects on: PID 0.64 -> 0.44 m, Sphinx 0.58 m; MPC 0.19 -> 0.15 m, Sphinx 0.215 m). '
               '**The vertical '
               'acceleration limit** brings the vertical speed of the static steps closer (vz rms against Sphinx, '
-              'all off -> it alone: 0.171 -> 0.153, 0.205 -> 0.188 m/s on the MPC steps, 0.036 -> 0.032, 0.041 -> '
+              'all off -> it alone: 0.172 -> 0.154, 0.206 -> 0.188 m/s on the MPC steps, 0.035 -> 0.032, 0.041 -> '
               '0.035 m/s on the PID steps) and moves their cells by 1-2 %; its weight is in the vertical periodic '
               'motions (Table 5), which no shared log has. The descent limit, the yaw bias and the quantisation '
               'hardly move any cell (they act in saturated descents, on the yaw, below the centimetre). The '
@@ -427,7 +431,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
     lines += ['', '## Figures', '',
               'One per log: the position along the motion minus the waypoint (straight lines; estimate solid, '
               'truth dotted) or x and z (static waypoints), the tracking error against the estimate, the truth '
-              'pitch and roll and the vertical speed; Sphinx black, the stand-in coloured.', '']
+              'pitch and roll and the vertical speed; Sphinx black, the stand-in coloured: effects off, the shipped '
+              'defaults from a settled start (before) and from the log\'s initial state (now).', '']
     for log in logs:
         lines += ['### %s' % log, '', '![%s](%s/%s.png)' % (log, rel_fig, log), '']
     lines += ['## Regenerate', '', '```', 'cd <checkout> && source env.bash',

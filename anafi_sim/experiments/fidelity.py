@@ -210,26 +210,28 @@ def log_initial_state(log, window=INITIAL_WINDOW, estimate_rate=20.0, at=-INITIA
 
 def initial_state_action(plan):
     """fn(engine) that puts the replay of ``plan`` in the log's initial state (``plan.initial_state``, run
-    ``INITIAL_AHEAD`` before log time 0): the drone (and its estimate's history) translated so that the truth
-    is the log's; with the position fusion, the fused position moved to the log's estimate; with the velocity
-    error state, the velocity estimate's error set to the log's. These are the estimate's errors of that
-    moment (Sphinx's lines start with errors left by each run's approach), which then decay by the model's
-    dynamics. An axis without a value (NaN) is left as it is."""
+    ``INITIAL_AHEAD`` before log time 0). With the position fusion: the drone (and its estimate's history)
+    translated so that the truth is the log's, then the fused position moved to the log's estimate. Without
+    it the position estimate holds no error of its own (it is the delayed truth), so the drone is translated
+    so that the estimate, the controller's input, is the log's. Then, with the velocity error state, the
+    velocity estimate's error is set to the log's. These are the estimate's errors of that moment (Sphinx's
+    lines start with errors left by each run's approach), which then decay by the model's dynamics. An axis
+    without a value (NaN) is left as it is."""
     state = plan.initial_state
     shift = (plan.shift[0], plan.shift[1], 0.0)
 
+    def move_to(target, current):
+        return [target[i] - (current[i] + shift[i]) if math.isfinite(target[i]) else 0.0 for i in range(3)]
+
     def action(engine):
         sim = engine.sim
-        m = sim.model
-        now = (m.x + shift[0], m.y + shift[1], m.z)
-        move = [state.truth[i] - now[i] if math.isfinite(state.truth[i]) else 0.0 for i in range(3)]
-        sim.translate(*move)
         estimate = sim.estimate
-        fused = estimate.fused_position
-        if fused is not None:
-            error = [state.estimate[i] - (fused[i] + shift[i]) if math.isfinite(state.estimate[i]) else 0.0
-                     for i in range(3)]
-            estimate.add_position_error(*error)
+        if estimate.fusion:
+            m = sim.model
+            sim.translate(*move_to(state.truth, (m.x, m.y, m.z)))
+            estimate.add_position_error(*move_to(state.estimate, estimate.position_state))
+        else:
+            sim.translate(*move_to(state.estimate, estimate.position_state))
         now = estimate.velocity_error
         estimate.add_velocity_error(*[state.velocity_error[i] - now[i] if math.isfinite(state.velocity_error[i])
                                       else 0.0 for i in range(3)])

@@ -272,10 +272,12 @@ class StateEstimate(object):
             self._values = self._output(moved(self._values))
 
     @property
-    def fused_position(self):
-        """(x, y, z) [m] of the fusion's state (before hold and quantisation), None without the fusion or
-        before the first update."""
-        return tuple(self._fused) if self.fusion and self._fused is not None else None
+    def position_state(self):
+        """(x, y, z) [m] of the position estimate before hold and quantisation: the fusion's state with the
+        fusion, else the smoothed delayed truth; None before the first update."""
+        if self.fusion:
+            return tuple(self._fused) if self._fused is not None else None
+        return tuple(self._smooth[0:3]) if self._smooth is not None else None
 
     def add_position_error(self, dx, dy, dz=0.0):
         """Add (dx, dy, dz) [m] to the fused position (the estimate's own state: it decays as the fusion

@@ -29,7 +29,8 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 from scipy.signal import lfilter, savgol_filter
 
-from anafi_sim.experiments.reference_log import STATE_NAMES, detect_garbage, line_value, tracking_error
+from anafi_sim.experiments.reference_log import (INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES, detect_garbage,
+                                                 initial_velocity_error, tracking_error)
 from anafi_sim.experiments.report import PAPER_TABLE3
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF
 
@@ -852,18 +853,18 @@ def _velocity_error_series(logs, window):
             continue
         garbage = detect_garbage(log)
         t = log.t - log.t[0]
-        first = t <= window
-        for axis in ('x', 'y'):
+        for axis in VELOCITY_ERROR_AXES:
+            b0 = initial_velocity_error(log, axis, window)
+            if not math.isfinite(b0):
+                continue
             b = np.asarray(log.columns['v%s_anafi' % axis], dtype=np.float64) - np.asarray(
                 log.columns['v%s_sphinx' % axis], dtype=np.float64)
             ok = ~garbage.mask('v%s_anafi' % axis, 'v%s_sphinx' % axis) & np.isfinite(b)
-            if np.count_nonzero(ok & first) < 2:
-                continue
-            series.append((log.name, axis, t[ok], b[ok], line_value(t, b, ok & first, 0.0)))
+            series.append((log.name, axis, t[ok], b[ok], b0))
     return series
 
 
-def fit_velocity_error(logs, window=1.0):
+def fit_velocity_error(logs, window=INITIAL_WINDOW):
     """``VelocityErrorFit``: the straight-line logs (clean ones) start with a velocity estimate that is off
     the truth by up to 0.1 m/s across the motion (x_straight_4_pid: vy_anafi - vy_sphinx = -0.10 m/s at the
     start, ~0 after 10 s), which decays. Model: b(t) = b0 exp(-t / T), b0 = the error at log time 0 (a line

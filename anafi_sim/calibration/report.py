@@ -560,10 +560,12 @@ def format_effects(cal):
     add('What the logs cannot identify: what creates the error (an acceleration, a turn, a heading error: the '
         'approach is not in the logs) and its shape beyond one exponential (the larger errors decay slowly at '
         'first, then faster: x_straight_4_pid y); a velocity bias driven by the position error (b\' = k2 (fix - '
-        'p), the classic second state of such a filter) fits the lines with k2 ~ 0.07-0.09 1/s^2 (a regression of the change of b on the integral of that error, '
-        'on the logs with the largest b) but would leave about k2 x D x 5 m ~ 0.09 m/s of velocity error after each '
-        '5 m step of the static logs (during a short move the fused position leads the fix by D x speed), where their velocity estimate shows '
-        'at most ~0.02 m/s a few seconds after the step, so it is not the model.')
+        'p), the classic second state of such a filter) was checked once offline and rejected (figures of that '
+        'check, 2026-11-25, not recomputed by this script): a regression of the change of b on the integral of '
+        'that error gives k2 ~ 0.07-0.09 1/s^2 on the logs with the largest b, which would leave about k2 x D x '
+        '5 m ~ 0.09 m/s of velocity error after each 5 m step of the static logs (during a short move the fused '
+        'position leads the fix by D x speed), where their velocity estimate is within ~0.02 m/s of the truth '
+        'a few seconds after the step.')
     add('')
 
     add('### Tilt attenuation')

@@ -505,7 +505,7 @@ class Engine(object):
     DEFAULT_SCHEDULE; model_params: the model dict (default anafi_model.yaml); state_source: 'estimate'
     (drone/odom, the paper) or 'truth' (ground_truth/odom); name: the run's name (default
     SCENARIO_CONTROLLER); max_sim_time: give up after this many simulated seconds (default: the scenario's
-    duration + 120 s); actions: [(s after the scenario's start, fn(engine))], called at those simulated times
+    duration + 120 s); actions: [(s > 0 after the scenario's start, fn(engine))], called at those simulated times
     before the physics step of that instant (the step's state, sampled at that time, shows the action) (e.g. the fidelity replay's initial state, ``anafi_sim.experiments.fidelity``).
     """
 
@@ -540,8 +540,8 @@ class Engine(object):
         self.actions = []
         for offset, action in actions or ():
             offset = float(offset)
-            if not (math.isfinite(offset) and offset >= 0.0) or not callable(action):
-                raise ValueError('actions: (seconds >= 0 after the start, callable), got %r' % ((offset, action),))
+            if not (math.isfinite(offset) and offset > 0.0) or not callable(action):
+                raise ValueError('actions: (seconds > 0 after the start, callable), got %r' % ((offset, action),))
             self.actions.append((offset, action))
 
     # ------------------------------------------------------------------------------------------ wiring
@@ -666,7 +666,7 @@ class Engine(object):
             self.cpu_span = [self.timing.seconds, None]
             gen.start(t)
             for offset, action in self.actions:
-                self.world.loop.at(to_ns(t + offset), action, self, order=ACTION)
+                self.world.loop.at(max(self.world.loop.now, to_ns(t + offset)), action, self, order=ACTION)
         wp, events = gen.update(t)
         for ev in events:
             if ev.kind == 'begin':

@@ -52,8 +52,9 @@ import numpy as np
 from anafi_sim.experiments import report
 from anafi_sim.experiments.engine import Engine
 from anafi_sim.experiments.evaluation import interpolate
-from anafi_sim.experiments.reference_log import (COLUMNS, STATE_NAMES, WAYPOINT_COLUMNS, ReferenceLog, detect_garbage,
-                                                 line_value, read_log, tracking_error)
+from anafi_sim.experiments.reference_log import (COLUMNS, INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES,
+                                                 WAYPOINT_COLUMNS, ReferenceLog, detect_garbage,
+                                                 initial_velocity_error, line_value, read_log, tracking_error)
 from anafi_sim.experiments.trajectory import Phase, Scenario, WaypointSample
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, load_model_params
 
@@ -70,9 +71,9 @@ APPROACH_MOVING = 10.0       # s, hover at the line's start before the lead-in (
 APPROACH_STATIC = 5.0        # s, hover at the hover point before the log's own hover
 TAIL = 0.3                   # s, replay beyond the log's last sample (the evaluator needs an estimate after it)
 
-INITIAL_WINDOW = 1.0         # s, line fit of the log's first positions for its initial state (float16 steps)
-INITIAL_AHEAD = 0.05         # s, the initial state is set this long before log time 0 (the 20 Hz estimate and
-                             # the 100 Hz truth samples around log time 0 then all show it)
+INITIAL_AHEAD = 0.1          # s, the initial state is set this long before log time 0: the stand-in's estimate
+                             # is read half a 20 Hz period back between its samples, so every sample that
+                             # enters log time 0 (>= 1.5 periods back) comes after it
 
 ReplayPlan = collections.namedtuple('ReplayPlan', 'log name controller scenario tick_log_time tick_tau '
                                                   'scenario_offset ticks slips markers moving shift initial_state')
@@ -192,20 +193,19 @@ def log_initial_state(log, window=INITIAL_WINDOW, estimate_rate=20.0, at=-INITIA
     first = t <= t[0] + float(window)
     garbage = detect_garbage(log)
     c = log.columns
-    truth, estimate, velocity = [], [], []
+    truth, estimate = [], []
     for axis in ('x', 'y', 'z'):
-        bad = garbage.mask(axis + '_anafi', axis + '_sphinx', 'v%s_anafi' % axis, 'v%s_sphinx' % axis)
+        bad = garbage.mask(axis + '_anafi', axis + '_sphinx')
         if np.any(bad & first):
             truth.append(float('nan'))
             estimate.append(float('nan'))
-            velocity.append(float('nan'))
             continue
         ok = first & ~bad
         truth.append(line_value(t, c[axis + '_sphinx'], ok, t[0] + at))
         estimate.append(line_value(t, c[axis + '_anafi'], ok, t[0] + at + 0.5 / float(estimate_rate)))
-        velocity.append(line_value(t, np.asarray(c['v%s_anafi' % axis], dtype=np.float64)
-                                   - np.asarray(c['v%s_sphinx' % axis], dtype=np.float64), ok, t[0] + at))
-    return InitialState(tuple(truth), tuple(estimate), tuple(velocity))
+    velocity = tuple(initial_velocity_error(log, axis, window, at) if axis in VELOCITY_ERROR_AXES else float('nan')
+                     for axis in ('x', 'y', 'z'))
+    return InitialState(tuple(truth), tuple(estimate), velocity)
 
 
 def initial_state_action(plan):
@@ -465,6 +465,15 @@ def run_replay(plan, variant=None, seed=None):
                   history_rms(plan.log, standin), result.info)
 
 
+LATE = 1.0      # s, "after the first second": the part of a log the initial state does not set
+
+
+def late_cells(log, horizontal):
+    """``cells`` of ``log`` from log time ``LATE`` on (the initial state puts a replay where the log is at its
+    start, so the first second matches partly by construction; what follows is the model's)."""
+    return cells(log.select(log.t >= LATE), horizontal)
+
+
 def reference_cells(log):
     """``cells`` of the Sphinx log itself (the reference values)."""
     return cells(log)
@@ -508,6 +517,9 @@ def replay_record(rep):
     rec['reference'] = dict(('%s_%s' % k, _num(ref[k])) for k in CELLS)
     rec['standin'] = dict(('%s_%s' % k, _num(rep.cells.get(k, float('nan')))) for k in CELLS)
     rec['ratio'] = dict(('%s_%s' % k, _num(v[2])) for k, v in compare(ref, rep.cells).items())
+    if rep.standin is not None:
+        late = compare(late_cells(plan.log, ref['horizontal']), late_cells(rep.standin, ref['horizontal']))
+        rec['ratio_late'] = dict(('%s_%s' % k, _num(v[2])) for k, v in late.items())
     rec['horizontal'] = sorted(ref['horizontal'] | set(rep.cells.get('horizontal', ())))
     rec['histories'] = dict((k, _num(v)) for k, v in rep.histories.items())
     info = rep.info or {}
@@ -702,9 +714,11 @@ def _key(cell):
     return '%s_%s' % cell
 
 
-def record_ratios(record):
-    """[(log, cell, ratio)] of a replay record (ratio None when missing)."""
-    return [(record['log'], cell, record['ratio'].get(_key(cell))) for cell in CELLS]
+def record_ratios(record, key='ratio'):
+    """[(log, cell, ratio)] of a replay record (ratio None when missing); ``key`` 'ratio' (whole log) or
+    'ratio_late' (after ``LATE``)."""
+    ratios = record.get(key) or {}
+    return [(record['log'], cell, ratios.get(_key(cell))) for cell in CELLS]
 
 
 def combined(records, models, mpc_variant, pid_variant):
@@ -718,9 +732,9 @@ def combined(records, models, mpc_variant, pid_variant):
     return out
 
 
-def score(records, band=BANDS[0]):
-    """(cells within ``band``, cells with a ratio, mean |ln ratio|) over replay records."""
-    ratios = [r for rec in records for _, _, r in record_ratios(rec) if r is not None and r > 0]
+def score(records, band=BANDS[0], key='ratio'):
+    """(cells within ``band``, cells with a ratio, mean |ln ratio|) over replay records (``record_ratios``)."""
+    ratios = [r for rec in records for _, _, r in record_ratios(rec, key) if r is not None and r > 0]
     inside = sum(1 for r in ratios if within(r, band))
     return inside, len(ratios), (float(np.mean([abs(math.log(r)) for r in ratios])) if ratios else float('nan'))
 
@@ -752,9 +766,9 @@ def replay_table(records, logs, columns):
     return '\n'.join(lines)
 
 
-def score_table(records, logs, columns, bands=BANDS):
+def score_table(records, logs, columns, bands=BANDS, key='ratio'):
     """Markdown table: per configuration the cells within each band (all, PID, MPC, estimate, truth) and the
-    mean |ln ratio|."""
+    mean |ln ratio| (``key``: see ``record_ratios``)."""
     lines = ['| configuration | ' + ' | '.join('within +-%d %%' % round(100 * b) for b in bands)
              + ' | PID +-10 % | MPC +-10 % | estimate +-10 % | truth +-10 % | mean abs ln(ratio) |',
              '|' + '---|' * (len(bands) + 6)]
@@ -762,15 +776,15 @@ def score_table(records, logs, columns, bands=BANDS):
         recs = combined(records, logs, mpc_v, pid_v)
         parts = []
         for b in bands:
-            k, n, _ = score(recs, b)
+            k, n, _ = score(recs, b, key)
             parts.append('%d / %d' % (k, n))
         for subset in (('pid',), ('mpc',)):
-            k, n, _ = score([r for r in recs if r['controller'] in subset])
+            k, n, _ = score([r for r in recs if r['controller'] in subset], key=key)
             parts.append('%d / %d' % (k, n))
         for source in SOURCES:
-            ratios = [r for rec in recs for _, cell, r in record_ratios(rec) if cell[0] == source and r]
+            ratios = [r for rec in recs for _, cell, r in record_ratios(rec, key) if cell[0] == source and r]
             parts.append('%d / %d' % (sum(1 for r in ratios if within(r, BANDS[0])), len(ratios)))
-        parts.append(fmt(score(recs)[2]))
+        parts.append(fmt(score(recs, key=key)[2]))
         lines.append('| %s | %s |' % (title, ' | '.join(parts)))
     return '\n'.join(lines)
 

@@ -333,6 +333,26 @@ def line_value(t, values, ok, at):
     return float(slope * (at - tt[0]) + intercept)
 
 
+INITIAL_WINDOW = 1.0
+"""s, the first part of a log through which a line gives its initial values (``line_value``: float16 steps)."""
+
+VELOCITY_ERROR_AXES = ('x', 'y')
+"""The axes of the velocity estimate's initial error that is fitted and replayed (the straight flights are
+level: z shows none to fit)."""
+
+
+def initial_velocity_error(log, axis, window=INITIAL_WINDOW, at=0.0):
+    """The velocity estimate's error v_anafi - v_sphinx [m/s] on ``axis`` ('x', 'y', 'z') at log time
+    t0 + ``at`` [s]: ``line_value`` through its first ``window`` s, garbage samples left out (NaN when fewer
+    than two remain). The straight-line logs start with such an error, which decays (docs/calibration.md)."""
+    garbage = detect_garbage(log)
+    t = log.t
+    b = np.asarray(log.columns['v%s_anafi' % axis], dtype=np.float64) - np.asarray(
+        log.columns['v%s_sphinx' % axis], dtype=np.float64)
+    ok = (t <= t[0] + float(window)) & ~garbage.mask('v%s_anafi' % axis, 'v%s_sphinx' % axis)
+    return line_value(t, b, ok, t[0] + float(at))
+
+
 class TrackingError(object):
     """Per-sample tracking error of a log: ``e`` (3-D) and ``e_h`` (horizontal) [m].
 

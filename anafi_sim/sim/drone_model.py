@@ -319,9 +319,10 @@ class AnafiModel(object):
             raise ValueError('translate needs finite offsets, got %r' % ((dx, dy, dz),))
         self.x += dx
         self.y += dy
-        self.z = max(0.0, self.z + dz)
+        z = max(0.0, self.z + dz)
         if self._hold is not None:
-            self._hold = (self._hold[0] + dx, self._hold[1] + dy, self._hold[2] + dz)
+            self._hold = (self._hold[0] + dx, self._hold[1] + dy, max(0.0, self._hold[2] + z - self.z))
+        self.z = z
 
     def set_command(self, roll_pct, pitch_pct, yaw_pct, gaz_pct, t):
         """One PCMD (integer percents, bridge signs) received at sim time ``t`` [s]."""

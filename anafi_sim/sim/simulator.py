@@ -76,8 +76,9 @@ class SimulatedAnafi(object):
     def translate(self, dx, dy, dz=0.0):
         """Move the drone and its estimate by (dx, dy, dz) [m] (``AnafiModel.translate``,
         ``StateEstimate.translate``): call between steps (same thread as ``step``)."""
+        z0 = self.model.z
         self.model.translate(dx, dy, dz)
-        self.estimate.translate(dx, dy, dz)
+        self.estimate.translate(dx, dy, self.model.z - z0)      # the model keeps z >= 0
 
     # ------------------------------------------------------------ loop
     def start(self, wall):

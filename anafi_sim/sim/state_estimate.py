@@ -291,8 +291,8 @@ class StateEstimate(object):
             return False
         for i in range(3):
             self._fused[i] += d[i]
-        if self._values is not None:
-            self._values = self._output(tuple(self._fused) + tuple(self._values[3:]))
+        if self._values is not None:                 # the held output moves along (it stays held)
+            self._values = self._output(tuple(self._values[i] + d[i] for i in range(3)) + tuple(self._values[3:]))
         return True
 
     def add_velocity_error(self, dvx, dvy, dvz=0.0):

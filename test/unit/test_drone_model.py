@@ -563,3 +563,13 @@ def test_translate_moves_the_drone_and_nothing_else():
                                          abs=1e-9)
     with pytest.raises(ValueError):
         b.translate(float('nan'), 0.0)
+
+
+def test_translate_moves_the_hold_point_of_a_hovering_drone():
+    model = flying_model(z=5.0)                       # hovering: the firmware holds (0, 0, 5)
+    run(model, 1.0)
+    model.translate(2.0, -1.0, 1.0)
+    run(model, 10.0, t0=1.0)
+    assert model.position() == pytest.approx((2.0, -1.0, 6.0), abs=1e-6)
+    model.translate(0.0, 0.0, -10.0)                  # never below the ground, the hold with it
+    assert model.position()[2] == 0.0

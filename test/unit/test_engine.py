@@ -210,6 +210,7 @@ def test_actions_run_once_at_their_time_after_the_start(short):
     assert len(seen) == 1
     now, started, position = seen[0]
     assert now == to_ns(started + 0.5) and position[2] > 1.0
-    for bad in ([(-1.0, lambda e: None)], [(0.5, 'not callable')], [(float('nan'), lambda e: None)]):
+    for bad in ([(-1.0, lambda e: None)], [(0.0, lambda e: None)], [(0.5, 'not callable')],
+                [(float('nan'), lambda e: None)]):
         with pytest.raises(ValueError):
             Engine(short, 'mpc', actions=bad)

@@ -37,8 +37,8 @@ KNOWN_OFF = {
     ('static_waypoint_yaw_180_mpc', 'estimate', 'e_mu'): 0.78,   # the yaw turn's coupling (docs/calibration.md)
     ('static_waypoint_yaw_180_mpc', 'truth', 'e_mu'): 0.76,
     ('x_straight_2_mpc', 'estimate', 'e_max'): 0.55,    # Sphinx's glitches
-    ('x_straight_2_mpc', 'truth', 'e_max'): 0.73,
-    ('x_straight_3_mpc', 'estimate', 'e_max'): 0.64,
+    ('x_straight_2_mpc', 'truth', 'e_max'): 0.74,
+    ('x_straight_3_mpc', 'estimate', 'e_max'): 0.63,
     ('x_straight_3_pid', 'truth', 'e_mu'): 0.80,        # horizontal (the log's z estimate is garbage, no normal flight)
     ('x_straight_5_mpc', 'estimate', 'e_max'): 0.75,    # Sphinx's glitch at 8.7 s
     ('x_straight_5_mpc', 'truth', 'e_max'): 0.76,

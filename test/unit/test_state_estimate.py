@@ -277,3 +277,25 @@ def test_a_velocity_error_decays_and_the_fusion_integrates_it():
     integral = -0.1 * T * (1.0 - math.exp(-1.0))                 # what dead reckoning would accumulate
     assert integral < drift < 0.5 * integral                     # the fix takes part of it back (k = 0.3)
     assert a.position()[1] == pytest.approx(1.0)
+
+
+def test_the_velocity_error_state_is_inert_without_an_error():
+    """Shipped on, the velocity error changes nothing in a flight: T > 0 and no error added is T = 0 bit for
+    bit (fusion, quantisation and yaw bias on)."""
+    extra = dict(FUSION, estimate_quantum_x=0.0175, estimate_quantum_velocity=1.0 / 256.0, estimate_yaw_bias=0.02)
+    a = make(delay=0.005, tau=0.015, **extra)
+    b = make(delay=0.005, tau=0.015, estimate_velocity_error_time_constant=4.1, **extra)
+    wobble = lambda t: (3.0 * t + math.sin(t), math.cos(2.0 * t), 5.0 + 0.1 * t, 3.0 + math.cos(t),
+                        -2.0 * math.sin(2.0 * t), 0.1, 0.05 * math.sin(t), 0.1, 0.3 * t)
+    assert [v for _, v in feed(a, wobble, 20.0)] == [v for _, v in feed(b, wobble, 20.0)]
+
+
+def test_an_added_position_error_keeps_the_output_held():
+    """Mid-hold, the published position moves by the error and stays held (not replaced by the running
+    fused state)."""
+    est = make(delay=0.0, tau=0.0, rate=20.0, **FUSION)
+    feed(est, cruise(4.0), 30.0)
+    feed(est, cruise(4.0), 30.02, t0=30.0 + DT)       # 20 ms into a 50 ms hold
+    held = est.values()
+    est.add_position_error(0.0, 0.1)
+    assert est.values()[0] == held[0] and est.values()[1] == pytest.approx(held[1] + 0.1)

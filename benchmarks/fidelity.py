@@ -388,7 +388,14 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
               'in the MPC logs, 4.4-5.4 deg in the PID logs) leaves the count at 46 / 56 and makes the attitude '
               'histories of the static PID steps worse (roll / pitch rms 0.39 / 1.19 -> 0.78 / 1.45 deg), so the '
               'truth yaw of the PID logs does not set the thrust direction the way the model\'s does; the replay '
-              'keeps the take-off heading at the log\'s estimate minus the shipped bias.',
+              'keeps the take-off heading at the log\'s estimate minus the shipped bias. Also tried and not kept: '
+              'separate roll and pitch loops (fitted on the static PID steps alone, roll tau 0.10 s with delay '
+              '0.175 s, pitch 0.24 s with 0.085 s, rms 0.0063 / 0.0130 rad against 0.0109 rad for the joint loop): '
+              'in closed loop no cell moves, the PID steps\' roll / pitch histories come closer (0.39 / 1.19 -> '
+              '0.30 / 0.89 deg, 3.21 / 4.55 -> 3.08 / 4.12 deg) and the MPC steps\' move away (1.21 / 1.76 -> 1.38 '
+              '/ 1.97 deg, 7.98 / 6.67 -> 8.56 / 6.49 deg). Not explained either: the PID steps overshoot more '
+              'across than Sphinx\'s (`step_response.overshoot` per axis, yaw 0: x / y 0.48 / 0.41 m, Sphinx 0.56 '
+              '/ 0.07 m; yaw 180: 1.13 / 1.32 m, Sphinx 0.78 / 0.22 m), with their e_mu and e_max in the band.',
               '']
     lines += [
         '## Every log: Sphinx vs the stand-in',

@@ -76,7 +76,8 @@ INITIAL_AHEAD = 0.1          # s, the initial state is set this long before log 
                              # enters log time 0 (>= 1.5 periods back) comes after it
 
 ReplayPlan = collections.namedtuple('ReplayPlan', 'log name controller scenario tick_log_time tick_tau '
-                                                  'scenario_offset ticks slips markers moving shift initial_state')
+                                                  'scenario_offset ticks slips markers moving shift initial_state '
+                                                  'stalls')
 ReplayPlan.__doc__ = ('How a log is replayed: log (ReferenceLog), name, controller (pid|mpc), scenario (Scenario), '
                       'tick_log_time (log time [s] of tick 0), tick_tau (trajectory time [s] of tick 0), '
                       'scenario_offset (scenario time [s] of log time 0), ticks (number of waypoint changes '
@@ -84,7 +85,9 @@ ReplayPlan.__doc__ = ('How a log is replayed: log (ReferenceLog), name, controll
                       'slipped; counted to the nearest tick, at least one), markers '
                       '(all-zero rows replaced by the hover point), moving (the log starts in motion), shift ((x, y) [m] '
                       'subtracted from the waypoints for the replay and added back to the stand-in\'s positions), '
-                      'initial_state (``InitialState`` the replay is put in at log time 0, or None).')
+                      'initial_state (``InitialState`` the replay is put in at log time 0, or None), stalls '
+                      '(((start, end) log times [s] of the estimate stalls the replay reproduces, ``log_stalls``; () '
+                      'by default).')
 
 InitialState = collections.namedtuple('InitialState', 'truth estimate velocity_error')
 InitialState.__doc__ = ('A log\'s state at log time 0: truth (x, y, z) [m], the estimate\'s position (x, y, z) [m] '
@@ -208,6 +211,47 @@ def log_initial_state(log, window=INITIAL_WINDOW, estimate_rate=20.0, at=-INITIA
     return InitialState(tuple(truth), tuple(estimate), velocity)
 
 
+STALL_SAMPLES = 3       # identical estimate rows in a row (while moving) that make a stall: 0.15 s at 20 Hz
+STALL_SPEED = 0.5       # m/s, the truth's speed above which an unchanged estimate is a stall, not a hover
+
+
+def log_stalls(log, samples=STALL_SAMPLES, speed=STALL_SPEED):
+    """((start, end), ...) log times [s] of the stalls of ``log``'s estimate stream: ``samples`` or more
+    consecutive rows with every estimate column unchanged while the truth moves faster than ``speed`` (the
+    published estimate held, then a jump to the current one; Sphinx's MPC lines at 2, 3 and 5 m/s show one
+    each, 4 rows long, and the MPC reacts to it). start: the first row of the run; end: the next row (the
+    estimate is fresh again)."""
+    est = np.column_stack([np.asarray(log.columns[n + '_anafi'], dtype=np.float64) for n in STATE_NAMES])
+    same = np.all(est[1:] == est[:-1], axis=1)
+    moving = np.hypot(log.columns['vx_sphinx'], log.columns['vy_sphinx']) > speed
+    t = log.t
+    out = []
+    k = 0
+    while k < len(same):
+        if not same[k]:
+            k += 1
+            continue
+        j = k
+        while j < len(same) and same[j]:
+            j += 1
+        if j - k + 1 >= samples and np.all(moving[k:j + 1]) and j + 1 < len(t):
+            out.append((float(t[k]), float(t[j + 1])))
+        k = j
+    return tuple(out)
+
+
+def stall_actions(plan, rate=20.0):
+    """Engine actions that hold the stand-in's published estimate over ``plan.stalls`` (from the sim time of
+    each stall's first row to half an estimate period before its end: ``standin_log`` reads the estimate that
+    far back)."""
+    out = []
+    for start, end in plan.stalls:
+        def action(engine, end=end):
+            engine.sim.estimate.stall(float(engine.started_at) + plan.scenario_offset + end - 0.5 / rate)
+        out.append((plan.scenario_offset + start, action))
+    return out
+
+
 def initial_state_action(plan):
     """fn(engine) that puts the replay of ``plan`` in the log's initial state (``plan.initial_state``, run
     ``INITIAL_AHEAD`` before log time 0). With the position fusion: the drone (and its estimate's history)
@@ -239,14 +283,15 @@ def initial_state_action(plan):
 
 
 def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latency=None, controller=None,
-                initial_state=True):
+                initial_state=True, stalls=False):
     """The ``ReplayPlan`` of ``log`` (see the module doc).
 
     rate [Hz]: the waypoint stream's; lead [s]: lead-in for a log that starts in motion; approach [s]: hover
     at the start first (default ``APPROACH_MOVING`` / ``APPROACH_STATIC``); latency [s]: how long before the
     logger's first sample of a new waypoint it was published (default half the log's sample period);
     controller: 'pid' | 'mpc' (default from the log's name); initial_state: put the replay in the log's state
-    at log time 0 (``log_initial_state``, ``initial_state_action``).
+    at log time 0 (``log_initial_state``, ``initial_state_action``); stalls: hold the stand-in's estimate where
+    the log's estimate stream stalled (``log_stalls``, ``stall_actions``).
     """
     if controller is None:
         controller = parse_name(log.name)[1]
@@ -321,7 +366,7 @@ def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latenc
     scenario_offset = float(approach) + tau_log0        # scenario time of log time 0
     return ReplayPlan(log, log.name, controller, scenario, tick_log_time, first_tick_tau, scenario_offset,
                       len(changes), slips, markers, moving, shift,
-                      log_initial_state(log) if initial_state else None)
+                      log_initial_state(log) if initial_state else None, log_stalls(log) if stalls else ())
 
 
 # ---------------------------------------------------------------------------------------------- runs
@@ -453,8 +498,8 @@ def run_replay(plan, variant=None, seed=None):
                         model_params=model,
                         name='%s_%s' % (plan.name, name),
                         max_sim_time=plan.scenario.duration + 60.0,
-                        actions=[(plan.scenario_offset - INITIAL_AHEAD, initial_state_action(plan))]
-                        if plan.initial_state is not None else None)
+                        actions=([(plan.scenario_offset - INITIAL_AHEAD, initial_state_action(plan))]
+                                 if plan.initial_state is not None else []) + stall_actions(plan))
         result = engine.run()
     except (ValueError, RuntimeError, KeyError) as error:
         return Replay(plan, variant, False, '%s: %s' % (type(error).__name__, error), None, {}, {}, {})

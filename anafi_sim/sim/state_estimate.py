@@ -271,6 +271,17 @@ class StateEstimate(object):
         if self._values is not None:
             self._values = self._output(moved(self._values))
 
+    def stall(self, until):
+        """Hold the published output until time ``until`` [s] (caller time), as a stalled estimate stream
+        does (Sphinx's MPC lines each show one: the same estimate for 0.15-0.2 s, then a jump to the current
+        one); the filters keep running underneath, the next sample at or after ``until`` is the current
+        estimate. No effect before the first update."""
+        until = float(until)
+        if not math.isfinite(until):
+            raise ValueError('stall needs a finite time, got %r' % (until,))
+        if self._values is not None:
+            self._next_sample = max(self._next_sample, until)
+
     @property
     def position_state(self):
         """(x, y, z) [m] of the position estimate before hold and quantisation: the fusion's state with the

@@ -207,6 +207,26 @@ def test_the_replay_starts_from_the_logs_state_and_its_estimate_error_decays():
     assert plain.standin.columns['y_sphinx'][0] == pytest.approx(0.1, abs=0.03)
 
 
+def test_estimate_stalls_are_found_and_replayed():
+    """A line whose estimate holds for 4 rows at 3 s while the truth moves: one stall (start, end) found; a
+    hovering (not moving) repeat is none; the replay with stalls holds the stand-in's estimate there."""
+    log = line_log(speed=3.0, x0=100.0, n=200)
+    for name in ('x', 'vx'):
+        column = log.columns[name + '_anafi']
+        column[60:64] = column[60]
+    log.columns['vx_sphinx'] = np.full(len(log), 3.0)
+    assert F.log_stalls(log) == ((pytest.approx(3.0), pytest.approx(3.2)),)
+    log.columns['vx_sphinx'][:] = 0.0
+    assert F.log_stalls(log) == ()
+    log.columns['vx_sphinx'][:] = 3.0
+    plan = F.replay_plan(log, stalls=True)
+    assert plan.stalls and F.replay_plan(log).stalls == ()
+    rep = F.run_replay(plan)
+    assert rep.ok, rep.error
+    x = rep.standin.columns['x_anafi']
+    assert np.ptp(x[61:63]) == 0.0 and x[65] - x[63] > 0.2       # held, then moving again
+
+
 def test_log_names_say_the_controller():
     assert F.parse_name('x_straight_5_mpc') == ('x_straight_5', 'mpc')
     with pytest.raises(ValueError):

@@ -299,3 +299,16 @@ def test_an_added_position_error_keeps_the_output_held():
     held = est.values()
     est.add_position_error(0.0, 0.1)
     assert est.values()[0] == held[0] and est.values()[1] == pytest.approx(held[1] + 0.1)
+
+
+def test_a_stall_holds_the_output_then_jumps_to_the_current_estimate():
+    est = make(delay=0.0, tau=0.0, rate=20.0, **FUSION)
+    feed(est, cruise(2.0), 10.0)
+    held = est.values()
+    est.stall(10.2)
+    out = feed(est, cruise(2.0), 10.3, t0=10.0 + DT)
+    assert all(v == held for t, v in out if t < 10.2 - 1e-9)
+    after = [v for t, v in out if t >= 10.2]
+    assert after[0][0] == pytest.approx(held[0] + 2.0 * 0.2, abs=0.02)      # fresh: the filters kept running
+    with pytest.raises(ValueError):
+        est.stall(float('nan'))

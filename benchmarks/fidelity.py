@@ -202,7 +202,8 @@ def main(argv=None):
             new = F.replay_all(log_paths, phases, workers=args.workers)
         else:
             new = {}
-            t3.update(F.table3_runs([v for v in run_variants if v.name not in ('settled', 'stalls')], workers=args.workers))
+            t3.update(F.table3_runs([v for v in run_variants if v.name not in ('settled', 'stalls')],
+                                    workers=args.workers))
         records.update((k, strip(r)) for k, r in new.items())
         walls[step] = round(time.perf_counter() - t, 1)
         save()
@@ -330,7 +331,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
               'to 19 cm across the line (x_straight_4_pid), with a velocity estimate off by up to 0.11 m/s across it '
               '(docs/calibration.md), all decaying within the log: the history of each run (take-off, approach), '
               'which the replay now starts from. Those e_max cells sit in the first 1.2 s of the logs, where the '
-              'replay starts at the log\'s state (the summary\'s second table leaves the first second out); after the first second the truth e_mu of x_straight_1/3/4_mpc '
+              'replay starts at the log\'s state (the summary\'s second table leaves the first second out); after '
+              'the first second the truth e_mu of x_straight_1/3/4_mpc '
               'is 0.085 / 0.164 / 0.187 m against Sphinx\'s 0.090 / 0.158 / 0.177 m: the decay is the model\'s '
               '(fusion gain k, velocity-error time constant T), not set from the log. The lag\'s drift follows '
               '(x_straight_4_mpc, 2 s bins: Sphinx 0.262, 0.253, 0.245, 0.237 s; the replay 0.264, 0.258, 0.254, '
@@ -377,7 +379,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
               'steps overshoot more than Sphinx\'s (overshoot as above; yaw 0: Sphinx 0.215 m, shipped 0.19 m, '
               'with paper_timing 0.48 m; yaw 180: 0.83, 0.57, 1.13 m); Table 3 is '
               '10 / 10 either way and the circles move by 0-6 %. With the tilt-rate limit on, paper_timing matches '
-              'the overshoots too (0.26 and 0.78 m): that pair is the candidate for the held-out check, together with the vertical loop of the MPC runs, which is not '
+              'the overshoots too (0.26 and 0.78 m): that pair is the candidate for the held-out check, together '
+              'with the vertical loop of the MPC runs, which is not '
               'identified (their climbs reach 2.4 m/s under a 2.0 m/s command, the PID runs\' do not: '
               'docs/calibration.md).', '',
               'What remains off with the shipped defaults, and why (not modelled: the logs do not identify it): '
@@ -397,7 +400,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
               'applied about the body z axis with its Euler coupling into roll and pitch, either sign, moves these '
               'e_mu by +-0.03 and brings the roll / pitch histories no closer). What a model would have to '
               'reproduce: through the turn Sphinx\'s tilt keeps its magnitude (25-30 deg) and turns in the body '
-              'frame with the yaw at 100-140 deg/s (from 23 to -166 deg in 1.65 s, the long way round), where the MPC\'s command '
+              'frame with the yaw at 100-140 deg/s (from 23 to -166 deg in 1.65 s, the long way round), where the '
+              'MPC\'s command '
               '(recomputed from the log) swings from 31 to -150 deg through ~5 deg of tilt. Tried and not kept: '
               'a per-log heading (the replay\'s true yaw at the log\'s, i.e. the yaw bias of each log: 0.9-1.8 deg '
               'in the MPC logs, 4.4-5.4 deg in the PID logs) leaves the count at 46 / 56 and makes the attitude '

@@ -24,6 +24,8 @@ shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenari
    (``log_initial_state``, ``initial_state_action``; ``replay_plan(initial_state=False)``: not): the truth at
    the log's position and, as far as the model has the states, the estimate's position and velocity errors
    at the log's (Sphinx's lines start with errors their approach left, which decay within the log).
+   ``replay_plan(stalls=True)`` also holds the stand-in's published estimate where the log's estimate stream
+   stalled (``log_stalls``, ``stall_actions``: one 0.15-0.2 s stall in each of x_straight_2/3/5_mpc).
 3. ``cells``: e_mu and e_max against the estimate and against ground truth with
    ``reference_log.tracking_error`` (the function the paper's Table 3 recomputation uses, garbage excluded);
    in a log whose 3-D estimate error is all garbage (x_straight_2/3_pid: z_anafi wrapped at 16 bit, the drone

@@ -30,7 +30,7 @@ from scipy.optimize import minimize, minimize_scalar
 from scipy.signal import lfilter, savgol_filter
 
 from anafi_sim.experiments.reference_log import (INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES, detect_garbage,
-                                                 initial_velocity_error, tracking_error)
+                                                 initial_velocity_error, tracking_error, velocity_error)
 from anafi_sim.experiments.report import PAPER_TABLE3
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF
 
@@ -851,15 +851,12 @@ def _velocity_error_series(logs, window):
     for log in logs:
         if log.name.startswith('static'):
             continue
-        garbage = detect_garbage(log)
         t = log.t - log.t[0]
         for axis in VELOCITY_ERROR_AXES:
             b0 = initial_velocity_error(log, axis, window)
             if not math.isfinite(b0):
                 continue
-            b = np.asarray(log.columns['v%s_anafi' % axis], dtype=np.float64) - np.asarray(
-                log.columns['v%s_sphinx' % axis], dtype=np.float64)
-            ok = ~garbage.mask('v%s_anafi' % axis, 'v%s_sphinx' % axis) & np.isfinite(b)
+            b, ok = velocity_error(log, axis)
             series.append((log.name, axis, t[ok], b[ok], b0))
     return series
 

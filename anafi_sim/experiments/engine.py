@@ -505,8 +505,9 @@ class Engine(object):
     DEFAULT_SCHEDULE; model_params: the model dict (default anafi_model.yaml); state_source: 'estimate'
     (drone/odom, the paper) or 'truth' (ground_truth/odom); name: the run's name (default
     SCENARIO_CONTROLLER); max_sim_time: give up after this many simulated seconds (default: the scenario's
-    duration + 120 s); actions: [(s > 0 after the scenario's start, fn(engine))], called at those simulated times
-    before the physics step of that instant (the step's state, sampled at that time, shows the action) (e.g. the fidelity replay's initial state, ``anafi_sim.experiments.fidelity``).
+    duration + 120 s); actions: [(s > 0 after the scenario's start, fn(engine))], called at those simulated
+    times before the physics step of that instant, whose state then shows the action (e.g. the fidelity
+    replay's initial state, ``anafi_sim.experiments.fidelity``).
     """
 
     def __init__(self, scenario, controller='mpc', seed=None, wind=None, settings=None, controller_params=None,

@@ -242,13 +242,14 @@ def log_stalls(log, samples=STALL_SAMPLES, speed=STALL_SPEED):
     return tuple(out)
 
 
-def stall_actions(plan, rate=20.0):
+def stall_actions(plan):
     """Engine actions that hold the stand-in's published estimate over ``plan.stalls`` (from the sim time of
     each stall's first row to half an estimate period before its end: ``standin_log`` reads the estimate that
     far back)."""
     out = []
     for start, end in plan.stalls:
         def action(engine, end=end):
+            rate = float(engine.model_params['estimate_rate'])
             engine.sim.estimate.stall(float(engine.started_at) + plan.scenario_offset + end - 0.5 / rate)
         out.append((plan.scenario_offset + start, action))
     return out

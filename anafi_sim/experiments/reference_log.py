@@ -341,16 +341,21 @@ VELOCITY_ERROR_AXES = ('x', 'y')
 level: z shows none to fit)."""
 
 
-def initial_velocity_error(log, axis, window=INITIAL_WINDOW, at=0.0):
-    """The velocity estimate's error v_anafi - v_sphinx [m/s] on ``axis`` ('x', 'y', 'z') at log time
-    t0 + ``at`` [s]: ``line_value`` through its first ``window`` s, garbage samples left out (NaN when fewer
-    than two remain). The straight-line logs start with such an error, which decays (docs/calibration.md)."""
-    garbage = detect_garbage(log)
-    t = log.t
+def velocity_error(log, axis):
+    """(b, ok): the velocity estimate's error v_anafi - v_sphinx [m/s] on ``axis`` ('x', 'y', 'z') per
+    sample, and where it is valid (finite, no garbage in either column)."""
     b = np.asarray(log.columns['v%s_anafi' % axis], dtype=np.float64) - np.asarray(
         log.columns['v%s_sphinx' % axis], dtype=np.float64)
-    ok = (t <= t[0] + float(window)) & ~garbage.mask('v%s_anafi' % axis, 'v%s_sphinx' % axis)
-    return line_value(t, b, ok, t[0] + float(at))
+    return b, np.isfinite(b) & ~detect_garbage(log).mask('v%s_anafi' % axis, 'v%s_sphinx' % axis)
+
+
+def initial_velocity_error(log, axis, window=INITIAL_WINDOW, at=0.0):
+    """``velocity_error`` on ``axis`` at log time t0 + ``at`` [s]: ``line_value`` through its first ``window``
+    s of valid samples (NaN when fewer than two). The straight-line logs start with such an error, which
+    decays (docs/calibration.md)."""
+    b, ok = velocity_error(log, axis)
+    t = log.t
+    return line_value(t, b, ok & (t <= t[0] + float(window)), t[0] + float(at))
 
 
 class TrackingError(object):

@@ -6,8 +6,8 @@ simulation time (as rospy.Time / rospy.Duration hold them), so periods such as 1
 the nodes and two runs order their events identically.
 
 - ``EventLoop``: callbacks at simulation times; events at the same time run by ``order`` (``ACTION``
-  first, then ``PHYSICS``: the simulator's step publishes /clock before anything at that instant looks at the clock, then
-  ``DELIVERY`` of messages, then ``TIMER`` callbacks), then first come, first served;
+  first, then ``PHYSICS``: the simulator's step publishes /clock before anything at that instant looks at
+  the clock, then ``DELIVERY`` of messages, then ``TIMER`` callbacks), then first come, first served;
 - ``NodeClock``: what ``rospy.get_time()`` returns in a node under /use_sim_time: the newest /clock value
   it has received. /clock comes after every physics step (a grid of ``period``) and reaches the node
   ``latency`` later;

@@ -91,6 +91,22 @@ def validate_effects(params):
     return clean
 
 
+def _finite(what, values):
+    """``values`` as a tuple of floats; ValueError naming ``what`` unless all are finite."""
+    values = tuple(float(v) for v in values)
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError('%s needs finite values, got %r' % (what, values))
+    return values
+
+
+def _shifted(values, d, start=0):
+    """``values`` (a sequence) with the 3-vector ``d`` added at indices start..start+2; a tuple."""
+    out = list(values)
+    for i in range(3):
+        out[start + i] += d[i]
+    return tuple(out)
+
+
 def _quantise(value, quantum):
     """``value`` rounded to the nearest multiple of ``quantum`` (> 0)."""
     return round(value / quantum) * quantum
@@ -256,29 +272,22 @@ class StateEstimate(object):
         """The world moved by (dx, dy, dz) [m] (``AnafiModel.translate``): every stored position moves along
         (truth history, fixes, smoothed and fused position, the current output), so the estimate's errors
         stay what they were."""
-        d = (float(dx), float(dy), float(dz))
-        if not all(math.isfinite(v) for v in d):
-            raise ValueError('translate needs finite offsets, got %r' % (d,))
-
-        def moved(p):
-            return (p[0] + d[0], p[1] + d[1], p[2] + d[2]) + tuple(p[3:])
-        self._history = collections.deque((t, moved(row)) for t, row in self._history)
-        self._fixes = collections.deque((t, moved(p)) for t, p in self._fixes)
+        d = _finite('translate', (dx, dy, dz))
+        self._history = collections.deque((t, _shifted(row, d)) for t, row in self._history)
+        self._fixes = collections.deque((t, _shifted(p, d)) for t, p in self._fixes)
         if self._smooth is not None:
-            self._smooth = list(moved(self._smooth))
+            self._smooth = list(_shifted(self._smooth, d))
         if self._fused is not None:
-            self._fused = list(moved(self._fused))
+            self._fused = list(_shifted(self._fused, d))
         if self._values is not None:
-            self._values = self._output(moved(self._values))
+            self._values = self._output(_shifted(self._values, d))
 
     def stall(self, until):
         """Hold the published output until time ``until`` [s] (caller time), as a stalled estimate stream
         does (Sphinx's MPC lines each show one: the same estimate for 0.15-0.2 s, then a jump to the current
         one); the filters keep running underneath, the next sample at or after ``until`` is the current
         estimate. No effect before the first update."""
-        until = float(until)
-        if not math.isfinite(until):
-            raise ValueError('stall needs a finite time, got %r' % (until,))
+        until, = _finite('stall', (until,))
         if self._values is not None:
             self._next_sample = max(self._next_sample, until)
 
@@ -295,33 +304,24 @@ class StateEstimate(object):
         corrects toward the fix, 1/``estimate_position_fix_gain``), e.g. to start a replay from a logged
         estimate error. Only with ``estimate_position_fusion`` (without it the position is the delayed truth
         and holds no error of its own): returns False and changes nothing then, or before the first update."""
-        d = (float(dx), float(dy), float(dz))
-        if not all(math.isfinite(v) for v in d):
-            raise ValueError('add_position_error needs finite offsets, got %r' % (d,))
+        d = _finite('add_position_error', (dx, dy, dz))
         if not self.fusion or self._fused is None:
             return False
-        for i in range(3):
-            self._fused[i] += d[i]
+        self._fused = list(_shifted(self._fused, d))
         if self._values is not None:                 # the held output moves along (it stays held)
-            self._values = self._output(tuple(self._values[i] + d[i] for i in range(3)) + tuple(self._values[3:]))
+            self._values = self._output(_shifted(self._values, d))
         return True
 
     def add_velocity_error(self, dvx, dvy, dvz=0.0):
         """Add (dvx, dvy, dvz) [m/s] to the velocity estimate's own error (it decays with
         ``estimate_velocity_error_time_constant``; the fusion integrates it), e.g. to start a replay from a
         logged velocity estimate. Returns False and changes nothing when that time constant is 0 (off)."""
-        d = (float(dvx), float(dvy), float(dvz))
-        if not all(math.isfinite(v) for v in d):
-            raise ValueError('add_velocity_error needs finite values, got %r' % (d,))
+        d = _finite('add_velocity_error', (dvx, dvy, dvz))
         if self.velocity_error_time_constant <= 0.0:
             return False
-        for i in range(3):
-            self._velocity_error[i] += d[i]
+        self._velocity_error = list(_shifted(self._velocity_error, d))
         if self._values is not None:
-            values = list(self._values)
-            for i in range(3):
-                values[3 + i] += d[i]
-            self._values = self._output(values)
+            self._values = self._output(_shifted(self._values, d, 3))
         return True
 
     @property

@@ -26,6 +26,8 @@ shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenari
    at the log's (Sphinx's lines start with errors their approach left, which decay within the log).
    ``replay_plan(stalls=True)`` also holds the stand-in's published estimate where the log's estimate stream
    stalled (``log_stalls``, ``stall_actions``: one 0.15-0.2 s stall in each of x_straight_2/3/5_mpc).
+   The stand-in's columns are stored as the logger stored Sphinx's (half floats, ``reference_log.as_logged``;
+   ``replay_plan(stored=False)``: unrounded), so both logs are measured alike.
 3. ``cells``: e_mu and e_max against the estimate and against ground truth with
    ``reference_log.tracking_error`` (the function the paper's Table 3 recomputation uses, garbage excluded);
    in a log whose 3-D estimate error is all garbage (x_straight_2/3_pid: z_anafi wrapped at 16 bit, the drone
@@ -55,7 +57,7 @@ from anafi_sim.experiments import report
 from anafi_sim.experiments.engine import Engine
 from anafi_sim.experiments.evaluation import interpolate
 from anafi_sim.experiments.reference_log import (COLUMNS, INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES,
-                                                 WAYPOINT_COLUMNS, ReferenceLog, detect_garbage,
+                                                 WAYPOINT_COLUMNS, ReferenceLog, as_logged, detect_garbage,
                                                  initial_velocity_error, line_value, read_log, tracking_error)
 from anafi_sim.experiments.trajectory import Phase, Scenario, WaypointSample
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, load_model_params
@@ -79,7 +81,7 @@ INITIAL_AHEAD = 0.1          # s, the initial state is set this long before log 
 
 ReplayPlan = collections.namedtuple('ReplayPlan', 'log name controller scenario tick_log_time tick_tau '
                                                   'scenario_offset ticks slips markers moving shift initial_state '
-                                                  'stalls')
+                                                  'stalls stored')
 ReplayPlan.__doc__ = ('How a log is replayed: log (ReferenceLog), name, controller (pid|mpc), scenario (Scenario), '
                       'tick_log_time (log time [s] of tick 0), tick_tau (trajectory time [s] of tick 0), '
                       'scenario_offset (scenario time [s] of log time 0), ticks (number of waypoint changes '
@@ -89,7 +91,8 @@ ReplayPlan.__doc__ = ('How a log is replayed: log (ReferenceLog), name, controll
                       'subtracted from the waypoints for the replay and added back to the stand-in\'s positions), '
                       'initial_state (``InitialState`` the replay is put in at log time 0, or None), stalls '
                       '(((start, end) log times [s] of the estimate stalls the replay reproduces, ``log_stalls``; () '
-                      'by default).')
+                      'by default), stored (``standin_log`` stores the stand-in\'s columns as the logs store theirs: '
+                      'half floats, ``reference_log.as_logged``).')
 
 InitialState = collections.namedtuple('InitialState', 'truth estimate velocity_error')
 InitialState.__doc__ = ('A log\'s state at log time 0: truth (x, y, z) [m], the estimate\'s position (x, y, z) [m] '
@@ -286,7 +289,7 @@ def initial_state_action(plan):
 
 
 def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latency=None, controller=None,
-                initial_state=True, stalls=False):
+                initial_state=True, stalls=False, stored=True):
     """The ``ReplayPlan`` of ``log`` (see the module doc).
 
     rate [Hz]: the waypoint stream's; lead [s]: lead-in for a log that starts in motion; approach [s]: hover
@@ -294,7 +297,8 @@ def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latenc
     logger's first sample of a new waypoint it was published (default half the log's sample period);
     controller: 'pid' | 'mpc' (default from the log's name); initial_state: put the replay in the log's state
     at log time 0 (``log_initial_state``, ``initial_state_action``); stalls: hold the stand-in's estimate where
-    the log's estimate stream stalled (``log_stalls``, ``stall_actions``).
+    the log's estimate stream stalled (``log_stalls``, ``stall_actions``); stored: ``standin_log`` stores the
+    stand-in's columns as the logger stored Sphinx's (``reference_log.as_logged``; False: unrounded).
     """
     if controller is None:
         controller = parse_name(log.name)[1]
@@ -369,7 +373,8 @@ def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latenc
     scenario_offset = float(approach) + tau_log0        # scenario time of log time 0
     return ReplayPlan(log, log.name, controller, scenario, tick_log_time, first_tick_tau, scenario_offset,
                       len(changes), slips, markers, moving, shift,
-                      log_initial_state(log) if initial_state else None, log_stalls(log) if stalls else ())
+                      log_initial_state(log) if initial_state else None, log_stalls(log) if stalls else (),
+                      bool(stored))
 
 
 # ---------------------------------------------------------------------------------------------- runs
@@ -393,8 +398,11 @@ def standin_log(plan, engine):
     phase drifts against the estimate's (Sphinx's estimate changes at 19.5 Hz, the logs sample at 20 Hz)
     sees it on average: the estimate's own samples (``estimate_samples``) interpolated half a sample period
     back (the mean of a zero-order hold over a uniform phase; a fixed phase would bias e by up to half a
-    sample of motion, 0.025 m at 1 m/s). NaN where the run has no sample. ``engine``: an Engine after
-    ``run()``."""
+    sample of motion, 0.025 m at 1 m/s). NaN where the run has no sample. With ``plan.stored`` (default) both
+    are then stored as the logger stored Sphinx's values (``reference_log.as_logged``: the shortest repr of
+    the half float, a 0.0625-0.125 m grid at 64-256 m), so the stand-in's e_max sees the same rounding as
+    Sphinx's (x_straight_2_mpc's truth e_max is one sample stored 0.2 m ahead of the waypoint: "81.4" for the
+    half float 81.375). ``engine``: an Engine after ``run()``."""
     log = plan.log
     if engine.started_at is None:
         raise ValueError('the replay of %s never started (the monitor\'s start rule did not pass)' % plan.name)
@@ -418,6 +426,9 @@ def standin_log(plan, engine):
     for rows in (truth_rows, est_rows):
         rows[:, 0] += plan.shift[0]
         rows[:, 1] += plan.shift[1]
+    if plan.stored:                           # like for like: the logger stored Sphinx's values as half floats
+        truth_rows = as_logged(truth_rows)
+        est_rows = as_logged(est_rows)
     for j, name in enumerate(STATE_NAMES):
         columns['%s_sphinx' % name] = truth_rows[:, j]
     for j, name in enumerate(STATE_NAMES):

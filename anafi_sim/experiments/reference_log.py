@@ -205,10 +205,24 @@ def read_log(path):
                         extra_columns=extra)
 
 
+def as_logged(values):
+    """``values`` as the reference logs store them: the shortest decimal repr of their IEEE half float, read
+    back as a float (float64 array of the same shape; non-finite values kept). The logs' columns are all on
+    this grid, which is coarse far from the origin: at 64-128 m a 0.0625 m float16 step, whose shortest repr
+    moves it by up to another 0.025 m (81.375 is stored as "81.4"); at 128-256 m 0.125 m. Beyond the half
+    float's range (65504) a value becomes inf, as a half float does."""
+    out = np.array(values, dtype=np.float64)
+    flat = out.reshape(-1)
+    with np.errstate(over='ignore'):
+        for i in np.flatnonzero(np.isfinite(flat)):
+            flat[i] = float(str(np.float16(flat[i])))
+    return out
+
+
 def _format_value(value, float16):
     value = float(value)
     if float16:
-        return str(float(str(np.float16(value))))   # shortest repr of the half float, as the reference logs
+        return str(float(as_logged(value)))         # shortest repr of the half float, as the reference logs
     return repr(value)
 
 

@@ -19,7 +19,7 @@ import pytest
 
 from anafi_sim import paths
 from anafi_sim.experiments import fidelity as F
-from anafi_sim.experiments.reference_log import COLUMNS, ReferenceLog, read_log
+from anafi_sim.experiments.reference_log import COLUMNS, ReferenceLog, as_logged, read_log
 from anafi_sim.sim.drone_model import load_model_params
 
 BAND = 0.15
@@ -30,18 +30,18 @@ LOGS = tuple('static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('m
 
 # (log, source, stat) -> ratio stand-in / Sphinx measured with the shipped defaults (position fusion and the
 # velocity error's decay on, descent limit off, yaw bias and quantisation on, speed-gated tilt attenuation on; MPC
-# paper_timing false; the timing of mpc.yaml; the replay starts from the log's initial state) where it is outside
+# paper_timing false; the timing of mpc.yaml; the replay starts from the log's initial state; the stand-in's columns
+# stored as half floats like the logs') where it is outside
 # +-15 % (benchmarks/fidelity.py, docs/fidelity.md). Do not widen the band: update this list when a model change
 # moves a cell, and say so in the change.
 KNOWN_OFF = {
     ('static_waypoint_yaw_180_mpc', 'estimate', 'e_mu'): 0.78,   # the yaw turn's coupling (docs/calibration.md)
     ('static_waypoint_yaw_180_mpc', 'truth', 'e_mu'): 0.76,
-    ('x_straight_2_mpc', 'estimate', 'e_max'): 0.55,    # Sphinx's glitches
-    ('x_straight_2_mpc', 'truth', 'e_max'): 0.74,
+    ('x_straight_2_mpc', 'estimate', 'e_max'): 0.57,    # Sphinx's estimate stalls (docs/fidelity.md)
     ('x_straight_3_mpc', 'estimate', 'e_max'): 0.63,
     ('x_straight_3_pid', 'truth', 'e_mu'): 0.80,        # horizontal (the log's z estimate is garbage, no normal flight)
-    ('x_straight_5_mpc', 'estimate', 'e_max'): 0.75,    # Sphinx's glitch at 8.7 s
-    ('x_straight_5_mpc', 'truth', 'e_max'): 0.76,
+    ('x_straight_5_mpc', 'estimate', 'e_max'): 0.76,    # the stall at 8.7 s
+    ('x_straight_5_mpc', 'truth', 'e_max'): 0.80,       # one truth sample 0.108 m off its neighbours' line (0.60 s)
 }
 
 
@@ -225,6 +225,25 @@ def test_estimate_stalls_are_found_and_replayed():
     assert rep.ok, rep.error
     x = rep.standin.columns['x_anafi']
     assert np.ptp(x[61:63]) == 0.0 and x[65] - x[63] > 0.2       # held, then moving again
+
+
+def test_the_standin_columns_are_stored_as_the_logs_store_theirs():
+    """Like for like: the stand-in's columns pass through the logger's half-float storage (a 0.0625 m grid
+    plus its shortest repr at 64-128 m), unless the plan says not; the waypoint columns are the log's."""
+    log = line_log(speed=2.0, x0=100.0, n=120)
+    stored = F.run_replay(F.replay_plan(log))
+    raw = F.run_replay(F.replay_plan(log, stored=False))
+    assert stored.ok and raw.ok, (stored.error, raw.error)
+    assert stored.plan.stored and not raw.plan.stored
+    for name in ('x_sphinx', 'x_anafi', 'y_sphinx', 'vx_anafi', 'roll_sphinx'):
+        a, b = stored.standin.columns[name], raw.standin.columns[name]
+        ok = np.isfinite(b)
+        assert np.array_equal(as_logged(a[ok]), a[ok]), name           # on the logs' grid
+        assert np.max(np.abs(a[ok] - b[ok])) <= 0.0625, name            # half a step + the repr, at most
+    x, x_raw = stored.standin.columns['x_sphinx'], raw.standin.columns['x_sphinx']
+    assert not np.array_equal(as_logged(x_raw), x_raw)                   # unrounded: off the grid
+    assert np.max(np.abs(x - x_raw)) > 0.01
+    assert np.array_equal(stored.standin.columns['wp_x'], log.columns['wp_x'])
 
 
 def test_log_names_say_the_controller():

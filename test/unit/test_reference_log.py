@@ -5,7 +5,7 @@ import os
 import numpy as np
 import pytest
 
-from anafi_sim.experiments.reference_log import (COLUMNS, ReferenceLog, detect_garbage, horizontal_tracking_error,
+from anafi_sim.experiments.reference_log import (COLUMNS, ReferenceLog, as_logged, detect_garbage, horizontal_tracking_error,
                                      read_log, tracking_error, write_log)
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -89,6 +89,20 @@ def test_truth_error_differs_from_estimate_error(logs):
     assert truth < est - 0.5          # the estimate trails the truth by ~0.23 s at 5 m/s
 
 
+def test_every_shared_log_column_is_stored_as_half_floats(logs):
+    """``as_logged`` is the logs' storage: every value of every shared log is one of its fixed points, and a
+    value off that grid is moved onto it (81.375, a half float, is stored as its shortest repr 81.4)."""
+    for name, log in logs.items():
+        for column in COLUMNS[1:]:
+            values = log.columns[column]
+            ok = np.isfinite(values)
+            assert np.array_equal(as_logged(values)[ok], values[ok]), (name, column)
+    assert float(as_logged(81.375)) == 81.4 and float(as_logged(81.35)) == 81.4
+    assert float(as_logged(155.6)) == 155.6 and float(as_logged(155.55)) == 155.5
+    out = as_logged([[0.1, np.nan], [1e9, -np.inf]])
+    assert out.shape == (2, 2) and out[0, 0] == 0.1 and np.isnan(out[0, 1]) and out[1, 0] == np.inf
+
+
 def test_real_log_float16_round_trip(logs, tmp_path):
     log = logs['x_straight_1_mpc']
     path = str(tmp_path / 'copy.csv')
@@ -123,6 +137,8 @@ def test_write_float16_rounds_like_the_reference_logs(tmp_path):
     expected = np.float16(cols['x_sphinx']).astype(np.float64)
     assert np.array_equal(np.float16(log.x_sphinx).astype(np.float64), expected)
     assert not np.array_equal(log.x_sphinx, cols['x_sphinx'])
+    for name in COLUMNS[1:]:                        # what as_logged gives is exactly what the file holds
+        assert np.array_equal(log.columns[name], as_logged(cols[name])), name
 
 
 def test_write_rejects_missing_or_ragged_columns(tmp_path):

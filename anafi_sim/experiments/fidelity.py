@@ -24,8 +24,10 @@ shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenari
    (``log_initial_state``, ``initial_state_action``; ``replay_plan(initial_state=False)``: not): the truth at
    the log's position and, as far as the model has the states, the estimate's position and velocity errors
    at the log's (Sphinx's lines start with errors their approach left, which decay within the log).
-   ``replay_plan(stalls=True)`` also holds the stand-in's published estimate where the log's estimate stream
-   stalled (``log_stalls``, ``stall_actions``: one 0.15-0.2 s stall in each of x_straight_2/3/5_mpc).
+   The replay also holds the stand-in's published estimate where the log's estimate stream stalled
+   (``log_stalls``, ``stall_actions``: one 0.2-0.25 s stall in each of x_straight_2/3/5_mpc, which the MPC saw
+   and reacted to: a condition of the run, replayed like its waypoint stream; ``replay_plan(stalls=False)``:
+   not).
    The stand-in's columns are stored as the logger stored Sphinx's (half floats, ``reference_log.as_logged``;
    ``replay_plan(stored=False)``: unrounded), so both logs are measured alike.
 3. ``cells``: e_mu and e_max against the estimate and against ground truth with
@@ -91,7 +93,7 @@ ReplayPlan.__doc__ = ('How a log is replayed: log (ReferenceLog), name, controll
                       'subtracted from the waypoints for the replay and added back to the stand-in\'s positions), '
                       'initial_state (``InitialState`` the replay is put in at log time 0, or None), stalls '
                       '(((start, end) log times [s] of the estimate stalls the replay reproduces, ``log_stalls``; () '
-                      'by default), stored (``standin_log`` stores the stand-in\'s columns as the logs store theirs: '
+                      'when the log has none or the plan leaves them out), stored (``standin_log`` stores the stand-in\'s columns as the logs store theirs: '
                       'half floats, ``reference_log.as_logged``).')
 
 InitialState = collections.namedtuple('InitialState', 'truth estimate velocity_error')
@@ -218,17 +220,22 @@ def log_initial_state(log, window=INITIAL_WINDOW, estimate_rate=20.0, at=-INITIA
 
 STALL_SAMPLES = 3       # identical estimate rows in a row (while moving) that make a stall: 0.15 s at 20 Hz
 STALL_SPEED = 0.5       # m/s, the truth's speed above which an unchanged estimate is a stall, not a hover
+STALL_CAUGHT_UP = 0.5   # a row after a stall is fresh once the estimate moved this share of the truth's move
 
 
-def log_stalls(log, samples=STALL_SAMPLES, speed=STALL_SPEED):
+def log_stalls(log, samples=STALL_SAMPLES, speed=STALL_SPEED, caught_up=STALL_CAUGHT_UP):
     """((start, end), ...) log times [s] of the stalls of ``log``'s estimate stream: ``samples`` or more
     consecutive rows with every estimate column unchanged while the truth moves faster than ``speed`` (the
     published estimate held, then a jump to the current one; Sphinx's MPC lines at 2, 3 and 5 m/s show one
-    each, 4 rows long, and the MPC reacts to it). start: the first row of the run; end: the next row (the
-    estimate is fresh again)."""
+    each, and the MPC reacts to it). start: the first row of the run; end: the first row after it whose
+    estimate has caught up, i.e. moved (horizontally, since the start) at least ``caught_up`` x the truth's
+    move: a row that changed by a storage step only is still stale (x_straight_2_mpc: 4 unchanged rows, one
+    0.06 m on, then the 0.5 m jump; x_straight_3_mpc: 0.13 m on after 0.6 m of truth, then the jump)."""
     est = np.column_stack([np.asarray(log.columns[n + '_anafi'], dtype=np.float64) for n in STATE_NAMES])
     same = np.all(est[1:] == est[:-1], axis=1)
     moving = np.hypot(log.columns['vx_sphinx'], log.columns['vy_sphinx']) > speed
+    horizontal = {source: np.column_stack([np.asarray(log.columns['%s_%s' % (axis, source)], dtype=np.float64)
+                                           for axis in ('x', 'y')]) for source in ('anafi', 'sphinx')}
     t = log.t
     out = []
     k = 0
@@ -239,8 +246,13 @@ def log_stalls(log, samples=STALL_SAMPLES, speed=STALL_SPEED):
         j = k
         while j < len(same) and same[j]:
             j += 1
-        if j - k + 1 >= samples and np.all(moving[k:j + 1]) and j + 1 < len(t):
-            out.append((float(t[k]), float(t[j + 1])))
+        end = j + 1                       # the first changed row; stale while it has not caught up
+        while end < len(t) and moving[end] and (
+                np.hypot(*(horizontal['anafi'][end] - horizontal['anafi'][k]))
+                < caught_up * np.hypot(*(horizontal['sphinx'][end] - horizontal['sphinx'][k]))):
+            end += 1
+        if j - k + 1 >= samples and np.all(moving[k:j + 1]) and end < len(t):
+            out.append((float(t[k]), float(t[end])))
         k = j
     return tuple(out)
 
@@ -289,7 +301,7 @@ def initial_state_action(plan):
 
 
 def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latency=None, controller=None,
-                initial_state=True, stalls=False, stored=True):
+                initial_state=True, stalls=True, stored=True):
     """The ``ReplayPlan`` of ``log`` (see the module doc).
 
     rate [Hz]: the waypoint stream's; lead [s]: lead-in for a log that starts in motion; approach [s]: hover

@@ -93,8 +93,8 @@ ReplayPlan.__doc__ = ('How a log is replayed: log (ReferenceLog), name, controll
                       'subtracted from the waypoints for the replay and added back to the stand-in\'s positions), '
                       'initial_state (``InitialState`` the replay is put in at log time 0, or None), stalls '
                       '(((start, end) log times [s] of the estimate stalls the replay reproduces, ``log_stalls``; () '
-                      'when the log has none or the plan leaves them out), stored (``standin_log`` stores the stand-in\'s columns as the logs store theirs: '
-                      'half floats, ``reference_log.as_logged``).')
+                      'when the log has none or the plan leaves them out), stored (``standin_log`` stores the '
+                      'stand-in\'s columns as the logs store theirs: half floats, ``reference_log.as_logged``).')
 
 InitialState = collections.namedtuple('InitialState', 'truth estimate velocity_error')
 InitialState.__doc__ = ('A log\'s state at log time 0: truth (x, y, z) [m], the estimate\'s position (x, y, z) [m] '

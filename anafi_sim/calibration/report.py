@@ -599,7 +599,7 @@ def format_effects(cal):
         'the ground speed (the logs have no wind to tell it from the airspeed) and braking and sideways tilt '
         'being delivered whole (the logs show steady fast flight only). The 5 m/s cells are the '
         'check: with it the stand-in\'s ground-truth error of x_straight_5_mpc, which the fit does not use, '
-        'moves from about 0.6x to about 1.1x of Sphinx\'s (docs/fidelity.md).'
+        'moves from about 0.5x to about 1.1x of Sphinx\'s (docs/fidelity.md).'
         % (ts.speed, 100.0 * ts.tolerance, ts.speed_full, 1.0 - ts.attenuation))
     add('')
     add('A constant attenuation fitted on the static PID logs instead (PID command replays of %s, a least '

@@ -230,7 +230,9 @@ def log_stalls(log, samples=STALL_SAMPLES, speed=STALL_SPEED, caught_up=STALL_CA
     each, and the MPC reacts to it). start: the first row of the run; end: the first row after it whose
     estimate has caught up, i.e. moved (horizontally, since the start) at least ``caught_up`` x the truth's
     move: a row that changed by a storage step only is still stale (x_straight_2_mpc: 4 unchanged rows, one
-    0.06 m on, then the 0.5 m jump; x_straight_3_mpc: 0.13 m on after 0.6 m of truth, then the jump)."""
+    0.06 m on, then the 0.5 m jump; x_straight_3_mpc: 0.13 m on after 0.6 m of truth, then the jump). The
+    stale tail is looked for over at most as many rows as were held, and ends where the truth stops moving;
+    a tail that does not catch up within it leaves the end at the first changed row. Stalls do not overlap."""
     est = np.column_stack([np.asarray(log.columns[n + '_anafi'], dtype=np.float64) for n in STATE_NAMES])
     same = np.all(est[1:] == est[:-1], axis=1)
     moving = np.hypot(log.columns['vx_sphinx'], log.columns['vy_sphinx']) > speed
@@ -247,12 +249,17 @@ def log_stalls(log, samples=STALL_SAMPLES, speed=STALL_SPEED, caught_up=STALL_CA
         while j < len(same) and same[j]:
             j += 1
         end = j + 1                       # the first changed row; stale while it has not caught up
-        while end < len(t) and moving[end] and (
+        last = min(len(t) - 1, j + 1 + (j - k + 1))
+        while end <= last and moving[end] and (
                 np.hypot(*(horizontal['anafi'][end] - horizontal['anafi'][k]))
                 < caught_up * np.hypot(*(horizontal['sphinx'][end] - horizontal['sphinx'][k]))):
             end += 1
+        if end > last:                    # never caught up within the tail: the first changed row
+            end = j + 1
         if j - k + 1 >= samples and np.all(moving[k:j + 1]) and end < len(t):
             out.append((float(t[k]), float(t[end])))
+            k = max(j, end)
+            continue
         k = j
     return tuple(out)
 

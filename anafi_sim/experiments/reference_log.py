@@ -210,12 +210,12 @@ def as_logged(values):
     back as a float (float64 array of the same shape; non-finite values kept). The logs' columns are all on
     this grid, which is coarse far from the origin: at 64-128 m a 0.0625 m float16 step, whose shortest repr
     moves it by up to another 0.025 m (81.375 is stored as "81.4"); at 128-256 m 0.125 m. Beyond the half
-    float's range (65504) a value becomes inf, as a half float does."""
+    float's range (65504) a value becomes inf, as a half float does. Independent of numpy's print options."""
     out = np.array(values, dtype=np.float64)
     flat = out.reshape(-1)
     with np.errstate(over='ignore'):
         for i in np.flatnonzero(np.isfinite(flat)):
-            flat[i] = float(str(np.float16(flat[i])))
+            flat[i] = float(np.format_float_positional(np.float16(flat[i]), unique=True))
     return out
 
 

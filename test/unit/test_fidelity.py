@@ -225,6 +225,23 @@ def test_estimate_stalls_are_found_and_replayed():
     late.columns['vx_sphinx'] = np.full(len(late), 3.0)
     assert F.log_stalls(late) == ((pytest.approx(3.0), pytest.approx(3.25)),)
     assert F.log_stalls(late, caught_up=0.0) == ((pytest.approx(3.0), pytest.approx(3.2)),)
+    # a second hold inside the stale tail is the same stall (none overlaps); a tail that does not catch up
+    # within as many rows as were held leaves the end at the first changed row
+    twice = line_log(speed=3.0, x0=100.0, n=200)
+    column = twice.columns['x_anafi']
+    column[60:64] = column[60]
+    column[64:68] = column[60] + 0.0625
+    twice.columns['vx_sphinx'] = np.full(len(twice), 3.0)
+    assert F.log_stalls(twice) == ((pytest.approx(3.0), pytest.approx(3.4)),)
+    slow = line_log(speed=3.0, x0=100.0, n=200)
+    column = slow.columns['x_anafi']
+    column[60:64] = column[60]
+    column[64:70] = column[60] + 0.0625 * np.arange(1, 7)
+    slow.columns['vx_sphinx'] = np.full(len(slow), 3.0)
+    assert F.log_stalls(slow) == ((pytest.approx(3.0), pytest.approx(3.2)),)
+    rep = F.run_replay(F.replay_plan(late))           # the replay holds through the stale tail too
+    assert rep.ok, rep.error
+    assert np.ptp(rep.standin.columns['x_anafi'][61:65]) == 0.0
     plan = F.replay_plan(log)
     assert plan.stalls and F.replay_plan(log, stalls=False).stalls == ()
     rep = F.run_replay(plan)

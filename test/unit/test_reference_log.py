@@ -5,8 +5,8 @@ import os
 import numpy as np
 import pytest
 
-from anafi_sim.experiments.reference_log import (COLUMNS, ReferenceLog, as_logged, detect_garbage, horizontal_tracking_error,
-                                     read_log, tracking_error, write_log)
+from anafi_sim.experiments.reference_log import (COLUMNS, ReferenceLog, as_logged, detect_garbage,
+                                                 horizontal_tracking_error, read_log, tracking_error, write_log)
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 LOG_DIR = os.path.join(os.path.dirname(REPO), 'shared', 'reference_logs')
@@ -101,6 +101,9 @@ def test_every_shared_log_column_is_stored_as_half_floats(logs):
     assert float(as_logged(155.6)) == 155.6 and float(as_logged(155.55)) == 155.5
     out = as_logged([[0.1, np.nan], [1e9, -np.inf]])
     assert out.shape == (2, 2) and out[0, 0] == 0.1 and np.isnan(out[0, 1]) and out[1, 0] == np.inf
+    assert out[1, 1] == -np.inf
+    with np.printoptions(legacy='1.13'):          # numpy's print options do not change the storage
+        assert float(as_logged(81.375)) == 81.4
 
 
 def test_real_log_float16_round_trip(logs, tmp_path):

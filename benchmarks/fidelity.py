@@ -236,6 +236,72 @@ def configurations(cols):
     return [c for c in cols if c[2] not in METHODS]
 
 
+def _ratios(records, variant, cells):
+    """' / '-joined ratios (2 digits) of the (log, cell) pairs in ``variant``'s records ('-' when missing)."""
+    out = []
+    for log, cell in cells:
+        rec = records.get((log, variant))
+        out.append(F.fmt(rec['ratio'].get(cell) if rec else None, 2))
+    return ' / '.join(out)
+
+
+def _counts(records, logs, variant):
+    """(cells within +-10 %, within +-25 %, mean |ln ratio|) of one variant (both controllers)."""
+    recs = F.combined(records, logs, variant, variant)
+    k10, _, m = F.score(recs, band=F.BANDS[0])
+    k25 = F.score(recs, band=F.BANDS[-1])[0]
+    return k10, k25, m
+
+
+def _initial_text(records, logs):
+    """The initial state's sentence of the reading, its figures from ``records`` (shipped vs 'settled')."""
+    shipped, settled = _counts(records, logs, 'shipped'), _counts(records, logs, 'settled')
+    lines_ = ('x_straight_1_mpc', 'x_straight_3_mpc', 'x_straight_4_mpc')
+    return ('**The initial state** (shipped defaults against "shipped, settled start", the same model replayed '
+            'from a start settled on the line, the method before): %d -> %d cells within +-10 %%, mean |ln ratio| '
+            '%s -> %s; it moves the ground-truth cells of the MPC lines, x_straight_1/3/4_mpc e_mu %s -> %s and '
+            'e_max %s -> %s.' % (
+                settled[0], shipped[0], F.fmt(settled[2]), F.fmt(shipped[2]),
+                _ratios(records, 'settled', [(n, 'truth_e_mu') for n in lines_]),
+                _ratios(records, 'shipped', [(n, 'truth_e_mu') for n in lines_]),
+                _ratios(records, 'settled', [(n, 'truth_e_max') for n in lines_]),
+                _ratios(records, 'shipped', [(n, 'truth_e_max') for n in lines_])))
+
+
+def _method_text(records, logs):
+    """The storage and the stall paragraphs of the reading, their figures from ``records`` (shipped vs the
+    methods before: 'unstored', 'nostalls'); the facts about the logs are the logs' and fixed."""
+    shipped, unstored, nostalls = (_counts(records, logs, v) for v in ('shipped', 'unstored', 'nostalls'))
+    lines_ = ('x_straight_2_mpc', 'x_straight_3_mpc', 'x_straight_5_mpc')
+    return (
+        '**The storage** (shipped defaults against "shipped, unrounded columns", the same runs): the logger '
+        'stored every value as a half float written as its shortest repr, a 0.0625 m grid at 64-128 m and '
+        '0.125 m at 128-256 m plus up to 0.025 m of the repr, and a maximum over a log picks that rounding up: '
+        'stored like Sphinx\'s, x_straight_2_mpc\'s truth e_max goes %s -> %s (Sphinx\'s is one sample at '
+        '11.35 s stored as "81.4" for the half float 81.375, 0.2 m ahead of the waypoint; the 2 m/s line moves '
+        '0.1 m a sample against a waypoint that steps 0.2 m every 0.1 s), and x_straight_5_mpc\'s truth e_mu '
+        '%s -> %s (its x lies at 153-234 m, on the 0.125 m grid): %d -> %d cells within +-10 %%, mean |ln ratio| '
+        '%s -> %s. The honest figure is the stored one: Sphinx\'s values went through that storage. **The '
+        'estimate stalls** (shipped defaults against "shipped, without the logs\' estimate stalls"): in '
+        'x_straight_2/3/5_mpc Sphinx\'s estimate stream holds for 4 rows (at 8.4, 7.5 and 8.7 s) and catches up '
+        'after 5, 5 and 4 rows (0.25, 0.25, 0.2 s; in the first two a fifth row has moved by 0.06 and 0.13 m '
+        'only, a sixth and a fifth of the truth\'s move since the stall began), and the MPC reacts to it: within '
+        '0.8 s of the stall\'s start Sphinx\'s pitch rises by 1.1 / 2.4 / 1.9 deg and its vx by 0.05 / 0.08 / '
+        '0.05 m/s. Replaying the stalls (the stand-in\'s published estimate held over the same log times) the '
+        'stand-in\'s MPC reacts alike (at the time of writing: pitch +1.7 / +1.9 / +1.5 deg, vx +0.06 / +0.06 / '
+        '+0.05 m/s; without the stall at most +0.25 deg) and the estimate e_max cells of those three lines go '
+        '%s -> %s: %d -> %d cells within +-10 %%, %d -> %d within +-25 %%. The stall is a condition of the run '
+        '(what the controller received), not of the drone: Sphinx\'s PID and static runs show none.' % (
+            _ratios(records, 'unstored', [('x_straight_2_mpc', 'truth_e_max')]),
+            _ratios(records, 'shipped', [('x_straight_2_mpc', 'truth_e_max')]),
+            _ratios(records, 'unstored', [('x_straight_5_mpc', 'truth_e_mu')]),
+            _ratios(records, 'shipped', [('x_straight_5_mpc', 'truth_e_mu')]),
+            unstored[0], shipped[0], F.fmt(unstored[2]), F.fmt(shipped[2]),
+            _ratios(records, 'nostalls', [(n, 'estimate_e_max') for n in lines_]),
+            _ratios(records, 'shipped', [(n, 'estimate_e_max') for n in lines_]),
+            nostalls[0], shipped[0], nostalls[1], shipped[1]))
+
+
 def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, args):
     timing = meta['paper_timing_supported']
     cols = _columns(variants, timing)
@@ -339,11 +405,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
             k, n, m = F.score(recs)
             lines.append('- %s alone: %d / %d, %s' % (v.label, k, n, F.fmt(m)))
     lines += ['',
-              'Reading of the tables at the time of writing. **The initial state** (shipped defaults against '
-              '"shipped, settled start", the same model replayed from a start settled on the line, the method '
-              'before): 40 -> 49 cells within +-10 %, mean |ln ratio| 0.101 -> 0.049; it moves the ground-truth '
-              'cells of the MPC lines, x_straight_1/3/4_mpc e_mu 0.67 / 0.75 / 0.60 -> 0.95 / 1.06 / 1.06 and e_max '
-              '0.65 / 0.95 / 0.44 -> 1.02 / 1.00 / 1.00. Sphinx\'s lines start with the estimate off the truth by '
+              'Reading of the tables at the time of writing (the figures of the initial state, the storage and '
+              'the stalls come from the tables above). ' + _initial_text(records, logs) + ' Sphinx\'s lines start with the estimate off the truth by '
               'more than the steady lag (x_straight_4_mpc: lag 0.262 s in the first 2 s, 0.23 s at the end) and by up '
               'to 19 cm across the line (x_straight_4_pid), with a velocity estimate off by up to 0.11 m/s across it '
               '(docs/calibration.md), all decaying within the log: the history of each run (take-off, approach), '
@@ -379,27 +442,7 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
               'old) and brings the static-waypoint MPC cells closer (yaw 180: shipped 0.78 / 0.76, effects on with '
               'it 0.83 / 0.83). The MPC line cells move by +-15-35 % with the waypoint\'s age at the MPC\'s cycle '
               '(timer phase section), which the logs do not record. Sphinx\'s estimate e_max on the MPC lines at 2, '
-              '3 and 5 m/s comes from stalls of its estimate stream (below). **The storage** (shipped defaults '
-              'against "shipped, unrounded columns", the same runs): the logger stored every value as a half float '
-              'written as its shortest repr, a 0.0625 m grid at 64-128 m and 0.125 m at 128-256 m plus up to '
-              '0.025 m of the repr, and a maximum over a log picks that rounding up: stored like Sphinx\'s, '
-              'x_straight_2_mpc\'s truth e_max goes 0.94 -> 1.00 (0.74 -> 0.99 without the stalls; Sphinx\'s is '
-              'one sample at 11.35 s stored as '
-              '"81.4" for the half float 81.375, 0.2 m ahead of the waypoint; the 2 m/s line moves 0.1 m a sample '
-              'against a waypoint that steps 0.2 m every 0.1 s), and x_straight_5_mpc\'s truth e_mu 0.99 -> 1.11 '
-              '(its x lies at 153-234 m, on the 0.125 m grid): 50 -> 49 cells within +-10 %, mean |ln ratio| '
-              '0.051 -> 0.049. The honest figure is the stored one: Sphinx\'s values went through that storage. '
-              '**The estimate stalls** (shipped defaults against "shipped, without the logs\' estimate stalls"): '
-              'in x_straight_2/3/5_mpc Sphinx\'s estimate stream holds for 4 rows (at 8.4, 7.5 and 8.7 s) and '
-              'catches up after 5, 5 and 4 rows (0.25, 0.25, 0.2 s; in the first two a fifth row has moved by 0.06 '
-              'and 0.13 m only, a sixth and a fifth of the truth\'s move since the stall began), and the MPC reacts '
-              'to it: within 0.8 s of the '
-              'stall\'s start Sphinx\'s pitch rises by 1.1 / 2.4 / 1.9 deg and its vx by 0.05 / 0.08 / 0.05 m/s. '
-              'Replaying the stalls (the stand-in\'s published estimate held over the same log times) the '
-              'stand-in\'s MPC reacts alike (pitch +1.7 / +1.9 / +1.5 deg, vx +0.06 / +0.06 / +0.05 m/s; '
-              'without the stall at most +0.25 deg) and the estimate e_max cells go 0.57 / 0.63 / 0.76 -> 1.00 / 0.97 / '
-              '0.90: 46 -> 49 cells within +-10 %, 54 -> 56 within +-25 %. The stall is a condition of the run '
-              '(what the controller received), not of the drone: Sphinx\'s PID and static runs show none.', '',
+              '3 and 5 m/s comes from stalls of its estimate stream (below). ' + _method_text(records, logs), '',
               'Shipped (`SHIPPED_EFFECTS` in `anafi_sim/calibration/fit.py`, `paper_timing` in mpc.yaml): the '
               'position fusion, the velocity error\'s decay (it changes nothing in a flight: nothing in the model '
               'creates such an error; a replay sets it from the log), the speed-gated tilt attenuation, the '

@@ -406,7 +406,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
             lines.append('- %s alone: %d / %d, %s' % (v.label, k, n, F.fmt(m)))
     lines += ['',
               'Reading of the tables at the time of writing (the figures of the initial state, the storage and '
-              'the stalls come from the tables above). ' + _initial_text(records, logs) + ' Sphinx\'s lines start with the estimate off the truth by '
+              'the stalls come from the tables above). ' + _initial_text(records, logs) + ' Sphinx\'s lines start '
+              'with the estimate off the truth by '
               'more than the steady lag (x_straight_4_mpc: lag 0.262 s in the first 2 s, 0.23 s at the end) and by up '
               'to 19 cm across the line (x_straight_4_pid), with a velocity estimate off by up to 0.11 m/s across it '
               '(docs/calibration.md), all decaying within the log: the history of each run (take-off, approach), '

@@ -517,3 +517,32 @@ def test_links_to_sections_resolve(doc):
         if not os.path.isfile(linked) or frag not in [anchor(t) for _, t, _ in sections(_read(linked))]:
             broken.append('%s#%s' % (target, frag))
     assert not broken, '%s: links to missing sections: %s' % (doc, broken)
+
+
+# ----------------------------------------------------------------------------- fidelity figures in the README
+FIDELITY_DOC = os.path.join(ROOT, 'docs', 'fidelity.md')
+
+
+def _summary_row(text, title):
+    """(within +-10 %, within +-25 %, cells) of the first row titled ``title`` in docs/fidelity.md's summary."""
+    match = re.search(r'^\| %s \| (\d+) / (\d+) \| \d+ / \d+ \| (\d+) / \d+ \|' % re.escape(title), text, re.M)
+    assert match, 'no summary row %r in docs/fidelity.md' % title
+    return int(match.group(1)), int(match.group(3)), int(match.group(2))
+
+
+def test_the_readme_fidelity_figures_are_the_reports():
+    """The counts the README quotes (shipped defaults within +-10 % and +-25 %, effects off, settled start, without
+    the stalls) are those of the summary of docs/fidelity.md, which benchmarks/fidelity.py regenerates."""
+    with open(README) as stream:
+        readme = ' '.join(stream.read().split())
+    with open(FIDELITY_DOC) as stream:
+        report = stream.read()
+    match = re.search(r'put (\d+) of (\d+) shared-log cells within \+-10 % of Sphinx and (\d+) of \d+ within \+-25 % '
+                      r'\(effects off: (\d+); the same defaults replayed from a settled start: (\d+), without the '
+                      r'stalls: (\d+)\)', readme)
+    assert match, 'the README\'s fidelity sentence changed: update this test with it'
+    k10, cells, k25, off, settled, nostalls = (int(g) for g in match.groups())
+    assert (k10, k25, cells) == _summary_row(report, 'shipped defaults')
+    assert off == _summary_row(report, 'effects off')[0]
+    assert settled == _summary_row(report, 'shipped, settled start')[0]
+    assert nostalls == _summary_row(report, 'shipped, without the logs\' estimate stalls')[0]

@@ -285,8 +285,8 @@ class StateEstimate(object):
     def stall(self, until):
         """Hold the published output until time ``until`` [s] (caller time), as a stalled estimate stream
         does (Sphinx's MPC lines at 2, 3 and 5 m/s each show one: the same estimate for 0.2-0.25 s, then a
-        jump to the current one); the filters keep running underneath, the next sample at or after ``until`` is the current
-        estimate. No effect before the first update."""
+        jump to the current one); the filters keep running underneath, the next sample at or after ``until``
+        is the current estimate. No effect before the first update."""
         until, = _finite('stall', (until,))
         if self._values is not None:
             self._next_sample = max(self._next_sample, until)

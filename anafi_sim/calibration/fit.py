@@ -1357,6 +1357,64 @@ def _fit_limited_loop(name, series, cost, start, fatol, baseline_time_constant):
     return limit, tau, rms, first, per_file, fit(series), tuple(s[0] for s in used)
 
 
+GyroscopicFit = collections.namedtuple('GyroscopicFit', ['coupling', 'rms', 'rms_off', 'per_file', 'files'])
+GyroscopicFit.__doc__ = (
+    'The roll/pitch loop\'s coupling to the yaw rate: coupling G [s] (``AnafiModel``\'s gyroscopic_coupling), '
+    'rms [rad] of roll/pitch over the static steps with it, rms_off without it (G = 0), {file: (rms off, rms '
+    'with G)} [rad], files (the fit\'s: every clean static log, PID and MPC).')
+
+
+def gyroscopic_tilt_response(t_u, roll_u, pitch_u, t_r, yaw_rate, time_constant, coupling, delay, t_out,
+                             step=ESTIMATE_STEP):
+    """(roll, pitch)(t_out) [rad] of the roll/pitch loop with ``AnafiModel``'s gyroscopic coupling: the exact
+    first-order step toward the held, ``delay``-ed setpoint (t_u, roll_u, pitch_u), multiplied in the (forward,
+    left) tilt plane by (I - G r J)^-1, r the yaw rate [rad/s] at that instant (interpolated from t_r,
+    yaw_rate). G = ``coupling`` [s]; 0 = the plain first order. Starts level."""
+    t_u = np.asarray(t_u, dtype=np.float64)
+    t_out = np.asarray(t_out, dtype=np.float64)
+    grid = np.arange(min(t_u[0], t_out[0]), t_out[-1] + 2.0 * step, step)
+    a, b = grid - 0.5 * step - delay, grid + 0.5 * step - delay
+    targets = (_held_means(t_u, np.asarray(roll_u, dtype=np.float64), a, b),
+               _held_means(t_u, np.asarray(pitch_u, dtype=np.float64), a, b))
+    turn = float(coupling) * np.interp(grid, t_r, yaw_rate)
+    c = 1.0 - math.exp(-step / time_constant) if time_constant > 1e-6 else 1.0
+    roll = pitch = 0.0
+    out = np.empty((len(grid), 2))
+    for k, (rs, ps, g) in enumerate(zip(targets[0], targets[1], turn)):
+        out[k] = roll, pitch
+        dr, dp = c * (rs - roll), c * (ps - pitch)
+        n = 1.0 / (1.0 + g * g)
+        roll += n * (dr - g * dp)
+        pitch += n * (dp + g * dr)
+    return np.interp(t_out, grid, out[:, 0]), np.interp(t_out, grid, out[:, 1])
+
+
+def fit_gyroscopic_coupling(logs, time_constant, delay, window=20.0, bounds=(-3.0, 3.0)):
+    """``GyroscopicFit``: G of the roll/pitch loop's coupling to the yaw rate (``gyroscopic_tilt_response``),
+    least squares on the roll and pitch of every clean static step (PID commands replayed, the MPC's recomputed
+    by eq. 15; 0.5 s before the step to ``window`` s after it, the yaw turns included: only they inform G) with
+    the model's first-order loop (``time_constant``, ``delay`` [s]; tilt_rate_limit off, as shipped) and the
+    truth's yaw rate. Through Sphinx's 180 deg turns the tilt keeps its magnitude and swings round the long way
+    in the sense of the yaw, where a plain first order cuts through level (docs/calibration.md)."""
+    from scipy.optimize import minimize_scalar
+    series = [(log.name, tr, log.t[m], log.roll_sphinx[m], log.pitch_sphinx[m], log.t, measured_yaw_rate(log))
+              for log, pid, tr, m in _static_steps(logs, window)]
+    if not series:
+        raise ValueError('fit_gyroscopic_coupling: no clean static-waypoint log')
+
+    def cost(group, g):
+        parts = []
+        for _, tr, t, roll, pitch, t_r, rate in group:
+            r, p = gyroscopic_tilt_response(tr.t, tr.roll, tr.pitch, t_r, rate, time_constant, g, delay, t)
+            parts += [roll - r, pitch - p]
+        return float(np.sqrt(np.mean(np.concatenate(parts) ** 2)))
+
+    res = minimize_scalar(lambda g: cost(series, g), bounds=bounds, method='bounded', options={'xatol': 1e-3})
+    g = float(res.x)
+    per_file = collections.OrderedDict((s[0], (cost([s], 0.0), cost([s], g))) for s in series)
+    return GyroscopicFit(g, cost(series, g), cost(series, 0.0), per_file, tuple(s[0] for s in series))
+
+
 QuantumFit = collections.namedtuple('QuantumFit', ['steps', 'on_grid', 'truth_on_grid', 'samples', 'grids'])
 QuantumFit.__doc__ = ('Quantisation of the estimate: {column: step} (0 where none is found), {column: fraction '
                       'of the estimate\'s values on that grid}, {column: the same fraction for the truth (what '
@@ -1472,14 +1530,15 @@ def fit_yaw_bias(logs, estimate):
 
 
 Effects = collections.namedtuple('Effects', ['fusion', 'tilt', 'descent', 'quanta', 'yaw', 'estimate_chain',
-                                             'replay', 'tilt_speed', 'vertical', 'tilt_rate', 'velocity_error'])
+                                             'replay', 'tilt_speed', 'vertical', 'tilt_rate', 'velocity_error',
+                                             'gyroscopic'])
 Effects.__doc__ = ('The fidelity effects: PositionFusionFit, TiltFit (constant attenuation, static PID logs), '
                    'DescentFit, QuantumFit, YawBiasFit, the FirstOrderFit of the estimate delay/smoothing on '
                    'velocity and attitude alone (the position has its own model once the fusion is on), '
                    'EstimateReplay (open-loop check), TiltSpeedFit (the model\'s speed-gated attenuation, '
                    'straight MPC logs), VerticalLimitFit (the vertical-speed loop\'s acceleration limit), TiltRateFit '
                    '(the roll/pitch loop\'s tilt-rate limit), VelocityErrorFit (the decay of the velocity '
-                   'estimate\'s own error).')
+                   'estimate\'s own error), GyroscopicFit (the roll/pitch loop\'s coupling to the yaw rate).')
 
 # The effects calibrate() writes ON into anafi_model.yaml (the others keep their off values; every fitted value
 # is in anafi_model_fitted.yaml). Chosen by the closed-loop replay of the shared logs (docs/fidelity.md): the
@@ -1492,7 +1551,7 @@ Effects.__doc__ = ('The fidelity effects: PositionFusionFit, TiltFit (constant a
 # 0.84x -> 0.72x) for one more cell in the band, so it stays off; the velocity error's decay changes nothing in
 # a flight (no part of the model creates such an error) and lets a replay start from a logged velocity
 # estimate. Edit and rerun scripts/calibrate_model.py.
-SHIPPED_EFFECTS = ('position_fusion', 'velocity_error', 'tilt_attenuation', 'vertical_acceleration_limit',
+SHIPPED_EFFECTS = ('position_fusion', 'velocity_error', 'tilt_attenuation', 'vertical_acceleration_limit', 'gyroscopic_coupling',
                    'yaw_bias', 'quantisation')
 
 
@@ -1513,6 +1572,7 @@ def fit_effects(logs, params, commands, estimate, trim_pitch=0.0, shipped=None):
     # the first-order baselines are section (c)'s fits (same data, their own discretisation and offsets)
     vertical = fit_vertical_acceleration_limit(logs, params['attitude_delay'], params['vertical_speed_time_constant'])
     tilt_rate = fit_tilt_rate_limit(logs, params['attitude_delay'], params['attitude_time_constant'])
+    gyroscopic = fit_gyroscopic_coupling(logs, params['attitude_time_constant'], params['attitude_delay'])
     quanta = fit_quantisation(logs)
     yaw = fit_yaw_bias(logs, estimate)
     velocity_error = fit_velocity_error(logs)
@@ -1525,6 +1585,7 @@ def fit_effects(logs, params, commands, estimate, trim_pitch=0.0, shipped=None):
     fitted['vertical_speed_time_constant'] = vertical.time_constant
     fitted['tilt_rate_limit'] = tilt_rate.rate
     fitted['attitude_time_constant'] = tilt_rate.time_constant
+    fitted['gyroscopic_coupling'] = gyroscopic.coupling
     fitted['estimate_position_fusion'] = True
     fitted['estimate_position_fix_delay'] = fusion.fix_delay
     fitted['estimate_position_fix_gain'] = fusion.fix_gain
@@ -1550,7 +1611,7 @@ def fit_effects(logs, params, commands, estimate, trim_pitch=0.0, shipped=None):
     fitted['tilt_attenuation_speed'] = tilt_speed.speed
     fitted['tilt_attenuation_speed_full'] = tilt_speed.speed_full
     return Effects(fusion, tilt, descent, quanta, yaw, chain, replay, tilt_speed, vertical, tilt_rate,
-                   velocity_error), fitted
+                   velocity_error, gyroscopic), fitted
 
 
 # --------------------------------------------------------------------------- everything

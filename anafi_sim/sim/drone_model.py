@@ -37,7 +37,15 @@ fitted by ``anafi_sim/calibration/fit.py``, see docs/calibration.md):
 - ``vertical_acceleration_limit`` A [m/s^2]: the vertical-speed loop accelerates
   at most this much (up and down): a large step ramps at A, a small one follows
   the first order (0 = no limit). Its fit refits ``vertical_speed_time_constant``
-  with it (``EFFECT_GROUPS``).
+  with it (``EFFECT_GROUPS``);
+- ``gyroscopic_coupling`` G [s]: while the drone yaws at r [rad/s] the roll/pitch
+  loop's step is turned and slowed, d(tilt)/dt = (setpoint - tilt) / tau +
+  G r J d(tilt)/dt in the (forward, left) tilt plane (J: a quarter turn
+  counter-clockwise), i.e. each step is multiplied by (I - G r J)^-1: rotated by
+  atan(G r) and shortened by 1 / sqrt(1 + (G r)^2). With G < 0 (the fit) the tilt
+  swings round the long way in the sense of the yaw and keeps its magnitude, as
+  Sphinx's does in the 180 deg turns (docs/calibration.md); no effect without a
+  yaw rate (0 = none, signed).
 
 The estimate's effects (position fusion, yaw bias, quantisation) are
 ``anafi_sim/sim/state_estimate.py``'s. With every effect off the model is bit
@@ -96,6 +104,7 @@ EFFECTS_OFF = collections.OrderedDict((
     ('max_descent_speed', 0.0),      # m/s, firmware descent limit (0 = none)
     ('vertical_acceleration_limit', 0.0),  # m/s^2, vertical-speed loop acceleration limit (0 = none)
     ('tilt_rate_limit', 0.0),        # rad/s, roll/pitch loop: largest rate of the tilt vector (0 = none)
+    ('gyroscopic_coupling', 0.0),    # s, roll/pitch step turned by atan(G x yaw rate) and slowed (0 = none, signed)
 ))
 EFFECTS_OFF.update(state_estimate.EFFECTS_OFF)
 # The effects by name and their keys (the estimate's delay/smoothing, refitted on velocity and attitude alone
@@ -108,6 +117,7 @@ EFFECT_GROUPS = collections.OrderedDict((
     ('max_descent_speed', ('max_descent_speed',)),
     ('vertical_acceleration_limit', ('vertical_acceleration_limit', 'vertical_speed_time_constant')),
     ('tilt_rate_limit', ('tilt_rate_limit', 'attitude_time_constant')),
+    ('gyroscopic_coupling', ('gyroscopic_coupling',)),
     ('yaw_bias', ('estimate_yaw_bias',)),
     ('quantisation', ('estimate_quantum_x', 'estimate_quantum_y', 'estimate_quantum_z', 'estimate_quantum_velocity')),
 ))
@@ -189,6 +199,10 @@ def validate_model_params(params):
             if not _is_number(value) or value < 0.0:
                 raise ValueError('model parameter %s must be a finite number >= 0, got %r' % (key, value))
             effects[key] = float(value)
+        value = params.get('gyroscopic_coupling', EFFECTS_OFF['gyroscopic_coupling'])
+        if not _is_number(value):
+            raise ValueError('model parameter gyroscopic_coupling must be a finite number, got %r' % (value,))
+        effects['gyroscopic_coupling'] = float(value)
         if not effects['tilt_attenuation'] < 1.0:
             raise ValueError('model parameter tilt_attenuation must be < 1, got %r' % (effects['tilt_attenuation'],))
         if effects['tilt_attenuation_speed'] > 0.0 and \
@@ -269,6 +283,7 @@ class AnafiModel(object):
         self._max_descent = effects['max_descent_speed']
         self._vz_accel_limit = effects['vertical_acceleration_limit']
         self._tilt_rate_limit = effects['tilt_rate_limit']
+        self._gyro = effects['gyroscopic_coupling']
         self._max_tilt = math.radians(self.mapping.max_tilt_deg)
         self._max_vs = self.mapping.max_vertical_speed
         self._max_yaw_rate = math.radians(self.mapping.max_yaw_rate_deg)
@@ -516,6 +531,10 @@ class AnafiModel(object):
         c_att = self._c_att
         d_roll = c_att * (roll_sp - roll0)
         d_pitch = c_att * (pitch_sp - pitch0)
+        if self._gyro != 0.0:                       # the yaw turns and slows the step: (I - G r J)^-1
+            a = self._gyro * self.yaw_rate          # (forward, left) = (pitch, -roll); J (f, l) = (-l, f)
+            k = 1.0 / (1.0 + a * a)
+            d_roll, d_pitch = k * (d_roll - a * d_pitch), k * (d_pitch + a * d_roll)
         if self._tilt_rate_limit > 0.0:             # the firmware turns the tilt at most this fast
             cap = self._tilt_rate_limit * dt
             norm = math.sqrt(d_roll * d_roll + d_pitch * d_pitch)

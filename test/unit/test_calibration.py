@@ -601,6 +601,16 @@ def test_real_log_effects(real):
     assert tr.rms < 0.8 * tr.first_order[1]
     for name, (before, after) in tr.per_file.items():
         assert after < before, name
+    # gyroscopic coupling: one negative G (~ -1.1 s) from both turn senses (MPC counter-clockwise, PID clockwise)
+    # halves the roll/pitch residual of both yaw-180 steps and leaves the yaw-0 steps as they were
+    gy = f.gyroscopic
+    assert set(gy.files) == {'static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('pid', 'mpc')}
+    assert -1.5 < p['gyroscopic_coupling'] == gy.coupling < -0.7 and gy.rms < 0.7 * gy.rms_off
+    for name, (before, after) in gy.per_file.items():
+        if 'yaw_180' in name:
+            assert after < 0.65 * before, name
+        else:
+            assert after == pytest.approx(before, rel=0.03), name
     # quantisation: z and the velocities of the estimate on a 1/256 grid, the truth not
     assert p['estimate_quantum_z'] == p['estimate_quantum_velocity'] == 1.0 / 256.0
     for column in ('z', 'vx', 'vy', 'vz'):

@@ -490,6 +490,40 @@ def test_tilt_rate_limit_ramps_a_large_tilt_step_and_leaves_a_small_one():
     assert small.truth_sample() == plain.truth_sample()
 
 
+def test_gyroscopic_coupling_turns_and_slows_the_tilt_step_only_while_yawing():
+    """G = -1 s: without a yaw rate the model is the first order bit for bit; while yawing at r each roll/pitch
+    step is the first-order step multiplied by (I - G r J)^-1 in the (forward, left) plane: turned by atan(G r)
+    and shortened by 1 / sqrt(1 + (G r)^2)."""
+    calm, plain = flying_model(gyroscopic_coupling=-1.0), flying_model()
+    for m in (calm, plain):
+        run(m, 1.0, pcmd=(40, 60, 0, 0))
+    assert calm.truth_sample() == plain.truth_sample()
+    model = flying_model(gyroscopic_coupling=-1.0)
+    t = run(model, 2.0, pcmd=(0, 0, -100, 0))      # PCMD yaw + = clockwise: yawing counter-clockwise, level
+    r = model.yaw_rate
+    assert r > 1.0                                                  # rad/s (counter-clockwise)
+    roll0, pitch0 = model.roll, model.pitch
+    model.set_command(0, 40, -100, 0, t)
+    expected = None
+    for k in range(int(round((PARAMS['attitude_delay'] + 0.05) / DT))):   # the step arrives after the delay
+        before = (model.roll, model.pitch, model.yaw_rate)
+        model.step(DT, t + k * DT)
+        if expected is None and (model.roll, model.pitch) != before[:2]:
+            c = 1.0 - math.exp(-DT / PARAMS['attitude_time_constant'])
+            d_pitch, d_roll = c * (math.radians(40 * model.mapping.max_tilt_deg / 100.0) - before[1]), \
+                c * (0.0 - before[0])
+            a = -1.0 * before[2]
+            forward, left = d_pitch, -d_roll                       # (forward, left) = (pitch, -roll)
+            turned = ((forward - a * left) / (1 + a * a), (left + a * forward) / (1 + a * a))
+            expected = (before[0] - turned[1], before[1] + turned[0])
+            assert (model.roll, model.pitch) == pytest.approx(expected, abs=1e-12)
+            step = math.hypot(model.roll - before[0], model.pitch - before[1])
+            assert step == pytest.approx(math.hypot(d_roll, d_pitch) / math.sqrt(1 + a * a), rel=1e-9)
+            # G < 0, r > 0: the step toward +pitch (forward) is turned clockwise, i.e. to the right: + roll
+            assert model.roll - before[0] > 0.0
+    assert expected is not None and (roll0, pitch0) == (0.0, 0.0)
+
+
 def test_every_effect_off_is_bit_for_bit_the_model_without_them():
     from anafi_sim.sim.drone_model import EFFECTS_OFF
     plain = flying_model(settings={'wind_x': 1.0, 'gust_std_horizontal': 0.5}, seed=3)
@@ -508,6 +542,7 @@ def test_every_effect_off_is_bit_for_bit_the_model_without_them():
     ('max_descent_speed', -1.0), ('max_descent_speed', 'fast'), ('max_descent_speed', True),
     ('vertical_acceleration_limit', -1.0), ('vertical_acceleration_limit', float('nan')),
     ('tilt_rate_limit', -0.5), ('tilt_rate_limit', 'fast'),
+    ('gyroscopic_coupling', float('nan')), ('gyroscopic_coupling', 'strong'), ('gyroscopic_coupling', True),
     ('estimate_position_fusion', 'yes'), ('estimate_position_fix_gain', -0.2), ('estimate_quantum_x', float('inf'))])
 def test_bad_effect_values_raise_value_error(key, value):
     with pytest.raises(ValueError, match=key):
@@ -527,6 +562,7 @@ def test_fitted_config_file_is_valid_and_has_every_effect_on():
     assert fitted['estimate_position_fusion'] is True
     assert fitted['tilt_attenuation'] > 0.0 and fitted['max_descent_speed'] > 0.0
     assert fitted['vertical_acceleration_limit'] > 0.0 and fitted['tilt_rate_limit'] > 0.0
+    assert fitted['gyroscopic_coupling'] < 0.0
     shipped = load_model_params(DEFAULT_MODEL_FILE)
     from anafi_sim.sim.drone_model import EFFECT_GROUPS
     refitted = set(k for keys in EFFECT_GROUPS.values() for k in keys)     # an effect's keys, refits included

@@ -16,7 +16,11 @@ numbers, passed in by the node / engine through ``PredictionModel``), at 20-50 H
   quadratic drag linearised along the reference plus the disturbance estimate d. Exact zero-order-hold
   discretisation (matrix exponential). The firmware applies a command ``attitude_delay`` after it was sent:
   the QP starts at t0 = t + ``command_latency`` + attitude_delay, from the state predicted to t0 by
-  integrating the model with the commands already sent (a Smith predictor).
+  integrating the model with the commands already sent (a Smith predictor). While the drone yaws at r the
+  firmware turns and slows its tilt steps (``gyroscopic_coupling`` G, anafi_sim.sim.drone_model): the
+  forward prediction does too, the command is pre-turned by (I - G r J) (|G r| <= ``PRETURN_LIMIT``), and
+  while the QP asks for a large tilt change (``YAW_GOVERNOR_DEMAND``) the yaw rate is held to where that
+  pre-turn is whole.
 * **QP** in deviation variables from the reference trajectory (x - x_ref, u - u_ref; well scaled, the cost
   has no linear term): sum_k |dx_k|^2_Q + |du_k|^2_R, terminal Q * ``terminal_factor``; constraints: the
   dynamics, |u_x|, |u_y| <= g tan(max tilt) * ``tilt_margin`` (the bridge's max tilt, per body axis),
@@ -35,7 +39,8 @@ numbers, passed in by the node / engine through ``PredictionModel``), at 20-50 H
   lag (D = ``position_lag`` [s], gain k = ``position_fix_gain`` [1/s]: e' = k (v D - e); v D on a line, less
   on a turn) and predicted forward from there (``lag_compensation`` False: not).
 
-Yaw: yaw rate = ``yaw_gain`` (yaw_ref - yaw) + the reference's yaw rate, within the bridge's max yaw rate.
+Yaw: yaw rate = ``yaw_gain`` (yaw_ref - yaw) + the reference's yaw rate, within the bridge's max yaw rate
+(and within PRETURN_LIMIT / |G| while the tilt acceleration has to change by more than ``YAW_GOVERNOR_DEMAND``).
 ``cycle`` result: ``PreviewResult`` (the paper MPC's stats fields plus the predicted / reference paths,
 the reference source and the disturbance). Solver failure or an exception -> solver_failed (silent: the
 firmware's hover brake), as the paper's MPC.
@@ -58,6 +63,13 @@ from anafi_control.target_estimator import DEFAULTS as ESTIMATOR_DEFAULTS, Targe
 _OSQP_1X = tuple(int(x) for x in osqp.__version__.split('.')[:2] if x.isdigit()) >= (1, 0)
 
 NX, NU = 8, 3
+#: largest |G r| (``gyroscopic_coupling`` x yaw rate) the command is pre-turned by: ~27 deg and 1.12x; a full
+#: pre-turn (up to |G r| ~3.4 at 180 deg/s) amplifies the tilt error ~3.5x into the tilt limits
+PRETURN_LIMIT = 0.5
+#: [m/s^2] while the QP asks the tilt acceleration to change by more than this, the yaw rate is held to
+#: PRETURN_LIMIT / |G| (~27 deg/s with the shipped G), where the pre-turn compensates the coupling whole: a fast
+#: yaw turn during a large tilt change swings the tilt round (the 180 deg static step overshot 0.3 m without it)
+YAW_GOVERNOR_DEMAND = 0.5
 #: state indices: x (forward) p, v, a; y (left) p, v, a; z p, v
 PX, VX, AX, PY, VY, AY, PZ, VZ = range(NX)
 POS, VEL = (PX, PY, PZ), (VX, VY, VZ)
@@ -105,7 +117,7 @@ MODEL_KEYS = ('gravity', 'attitude_time_constant', 'attitude_delay', 'vertical_s
               'drag_linear', 'drag_quadratic', 'estimate_lag', 'position_lag', 'position_fix_gain',
               'sample_period', 'max_tilt_deg', 'max_vertical_speed', 'max_yaw_rate_deg',
               'tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full',
-              'vertical_acceleration_limit', 'tilt_rate_limit')
+              'vertical_acceleration_limit', 'tilt_rate_limit', 'gyroscopic_coupling')
 
 
 class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
@@ -123,7 +135,11 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
         drone along its velocity, ramped in from v0 to tilt_attenuation_speed_full) is commanded in advance;
         vertical_acceleration_limit [m/s^2] (0 = none) clips the vertical loop in the forward prediction and the
         disturbance estimate, tilt_rate_limit [rad/s] (0 = none) the tilt acceleration's rate (g x R) in the
-        forward prediction (the QP's model stays linear: the limits bind only on large steps)."""
+        forward prediction (the QP's model stays linear: the limits bind only on large steps), gyroscopic_coupling
+        G [s] (0 = none, signed): while the drone yaws at r the firmware's tilt step is (I - G r J)^-1 times the
+        first order's, in the forward prediction (r: the measured yaw rate); the command is pre-turned by
+        (I - G r J) about the tilt at t0, G r clipped to +-``PRETURN_LIMIT``, so that the firmware's step is
+        about the one the QP planned."""
         lag = float(model.get('estimate_delay', 0.0)) + float(model.get('estimate_time_constant', 0.0))
         fusion = bool(model.get('estimate_position_fusion', False))
         return cls(float(model['gravity']), float(model['attitude_time_constant']), float(model['attitude_delay']),
@@ -136,7 +152,7 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
                    float(model.get('tilt_attenuation', 0.0)), float(model.get('tilt_attenuation_speed', 0.0)),
                    float(model.get('tilt_attenuation_speed_full', 0.0)),
                    float(model.get('vertical_acceleration_limit', 0.0)),
-                   float(model.get('tilt_rate_limit', 0.0)))
+                   float(model.get('tilt_rate_limit', 0.0)), float(model.get('gyroscopic_coupling', 0.0)))
 
     def vertical_acceleration(self, command, vz):
         """Vertical acceleration [m/s^2] of the firmware's vertical-speed loop at ``vz`` [m/s] under ``command``."""
@@ -172,7 +188,7 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
     def check(self):
         for key, value in zip(MODEL_KEYS, self):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value < 0.0:
+                    or (value < 0.0 and key != 'gyroscopic_coupling'):
                 raise ValueError('prediction model %s must be a finite number >= 0, got %r' % (key, value))
         for key in ('gravity', 'attitude_time_constant', 'vertical_speed_time_constant', 'max_tilt_deg',
                     'max_vertical_speed', 'max_yaw_rate_deg'):
@@ -480,6 +496,8 @@ class PreviewMpc(Controller):
         ca = 1.0 - math.exp(-h / m.attitude_time_constant)
         cz = 1.0 - math.exp(-h / m.vertical_speed_time_constant)
         kl, kq = m.drag_linear, m.drag_quadratic
+        turn = m.gyroscopic_coupling * smp.get('yaw_rate', 0.0)    # G r: the firmware turns its tilt steps
+        shorten = 1.0 / (1.0 + turn * turn)
         cmds = list(self.commands)
         i, active = 0, None
         for _ in range(steps):
@@ -488,6 +506,8 @@ class PreviewMpc(Controller):
                 i += 1
             ux, uy, uz = (a[0], a[1], v[2]) if active is None else active[1:]
             dax, day = ca * (ux - a[0]), ca * (uy - a[1])
+            if turn != 0.0:                              # (I - G r J)^-1, J a quarter turn counter-clockwise
+                dax, day = shorten * (dax - turn * day), shorten * (day + turn * dax)
             if m.tilt_rate_limit > 0.0:                  # the firmware turns the tilt at most at R
                 cap = m.gravity * m.tilt_rate_limit * h
                 norm = math.hypot(dax, day)
@@ -585,6 +605,13 @@ class PreviewMpc(Controller):
         dx = sol[:self.n_x].reshape(N + 1, NX)
         du = sol[self.n_x:].reshape(N, NU)
         u0 = np.clip(u_ref[0] + du[0], -self.u_max, self.u_max)
+        demand = math.hypot(u0[0] - ah0[0], u0[1] - ah0[1])
+        turn = m.gyroscopic_coupling * self.sample.get('yaw_rate', 0.0)
+        turn = max(-PRETURN_LIMIT, min(PRETURN_LIMIT, turn))
+        if turn != 0.0:     # pre-turn about the tilt at t0 (G r clipped): the firmware's (I - G r J)^-1 turns it back
+            ex, ey = u0[0] - ah0[0], u0[1] - ah0[1]
+            u0[0] = min(self.u_max[0], max(-self.u_max[0], ah0[0] + ex + turn * ey))
+            u0[1] = min(self.u_max[1], max(-self.u_max[1], ah0[1] + ey - turn * ex))
         x_pred = ref[:N + 1] + dx
         result.predicted = self._to_world(x_pred, yaw, origin)
         result.reference = P[:N + 1].copy()
@@ -601,6 +628,9 @@ class PreviewMpc(Controller):
         yaw_err = math.degrees(wrap_angle(math.radians(yaw_ref[0]) - yaw))
         yaw_rate_ref = (yaw_ref[1] - yaw_ref[0]) / dt
         yaw_rate = max(-m.max_yaw_rate_deg, min(m.max_yaw_rate_deg, p['yaw_gain'] * yaw_err + yaw_rate_ref))
+        if m.gyroscopic_coupling != 0.0 and demand > YAW_GOVERNOR_DEMAND:   # no fast yaw into a large tilt change
+            cap = math.degrees(PRETURN_LIMIT / abs(m.gyroscopic_coupling))
+            yaw_rate = max(-cap, min(cap, yaw_rate))
         command = [roll, pitch, yaw_rate, float(u0[2])]
         realised = list(command)
         if p['quantise']:

@@ -83,6 +83,16 @@ def stability_to_world(x, y, yaw):
     return c * x - s * y, s * x + c * y
 
 
+def gyroscopic_step(dx, dy, turn):
+    """A tilt step (dx, dy) turned and shortened by the firmware's gyroscopic coupling (anafi_sim.sim.
+    drone_model, ``gyroscopic_coupling``): (I - turn J)^-1 (dx, dy), turn = G x yaw rate [-], J the quarter turn
+    counter-clockwise about z; i.e. rotated by atan(turn), shortened by 1 / sqrt(1 + turn^2). The same formula
+    in (roll, pitch), (forward, left) or world (x, y) coordinates: the maps between them are proper rotations,
+    which commute with J."""
+    k = 1.0 / (1.0 + turn * turn)
+    return k * (dx - turn * dy), k * (dy + turn * dx)
+
+
 def is_finite(*values):
     """True when every value is a finite number."""
     try:

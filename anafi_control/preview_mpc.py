@@ -18,9 +18,9 @@ numbers, passed in by the node / engine through ``PredictionModel``), at 20-50 H
   the QP starts at t0 = t + ``command_latency`` + attitude_delay, from the state predicted to t0 by
   integrating the model with the commands already sent (a Smith predictor). While the drone yaws at r the
   firmware turns and slows its tilt steps (``gyroscopic_coupling`` G, anafi_sim.sim.drone_model): the
-  forward prediction does too, the command is pre-turned by (I - G r J) (|G r| <= ``PRETURN_LIMIT``), and
-  while the QP asks for a large tilt change (``YAW_GOVERNOR_DEMAND``) the yaw rate is held to where that
-  pre-turn is whole.
+  forward prediction does too, and while the QP asks for a large tilt change the yaw rate is held to where
+  the coupling turns the tilt steps by little (``YAW_GOVERNOR_DEMAND``, ``YAW_GOVERNOR_TURN``,
+  ``YAW_GOVERNOR_HOLD``).
 * **QP** in deviation variables from the reference trajectory (x - x_ref, u - u_ref; well scaled, the cost
   has no linear term): sum_k |dx_k|^2_Q + |du_k|^2_R, terminal Q * ``terminal_factor``; constraints: the
   dynamics, |u_x|, |u_y| <= g tan(max tilt) * ``tilt_margin`` (the bridge's max tilt, per body axis),
@@ -40,7 +40,8 @@ numbers, passed in by the node / engine through ``PredictionModel``), at 20-50 H
   on a turn) and predicted forward from there (``lag_compensation`` False: not).
 
 Yaw: yaw rate = ``yaw_gain`` (yaw_ref - yaw) + the reference's yaw rate, within the bridge's max yaw rate
-(and within PRETURN_LIMIT / |G| while the tilt acceleration has to change by more than ``YAW_GOVERNOR_DEMAND``).
+(and within YAW_GOVERNOR_TURN / |G| while the tilt acceleration has to change by more than ``YAW_GOVERNOR_DEMAND``,
+and for ``YAW_GOVERNOR_HOLD`` s after: the governor does not flicker between cycles).
 ``cycle`` result: ``PreviewResult`` (the paper MPC's stats fields plus the predicted / reference paths,
 the reference source and the disturbance). Solver failure or an exception -> solver_failed (silent: the
 firmware's hover brake), as the paper's MPC.
@@ -57,19 +58,21 @@ import osqp
 
 from anafi_control.contract import (LIMIT_DEFAULTS, OK, SOLVER_FAILED, TIMEOUT_DEFAULTS, Controller, CycleOutput,
                                     ReferenceSample, hover_output)
-from anafi_control.frames import quaternion_to_euler, stability_to_world, world_to_stability, wrap_angle
+from anafi_control.frames import (gyroscopic_step, quaternion_to_euler, stability_to_world, world_to_stability,
+                                  wrap_angle)
 from anafi_control.target_estimator import DEFAULTS as ESTIMATOR_DEFAULTS, TargetEstimator
 
 _OSQP_1X = tuple(int(x) for x in osqp.__version__.split('.')[:2] if x.isdigit()) >= (1, 0)
 
 NX, NU = 8, 3
-#: largest |G r| (``gyroscopic_coupling`` x yaw rate) the command is pre-turned by: ~27 deg and 1.12x; a full
-#: pre-turn (up to |G r| ~3.4 at 180 deg/s) amplifies the tilt error ~3.5x into the tilt limits
-PRETURN_LIMIT = 0.5
-#: [m/s^2] while the QP asks the tilt acceleration to change by more than this, the yaw rate is held to
-#: PRETURN_LIMIT / |G| (~27 deg/s with the shipped G), where the pre-turn compensates the coupling whole: a fast
-#: yaw turn during a large tilt change swings the tilt round (the 180 deg static step overshot 0.3 m without it)
+#: the yaw governor (firmware's ``gyroscopic_coupling`` G): while the QP asks the tilt acceleration to change by
+#: more than YAW_GOVERNOR_DEMAND [m/s^2] at t0, and YAW_GOVERNOR_HOLD [s] after, the yaw rate is held to
+#: YAW_GOVERNOR_TURN / |G| (~27 deg/s with the shipped G: the tilt steps turned by at most ~27 deg, shortened by
+#: 11 %); a fast yaw turn during a large tilt change swings the tilt round (the 180 deg static step overshot
+#: 0.3-0.6 m without the governor, benchmarks/results/preview_mpc.md)
 YAW_GOVERNOR_DEMAND = 0.5
+YAW_GOVERNOR_TURN = 0.5
+YAW_GOVERNOR_HOLD = 0.3
 #: state indices: x (forward) p, v, a; y (left) p, v, a; z p, v
 PX, VX, AX, PY, VY, AY, PZ, VZ = range(NX)
 POS, VEL = (PX, PY, PZ), (VX, VY, VZ)
@@ -137,9 +140,7 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
         disturbance estimate, tilt_rate_limit [rad/s] (0 = none) the tilt acceleration's rate (g x R) in the
         forward prediction (the QP's model stays linear: the limits bind only on large steps), gyroscopic_coupling
         G [s] (0 = none, signed): while the drone yaws at r the firmware's tilt step is (I - G r J)^-1 times the
-        first order's, in the forward prediction (r: the measured yaw rate); the command is pre-turned by
-        (I - G r J) about the tilt at t0, G r clipped to +-``PRETURN_LIMIT``, so that the firmware's step is
-        about the one the QP planned."""
+        first order's, in the forward prediction (r: the last measured yaw rate, held) and in the yaw governor."""
         lag = float(model.get('estimate_delay', 0.0)) + float(model.get('estimate_time_constant', 0.0))
         fusion = bool(model.get('estimate_position_fusion', False))
         return cls(float(model['gravity']), float(model['attitude_time_constant']), float(model['attitude_delay']),
@@ -189,7 +190,8 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
         for key, value in zip(MODEL_KEYS, self):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
                     or (value < 0.0 and key != 'gyroscopic_coupling'):
-                raise ValueError('prediction model %s must be a finite number >= 0, got %r' % (key, value))
+                raise ValueError('prediction model %s must be a finite number%s, got %r'
+                                 % (key, '' if key == 'gyroscopic_coupling' else ' >= 0', value))
         for key in ('gravity', 'attitude_time_constant', 'vertical_speed_time_constant', 'max_tilt_deg',
                     'max_vertical_speed', 'max_yaw_rate_deg'):
             if not getattr(self, key) > 0.0:
@@ -320,6 +322,7 @@ class PreviewMpc(Controller):
         self.disturbance = np.zeros(3)
         self.commands = collections.deque()   # (t_apply, u_x, u_y (world m/s^2), u_z (m/s))
         self.carry = [0.0, 0.0, 0.0, 0.0]     # quantisation error carried (roll, pitch, yaw rate, gaz)
+        self._yaw_governed_until = -math.inf  # [s] the yaw governor holds the yaw rate until then
         self._build()
 
     # ----------------------------------------------------------------- QP
@@ -497,7 +500,6 @@ class PreviewMpc(Controller):
         cz = 1.0 - math.exp(-h / m.vertical_speed_time_constant)
         kl, kq = m.drag_linear, m.drag_quadratic
         turn = m.gyroscopic_coupling * smp.get('yaw_rate', 0.0)    # G r: the firmware turns its tilt steps
-        shorten = 1.0 / (1.0 + turn * turn)
         cmds = list(self.commands)
         i, active = 0, None
         for _ in range(steps):
@@ -506,8 +508,8 @@ class PreviewMpc(Controller):
                 i += 1
             ux, uy, uz = (a[0], a[1], v[2]) if active is None else active[1:]
             dax, day = ca * (ux - a[0]), ca * (uy - a[1])
-            if turn != 0.0:                              # (I - G r J)^-1, J a quarter turn counter-clockwise
-                dax, day = shorten * (dax - turn * day), shorten * (day + turn * dax)
+            if turn != 0.0:
+                dax, day = gyroscopic_step(dax, day, turn)
             if m.tilt_rate_limit > 0.0:                  # the firmware turns the tilt at most at R
                 cap = m.gravity * m.tilt_rate_limit * h
                 norm = math.hypot(dax, day)
@@ -605,13 +607,8 @@ class PreviewMpc(Controller):
         dx = sol[:self.n_x].reshape(N + 1, NX)
         du = sol[self.n_x:].reshape(N, NU)
         u0 = np.clip(u_ref[0] + du[0], -self.u_max, self.u_max)
-        demand = math.hypot(u0[0] - ah0[0], u0[1] - ah0[1])
-        turn = m.gyroscopic_coupling * self.sample.get('yaw_rate', 0.0)
-        turn = max(-PRETURN_LIMIT, min(PRETURN_LIMIT, turn))
-        if turn != 0.0:     # pre-turn about the tilt at t0 (G r clipped): the firmware's (I - G r J)^-1 turns it back
-            ex, ey = u0[0] - ah0[0], u0[1] - ah0[1]
-            u0[0] = min(self.u_max[0], max(-self.u_max[0], ah0[0] + ex + turn * ey))
-            u0[1] = min(self.u_max[1], max(-self.u_max[1], ah0[1] + ey - turn * ex))
+        if m.gyroscopic_coupling != 0.0 and math.hypot(u0[0] - ah0[0], u0[1] - ah0[1]) > YAW_GOVERNOR_DEMAND:
+            self._yaw_governed_until = t + YAW_GOVERNOR_HOLD       # a large tilt change ahead: no fast yaw
         x_pred = ref[:N + 1] + dx
         result.predicted = self._to_world(x_pred, yaw, origin)
         result.reference = P[:N + 1].copy()
@@ -628,8 +625,8 @@ class PreviewMpc(Controller):
         yaw_err = math.degrees(wrap_angle(math.radians(yaw_ref[0]) - yaw))
         yaw_rate_ref = (yaw_ref[1] - yaw_ref[0]) / dt
         yaw_rate = max(-m.max_yaw_rate_deg, min(m.max_yaw_rate_deg, p['yaw_gain'] * yaw_err + yaw_rate_ref))
-        if m.gyroscopic_coupling != 0.0 and demand > YAW_GOVERNOR_DEMAND:   # no fast yaw into a large tilt change
-            cap = math.degrees(PRETURN_LIMIT / abs(m.gyroscopic_coupling))
+        if m.gyroscopic_coupling != 0.0 and t < self._yaw_governed_until:
+            cap = math.degrees(YAW_GOVERNOR_TURN / abs(m.gyroscopic_coupling))
             yaw_rate = max(-cap, min(cap, yaw_rate))
         command = [roll, pitch, yaw_rate, float(u0[2])]
         realised = list(command)
@@ -674,12 +671,14 @@ class PreviewMpc(Controller):
 
     def _hover(self, out):
         self.commands.clear()
+        self._yaw_governed_until = -math.inf
         self.carry = [0.0, 0.0, 0.0, 0.0]
         self.disturbance = np.zeros(3)
         self._reset_warm_start()
 
     def _clock_jumped(self):
         self.commands.clear()
+        self._yaw_governed_until = -math.inf
         self.sample = None
         self.lag_offset = None
         self.preview = None

@@ -446,7 +446,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
               'close to Sphinx\'s (roll / pitch rms, at the time of writing, the shipped model without -> with it: '
               'MPC 7.98 / 6.67 -> 3.18 / 4.17 deg, PID 3.21 / 4.54 -> 2.45 / 2.04 deg; the tilt swings round the '
               'long way in the sense of the yaw, as Sphinx\'s does, where it cut through level before), while their '
-              'cells hardly move (MPC 0.78 / 0.76 -> 0.79 / 0.78, PID 0.95 / 0.93 -> 0.92 / 0.90). The MPC line cells move by +-15-35 % with the waypoint\'s age at the MPC\'s cycle '
+              'cells hardly move (MPC 0.78 / 0.76 -> 0.79 / 0.78, PID 0.95 / 0.93 -> 0.92 / 0.90). The MPC line '
+              'cells move by +-15-35 % with the waypoint\'s age at the MPC\'s cycle '
               '(timer phase section), which the logs do not record. Sphinx\'s estimate e_max on the MPC lines at 2, '
               '3 and 5 m/s comes from stalls of its estimate stream (below). ' + _method_text(records, logs), '',
               'Shipped (`SHIPPED_EFFECTS` in `anafi_sim/calibration/fit.py`, `paper_timing` in mpc.yaml): the '

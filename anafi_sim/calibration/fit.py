@@ -29,6 +29,7 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 from scipy.signal import lfilter, savgol_filter
 
+from anafi_control import frames
 from anafi_sim.experiments.reference_log import (INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES, detect_garbage,
                                                  initial_velocity_error, tracking_error, velocity_error)
 from anafi_sim.experiments.report import PAPER_TABLE3
@@ -1382,10 +1383,9 @@ def gyroscopic_tilt_response(t_u, roll_u, pitch_u, t_r, yaw_rate, time_constant,
     out = np.empty((len(grid), 2))
     for k, (rs, ps, g) in enumerate(zip(targets[0], targets[1], turn)):
         out[k] = roll, pitch
-        dr, dp = c * (rs - roll), c * (ps - pitch)
-        n = 1.0 / (1.0 + g * g)
-        roll += n * (dr - g * dp)
-        pitch += n * (dp + g * dr)
+        dr, dp = frames.gyroscopic_step(c * (rs - roll), c * (ps - pitch), g)
+        roll += dr
+        pitch += dp
     return np.interp(t_out, grid, out[:, 0]), np.interp(t_out, grid, out[:, 1])
 
 
@@ -1396,7 +1396,6 @@ def fit_gyroscopic_coupling(logs, time_constant, delay, window=20.0, bounds=(-3.
     the model's first-order loop (``time_constant``, ``delay`` [s]; tilt_rate_limit off, as shipped) and the
     truth's yaw rate. Through Sphinx's 180 deg turns the tilt keeps its magnitude and swings round the long way
     in the sense of the yaw, where a plain first order cuts through level (docs/calibration.md)."""
-    from scipy.optimize import minimize_scalar
     series = [(log.name, tr, log.t[m], log.roll_sphinx[m], log.pitch_sphinx[m], log.t, measured_yaw_rate(log))
               for log, pid, tr, m in _static_steps(logs, window)]
     if not series:
@@ -1551,8 +1550,8 @@ Effects.__doc__ = ('The fidelity effects: PositionFusionFit, TiltFit (constant a
 # 0.84x -> 0.72x) for one more cell in the band, so it stays off; the velocity error's decay changes nothing in
 # a flight (no part of the model creates such an error) and lets a replay start from a logged velocity
 # estimate. Edit and rerun scripts/calibrate_model.py.
-SHIPPED_EFFECTS = ('position_fusion', 'velocity_error', 'tilt_attenuation', 'vertical_acceleration_limit', 'gyroscopic_coupling',
-                   'yaw_bias', 'quantisation')
+SHIPPED_EFFECTS = ('position_fusion', 'velocity_error', 'tilt_attenuation', 'vertical_acceleration_limit',
+                   'gyroscopic_coupling', 'yaw_bias', 'quantisation')
 
 
 def fit_effects(logs, params, commands, estimate, trim_pitch=0.0, shipped=None):

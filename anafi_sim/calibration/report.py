@@ -724,7 +724,9 @@ def format_effects(cal):
         '(c): not taken. What the logs cannot identify: the source of '
         'the term (the rotors\' angular momentum while their speeds differ to yaw the drone, or the firmware\'s '
         'rate loop); whether it scales with the yaw rate, the yaw torque or the rotor speeds (one turn rate '
-        'per log, ~100 deg/s).')
+        'per log, ~100 deg/s). anafi_model_fitted.yaml (every effect on) pairs this G with the tilt-rate limited '
+        'loop of its own (tau %.4f s): a mix of two fits, not refitted together (its yaw-180 attitude histories '
+        'are further from Sphinx\'s than the shipped model\'s, docs/fidelity.md).' % cal.fitted['attitude_time_constant'])
     add('')
 
     ve = f.vertical

@@ -42,10 +42,12 @@ fitted by ``anafi_sim/calibration/fit.py``, see docs/calibration.md):
   loop's step is turned and slowed, d(tilt)/dt = (setpoint - tilt) / tau +
   G r J d(tilt)/dt in the (forward, left) tilt plane (J: a quarter turn
   counter-clockwise), i.e. each step is multiplied by (I - G r J)^-1: rotated by
-  atan(G r) and shortened by 1 / sqrt(1 + (G r)^2). With G < 0 (the fit) the tilt
-  swings round the long way in the sense of the yaw and keeps its magnitude, as
-  Sphinx's does in the 180 deg turns (docs/calibration.md); no effect without a
-  yaw rate (0 = none, signed).
+  atan(G r) and shortened by 1 / sqrt(1 + (G r)^2) (``frames.gyroscopic_step``;
+  the exact first-order step, then the turn: the meaning of G depends slightly on
+  dt, ~1.4 % at 5 ms, the step of the fit). With G < 0 (the fit) the tilt swings
+  round the long way in the sense of the yaw, as Sphinx's does in the 180 deg
+  turns (docs/calibration.md; Sphinx's keeps more of its magnitude); no effect
+  without a yaw rate (0 = none, signed).
 
 The estimate's effects (position fusion, yaw bias, quantisation) are
 ``anafi_sim/sim/state_estimate.py``'s. With every effect off the model is bit
@@ -532,9 +534,7 @@ class AnafiModel(object):
         d_roll = c_att * (roll_sp - roll0)
         d_pitch = c_att * (pitch_sp - pitch0)
         if self._gyro != 0.0:                       # the yaw turns and slows the step: (I - G r J)^-1
-            a = self._gyro * self.yaw_rate          # (forward, left) = (pitch, -roll); J (f, l) = (-l, f)
-            k = 1.0 / (1.0 + a * a)
-            d_roll, d_pitch = k * (d_roll - a * d_pitch), k * (d_pitch + a * d_roll)
+            d_roll, d_pitch = frames.gyroscopic_step(d_roll, d_pitch, self._gyro * self.yaw_rate)
         if self._tilt_rate_limit > 0.0:             # the firmware turns the tilt at most this fast
             cap = self._tilt_rate_limit * dt
             norm = math.sqrt(d_roll * d_roll + d_pitch * d_pitch)

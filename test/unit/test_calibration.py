@@ -169,6 +169,41 @@ def test_rate_limited_tilt_response_is_the_simulators_attitude_loop():
         assert err < 0.01 * math.hypot(roll_sp, pitch_sp) + 1e-4, pcmd
 
 
+def test_gyroscopic_tilt_response_is_the_simulators_attitude_loop():
+    """fit.gyroscopic_tilt_response (the coupling fit's model) against AnafiModel's roll/pitch for a tilt step
+    while the drone yaws (its own yaw rate fed in), with G and with the opposite sign (which must not match)."""
+    from anafi_sim.sim.bridge import PilotingMapping
+    from anafi_sim.sim.drone_model import AnafiModel
+    base = dict(gravity=9.81, attitude_time_constant=0.18, attitude_delay=0.0, yaw_rate_time_constant=0.1,
+                vertical_speed_time_constant=0.1, drag_linear=0.2, drag_quadratic=0.02, drag_vertical=0.2,
+                estimate_delay=0.0, estimate_time_constant=0.0, estimate_rate=20.0, estimate_float16=False)
+    mapping = PilotingMapping()
+    dt = 0.005
+    drone = AnafiModel(dict(base, gyroscopic_coupling=-1.0), mapping=mapping)
+    drone.reset(0.0, 0.0, 20.0, 0.0, flying=True)
+    t_out, att, rate = [], [], []
+    t = 0.0
+    for k in range(300):
+        pcmd = (0, 0, -60, 0) if k < 100 else (40, 70, -60, 0)      # yaw counter-clockwise, then a tilt step
+        if k % 20 == 0:
+            drone.set_command(pcmd[0], pcmd[1], pcmd[2], pcmd[3], t)
+        rate.append(drone.yaw_rate)                               # the rate the step uses: before its update
+        drone.step(dt, t)
+        t += dt
+        t_out.append(t)
+        att.append((drone.roll, drone.pitch))
+    roll_sp, pitch_sp = mapping.pcmd_to_setpoints(40, 70, -60, 0)[:2]
+    t_r = np.array(t_out) - dt                                       # rate[k] holds over the step from t_out - dt
+    for g, close in ((-1.0, True), (1.0, False)):
+        r, p = cal.gyroscopic_tilt_response([0.0, 0.5, 2.0], [0.0, roll_sp, roll_sp], [0.0, pitch_sp, pitch_sp],
+                                            t_r, np.array(rate), 0.18, g, 0.0, np.array(t_out), step=dt)
+        err = np.max(np.hypot(r - np.array(att)[:, 0], p - np.array(att)[:, 1]))
+        if close:
+            assert err < 0.02 * math.hypot(roll_sp, pitch_sp), err
+        else:
+            assert err > 0.2 * math.hypot(roll_sp, pitch_sp), err
+
+
 def simulate_drag_log(dl, dq, dv, trim_pitch, duration=80.0, h=1e-3, rate=20.0):
     """Model translation (a = T z - g e_z - drag, T from the vertical profile) driven by set attitudes."""
     n = int(duration / h)

@@ -135,3 +135,20 @@ def test_odometry_partial_marks_what_cannot_be_computed():
     assert rpy == (0.0, 0.0, 0.0) and math.isnan(vel[0])
     with pytest.raises(ValueError):
         frames.odometry_to_world((1, 2, 3), LEVEL, (0, 0, 0), 'body')
+
+
+@pytest.mark.parametrize('turn', [0.0, 0.4, -1.7])
+def test_gyroscopic_step_is_the_same_law_in_every_tilt_coordinate(turn):
+    """(I - turn J)^-1: turned by atan(turn), shortened by 1/sqrt(1 + turn^2); the same formula whether the step
+    is written in (roll, pitch), in (forward, left) = (pitch, -roll) or in world axes at any yaw."""
+    d_roll, d_pitch = 0.03, -0.05
+    r, p = frames.gyroscopic_step(d_roll, d_pitch, turn)
+    assert math.hypot(r, p) == pytest.approx(math.hypot(d_roll, d_pitch) / math.sqrt(1 + turn * turn))
+    angle = math.atan2(p, r) - math.atan2(d_pitch, d_roll)
+    assert frames.wrap_angle(angle) == pytest.approx(math.atan(turn))
+    f, l = frames.gyroscopic_step(d_pitch, -d_roll, turn)                  # (forward, left)
+    assert (f, l) == pytest.approx((p, -r))
+    for yaw in (0.7, -2.5):
+        wx, wy = frames.stability_to_world(d_pitch, -d_roll, yaw)
+        gx, gy = frames.gyroscopic_step(wx, wy, turn)
+        assert (gx, gy) == pytest.approx(frames.stability_to_world(f, l, yaw))

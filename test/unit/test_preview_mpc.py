@@ -237,19 +237,56 @@ def test_smith_predictor_predicts_the_tilt_of_a_yawing_drone_with_the_gyroscopic
 
 def test_the_180_deg_static_step_on_the_coupled_stand_in_does_not_overshoot():
     """The paper's WP1 from hover (3 m, 2 m across, yaw 180 deg) on the stand-in with the shipped gyroscopic
-    coupling, ground truth as state: the preview MPC that knows G (forward prediction, pre-turn, no fast yaw into
-    a large tilt change) overshoots by at most 5 cm and ends on the heading; told G = 0 it overshoots ~15 cm."""
+    coupling, ground truth as state: the preview MPC that knows G (forward prediction, yaw governor) overshoots by
+    at most 5 cm and ends on the heading; while its governor holds, the yaw rate it sends is within the cap, and
+    the governor switches a few times only (it holds through the translation, lets the turn run, holds again
+    while the fast turn disturbs the tilt), not every cycle; told G = 0 it overshoots ~15 cm."""
+    from anafi_control.preview_mpc import YAW_GOVERNOR_TURN
     target = StraightLine((3.0, 2.0, 5.0), (1.0, 0.0, 0.0), 0.0, yaw=180.0)
+    cap = YAW_GOVERNOR_TURN / abs(MODEL.gyroscopic_coupling)             # rad/s
     overshoot = {}
     for name, model in (('knows', TRUTH_MODEL), ('unaware', TRUTH_MODEL._replace(gyroscopic_coupling=0.0))):
         drone = hovering()
         ctrl = PreviewMpc(model, {'disturbance_time_constant': 0.0})
-        t, p, r = closed_loop(ctrl, drone, target, 10.0)
+        mapping = drone.mapping
+        t, path, governed_rates, switches, was_governed = 0.0, [], [], 0, False
+        for k in range(int(round(10.0 / PHYSICS_DT))):
+            if k % 10 == 0:
+                feed_state(ctrl, drone, t)
+                if k % 20 == 0:
+                    ctrl.on_waypoint(t, tuple(target.sample(t)))
+                    times = t + 0.05 * np.arange(61)
+                    ctrl.on_reference(t, [ReferenceSample(ti, target.position(ti), target.velocity(ti),
+                                                          target.acceleration(ti), target.sample(ti).yaw)
+                                          for ti in times])
+                out = ctrl.cycle(t)
+                assert out.ok, out.reason
+                drone.set_command(*(mapping.to_pcmd(*out.command) + (t,)))
+                path.append(drone.position())
+                governed = t < ctrl._yaw_governed_until
+                if governed:
+                    governed_rates.append(abs(out.command[2]))            # deg/s, sent
+                switches += governed != was_governed
+                was_governed = governed
+            drone.step(PHYSICS_DT, t)
+            t += PHYSICS_DT
+        p = np.array(path)
         overshoot[name] = max(np.max(p[:, 0]) - 3.0, np.max(p[:, 1]) - 2.0)
         if name == 'knows':
             assert abs(math.degrees(frames.wrap_angle(drone.yaw - math.pi))) < 5.0
+            quantum = MAX_YAW_RATE_DEG / 100.0                          # the PCMD's whole percent
+            assert len(governed_rates) > 20 and max(governed_rates) <= math.degrees(cap) + quantum
+            assert switches <= 4                                          # on, off, on, off: no flicker
     assert overshoot['knows'] < 0.05
     assert overshoot['unaware'] > 0.1
+
+
+def test_prediction_model_takes_a_signed_coupling_and_rejects_bad_values():
+    assert MODEL._replace(gyroscopic_coupling=-1.1).check().gyroscopic_coupling == -1.1
+    for bad in (MODEL._replace(gyroscopic_coupling=float('nan')), MODEL._replace(gyroscopic_coupling=float('inf')),
+                MODEL._replace(tilt_rate_limit=-0.5), MODEL._replace(drag_linear=-0.1)):
+        with pytest.raises(ValueError):
+            bad.check()
 
 
 def test_attitude_mapping_round_trip():

@@ -69,7 +69,7 @@ NX, NU = 8, 3
 #: more than YAW_GOVERNOR_DEMAND [m/s^2] at t0, and YAW_GOVERNOR_HOLD [s] after, the yaw rate is held to
 #: YAW_GOVERNOR_TURN / |G| (~27 deg/s with the shipped G: the tilt steps turned by at most ~27 deg, shortened by
 #: 11 %); a fast yaw turn during a large tilt change swings the tilt round (the 180 deg static step overshot
-#: 0.3-0.6 m without the governor, benchmarks/results/preview_mpc.md)
+#: 0.57-0.75 m without the governor, benchmarks/results/preview_mpc.md)
 YAW_GOVERNOR_DEMAND = 0.5
 YAW_GOVERNOR_TURN = 0.5
 YAW_GOVERNOR_HOLD = 0.3

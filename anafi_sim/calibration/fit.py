@@ -1224,17 +1224,24 @@ def rate_limited_response(t_u, u, time_constant, limit, delay, t_out, step=ESTIM
     return np.interp(t_out, grid, out)
 
 
+def _held_tilt_setpoints(t_u, roll_u, pitch_u, delay, t_out, step):
+    """(grid, (roll targets, pitch targets)) of the tilt responses: a ``step`` [s] grid from the first command
+    (or output) time to past ``t_out``'s end, and per step the mean of the held setpoint (t_u, roll_u,
+    pitch_u), ``delay``-ed, over that step."""
+    t_u = np.asarray(t_u, dtype=np.float64)
+    grid = np.arange(min(t_u[0], t_out[0]), t_out[-1] + 2.0 * step, step)
+    a, b = grid - 0.5 * step - delay, grid + 0.5 * step - delay
+    return grid, (_held_means(t_u, np.asarray(roll_u, dtype=np.float64), a, b),
+                  _held_means(t_u, np.asarray(pitch_u, dtype=np.float64), a, b))
+
+
 def rate_limited_tilt_response(t_u, roll_u, pitch_u, time_constant, rate, delay, t_out, step=ESTIMATE_STEP):
     """(roll, pitch)(t_out) [rad] of the roll/pitch loop with a tilt-rate limit, discretised as ``AnafiModel``
     does: each step moves the tilt vector by the exact first-order step toward the setpoint (held after each
     sample (t_u, roll_u, pitch_u), delayed by ``delay`` [s]), shortened to ``rate`` x step when longer
     (``rate`` [rad/s] <= 0: the first order). Starts level."""
-    t_u = np.asarray(t_u, dtype=np.float64)
     t_out = np.asarray(t_out, dtype=np.float64)
-    grid = np.arange(min(t_u[0], t_out[0]), t_out[-1] + 2.0 * step, step)
-    a, b = grid - 0.5 * step - delay, grid + 0.5 * step - delay
-    targets = (_held_means(t_u, np.asarray(roll_u, dtype=np.float64), a, b),
-               _held_means(t_u, np.asarray(pitch_u, dtype=np.float64), a, b))
+    grid, targets = _held_tilt_setpoints(t_u, roll_u, pitch_u, delay, t_out, step)
     c = 1.0 - math.exp(-step / time_constant) if time_constant > 1e-6 else 1.0
     cap = float(rate) * step if rate > 0.0 else float('inf')
     roll = pitch = 0.0
@@ -1371,12 +1378,8 @@ def gyroscopic_tilt_response(t_u, roll_u, pitch_u, t_r, yaw_rate, time_constant,
     first-order step toward the held, ``delay``-ed setpoint (t_u, roll_u, pitch_u), multiplied in the (forward,
     left) tilt plane by (I - G r J)^-1, r the yaw rate [rad/s] at that instant (interpolated from t_r,
     yaw_rate). G = ``coupling`` [s]; 0 = the plain first order. Starts level."""
-    t_u = np.asarray(t_u, dtype=np.float64)
     t_out = np.asarray(t_out, dtype=np.float64)
-    grid = np.arange(min(t_u[0], t_out[0]), t_out[-1] + 2.0 * step, step)
-    a, b = grid - 0.5 * step - delay, grid + 0.5 * step - delay
-    targets = (_held_means(t_u, np.asarray(roll_u, dtype=np.float64), a, b),
-               _held_means(t_u, np.asarray(pitch_u, dtype=np.float64), a, b))
+    grid, targets = _held_tilt_setpoints(t_u, roll_u, pitch_u, delay, t_out, step)
     turn = float(coupling) * np.interp(grid, t_r, yaw_rate)
     c = 1.0 - math.exp(-step / time_constant) if time_constant > 1e-6 else 1.0
     roll = pitch = 0.0

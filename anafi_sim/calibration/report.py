@@ -446,6 +446,14 @@ def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs')
     return '\n'.join(L)
 
 
+def _without_with_table(per_log, without, with_, number):
+    """Markdown rows: per log (``per_log`` {log: (without, with)}) the two figures, formatted with ``number``."""
+    rows = ['| log | %s | %s |' % (without, with_), '|---|---|---|']
+    for name, (before, after) in per_log.items():
+        rows.append(('| %s | ' + number + ' | ' + number + ' |') % (name, before, after))
+    return rows
+
+
 def _limited_loop_table(fit, limit_text):
     """Markdown rows: per static log the rms of section (c)'s first order and of the limited loop (a
     ``fit.TiltRateFit`` / ``fit.VerticalLimitFit``); the logs not in the fit marked as checks."""
@@ -658,10 +666,7 @@ def format_effects(cal):
                                    for n, v in de.per_file.items()),
            ', '.join('%.2f' % v for v in de.climb.values())))
     add('')
-    add('| log | vz rms without [m/s] | with [m/s] |')
-    add('|---|---|---|')
-    for name, (before, after) in de.replay.items():
-        add('| %s | %.3f | %.3f |' % (name, before, after))
+    L.extend(_without_with_table(de.replay, 'vz rms without [m/s]', 'with [m/s]', '%.3f'))
     add('')
     add('What the logs cannot identify: the only saturated descents are those of the two logs with garbage z '
         '(their truth is valid), both at the same command, so a speed cap, a reduced gain for descents or a '
@@ -709,10 +714,7 @@ def format_effects(cal):
         '[rad] without -> with it:' % (cal.params['attitude_time_constant'], cal.params['attitude_delay'],
                                        gy.coupling, gy.rms_off, gy.rms))
     add('')
-    add('| log | rms without [rad] | with [rad] |')
-    add('|---|---|---|')
-    for name, (before, after) in gy.per_file.items():
-        add('| %s | %.4f | %.4f |' % (name, before, after))
+    L.extend(_without_with_table(gy.per_file, 'rms without [rad]', 'with [rad]', '%.4f'))
     add('')
     add('Both turn senses give the same sign: the coupling multiplies the yaw rate. Tried and rejected on the '
         'same data (offline checks of 2026-11-25, not recomputed by this script; roll/pitch rms over the 4 s '
@@ -727,7 +729,8 @@ def format_effects(cal):
         'rate loop); whether it scales with the yaw rate, the yaw torque or the rotor speeds (one turn rate '
         'per log, ~100 deg/s). anafi_model_fitted.yaml (every effect on) pairs this G with the tilt-rate limited '
         'loop of its own (tau %.4f s): a mix of two fits, not refitted together (its yaw-180 attitude histories '
-        'are further from Sphinx\'s than the shipped model\'s, docs/fidelity.md).' % cal.fitted['attitude_time_constant'])
+        'are further from Sphinx\'s than the shipped model\'s, docs/fidelity.md).'
+        % cal.fitted['attitude_time_constant'])
     add('')
 
     ve = f.vertical

@@ -39,9 +39,10 @@ def feed_state(ctrl, drone, t):
     return ctrl.on_state(t, drone.position(), q, drone.body_velocity())
 
 
-def closed_loop(ctrl, drone, trajectory, duration, preview=True, t_start=0.0):
+def closed_loop(ctrl, drone, trajectory, duration, preview=True, t_start=0.0, on_cycle=None):
     """The controller on the stand-in (ground truth as state, 20 Hz cycles, 10 Hz waypoints and previews).
-    Returns (times, truth positions, reference positions) sampled every cycle."""
+    Returns (times, truth positions, reference positions) sampled every cycle; ``on_cycle(t, out)`` is called
+    after each cycle's command is set."""
     mapping = drone.mapping
     t = t_start
     out_t, out_p, out_r = [], [], []
@@ -60,6 +61,8 @@ def closed_loop(ctrl, drone, trajectory, duration, preview=True, t_start=0.0):
             out = ctrl.cycle(t)
             assert out.ok, out.reason
             drone.set_command(*(mapping.to_pcmd(*out.command) + (t,)))
+            if on_cycle is not None:
+                on_cycle(t, out)
             out_t.append(t)
             out_p.append(drone.position())
             out_r.append(trajectory.position(t))
@@ -248,29 +251,17 @@ def test_the_180_deg_static_step_on_the_coupled_stand_in_does_not_overshoot():
     for name, model in (('knows', TRUTH_MODEL), ('unaware', TRUTH_MODEL._replace(gyroscopic_coupling=0.0))):
         drone = hovering()
         ctrl = PreviewMpc(model, {'disturbance_time_constant': 0.0})
-        mapping = drone.mapping
-        t, path, governed_rates, switches, was_governed = 0.0, [], [], 0, False
-        for k in range(int(round(10.0 / PHYSICS_DT))):
-            if k % 10 == 0:
-                feed_state(ctrl, drone, t)
-                if k % 20 == 0:
-                    ctrl.on_waypoint(t, tuple(target.sample(t)))
-                    times = t + 0.05 * np.arange(61)
-                    ctrl.on_reference(t, [ReferenceSample(ti, target.position(ti), target.velocity(ti),
-                                                          target.acceleration(ti), target.sample(ti).yaw)
-                                          for ti in times])
-                out = ctrl.cycle(t)
-                assert out.ok, out.reason
-                drone.set_command(*(mapping.to_pcmd(*out.command) + (t,)))
-                path.append(drone.position())
-                governed = t < ctrl._yaw_governed_until
-                if governed:
-                    governed_rates.append(abs(out.command[2]))            # deg/s, sent
-                switches += governed != was_governed
-                was_governed = governed
-            drone.step(PHYSICS_DT, t)
-            t += PHYSICS_DT
-        p = np.array(path)
+        governed_rates, state = [], {'switches': 0, 'governed': False}
+
+        def watch(t, out):
+            governed = t < ctrl._yaw_governed_until
+            if governed:
+                governed_rates.append(abs(out.command[2]))                # deg/s, sent
+            state['switches'] += governed != state['governed']
+            state['governed'] = governed
+
+        _, p, _ = closed_loop(ctrl, drone, target, 10.0, on_cycle=watch)
+        switches = state['switches']
         overshoot[name] = max(np.max(p[:, 0]) - 3.0, np.max(p[:, 1]) - 2.0)
         if name == 'knows':
             assert abs(math.degrees(frames.wrap_angle(drone.yaw - math.pi))) < 5.0

@@ -93,6 +93,42 @@ def gyroscopic_step(dx, dy, turn):
     return k * (dx - turn * dy), k * (dy + turn * dx)
 
 
+def tilt_loop_step(x, y, x_sp, y_sp, lag, dt, yaw_rate=0.0, time_constant=0.0, coupling=0.0, authority=0.0,
+                   precession=0.0, rate_limit=0.0):
+    """(x, y) [rad] after one step ``dt`` [s] of the firmware's roll/pitch loop (anafi_sim.sim.drone_model; the
+    calibration's fits and the preview MPC's prediction use this law), the tilt (x, y) and its setpoint in
+    (roll, pitch), (forward, left) or world coordinates (proper rotations of each other):
+
+    - the first-order step ``lag`` (setpoint - tilt), ``lag`` = 1 - exp(-dt / ``time_constant``);
+    - while the drone yaws at ``yaw_rate`` r [rad/s]: the loop's rate 1 / ``time_constant`` reduced by
+      ``authority`` x |r| (none left beyond: the tilt is held), the step turned and shortened by the
+      gyroscopic coupling (``gyroscopic_step``, G = ``coupling`` [s]);
+    - the step capped at ``rate_limit`` x dt [rad] (0 = no cap);
+    - the tilt then turned by ``precession`` x r x dt [rad] (counter-clockwise for positive values).
+
+    Every yaw term is off at 0; without a yaw rate the step is the plain (capped) first order."""
+    if yaw_rate and authority and time_constant > 0.0:
+        rate = 1.0 / time_constant - authority * abs(yaw_rate)
+        lag = 1.0 - math.exp(-rate * dt) if rate > 0.0 else 0.0
+    dx = lag * (x_sp - x)
+    dy = lag * (y_sp - y)
+    if yaw_rate and coupling:
+        dx, dy = gyroscopic_step(dx, dy, coupling * yaw_rate)
+    if rate_limit > 0.0:
+        cap = rate_limit * dt
+        norm = math.sqrt(dx * dx + dy * dy)
+        if norm > cap:
+            dx *= cap / norm
+            dy *= cap / norm
+    x += dx
+    y += dy
+    if yaw_rate and precession:
+        a = precession * yaw_rate * dt
+        c, s = math.cos(a), math.sin(a)
+        x, y = c * x - s * y, s * x + c * y
+    return x, y
+
+
 def is_finite(*values):
     """True when every value is a finite number."""
     try:

@@ -17,10 +17,10 @@ numbers, passed in by the node / engine through ``PredictionModel``), at 20-50 H
   discretisation (matrix exponential). The firmware applies a command ``attitude_delay`` after it was sent:
   the QP starts at t0 = t + ``command_latency`` + attitude_delay, from the state predicted to t0 by
   integrating the model with the commands already sent (a Smith predictor). While the drone yaws at r the
-  firmware turns and slows its tilt steps (``gyroscopic_coupling`` G, anafi_sim.sim.drone_model): the
-  forward prediction does too, and while the QP asks for a large tilt change the yaw rate is held to where
-  the coupling turns the tilt steps by little (``YAW_GOVERNOR_DEMAND``, ``YAW_GOVERNOR_TURN``,
-  ``YAW_GOVERNOR_HOLD``).
+  firmware's roll/pitch loop loses authority, turns and slows its steps and precesses the tilt
+  (``gyroscopic_coupling`` G, ``yaw_tilt_authority`` c, ``yaw_tilt_precession`` w, anafi_sim.sim.drone_model):
+  the forward prediction does too, and while the QP asks for a large tilt change the yaw rate is held to where
+  the coupling changes the tilt loop by little (``YAW_GOVERNOR_*``).
 * **QP** in deviation variables from the reference trajectory (x - x_ref, u - u_ref; well scaled, the cost
   has no linear term): sum_k |dx_k|^2_Q + |du_k|^2_R, terminal Q * ``terminal_factor``; constraints: the
   dynamics, |u_x|, |u_y| <= g tan(max tilt) * ``tilt_margin`` (the bridge's max tilt, per body axis),
@@ -40,8 +40,8 @@ numbers, passed in by the node / engine through ``PredictionModel``), at 20-50 H
   on a turn) and predicted forward from there (``lag_compensation`` False: not).
 
 Yaw: yaw rate = ``yaw_gain`` (yaw_ref - yaw) + the reference's yaw rate, within the bridge's max yaw rate
-(and within YAW_GOVERNOR_TURN / |G| while the tilt acceleration has to change by more than ``YAW_GOVERNOR_DEMAND``,
-and for ``YAW_GOVERNOR_HOLD`` s after: the governor does not flicker between cycles).
+(and within ``PredictionModel.yaw_governor_cap`` while the tilt acceleration has to change by more than
+``YAW_GOVERNOR_DEMAND``, and for ``YAW_GOVERNOR_HOLD`` s after: the governor does not flicker between cycles).
 ``cycle`` result: ``PreviewResult`` (the paper MPC's stats fields plus the predicted / reference paths,
 the reference source and the disturbance). Solver failure or an exception -> solver_failed (silent: the
 firmware's hover brake), as the paper's MPC.
@@ -58,20 +58,25 @@ import osqp
 
 from anafi_control.contract import (LIMIT_DEFAULTS, OK, SOLVER_FAILED, TIMEOUT_DEFAULTS, Controller, CycleOutput,
                                     ReferenceSample, hover_output)
-from anafi_control.frames import (gyroscopic_step, quaternion_to_euler, stability_to_world, world_to_stability,
+from anafi_control.frames import (quaternion_to_euler, stability_to_world, tilt_loop_step, world_to_stability,
                                   wrap_angle)
 from anafi_control.target_estimator import DEFAULTS as ESTIMATOR_DEFAULTS, TargetEstimator
 
 _OSQP_1X = tuple(int(x) for x in osqp.__version__.split('.')[:2] if x.isdigit()) >= (1, 0)
 
 NX, NU = 8, 3
-#: the yaw governor (firmware's ``gyroscopic_coupling`` G): while the QP asks the tilt acceleration to change by
-#: more than YAW_GOVERNOR_DEMAND [m/s^2] at t0, and YAW_GOVERNOR_HOLD [s] after, the yaw rate is held to
-#: YAW_GOVERNOR_TURN / |G| (~27 deg/s with the shipped G: the tilt steps turned by at most ~27 deg, shortened by
-#: 11 %); a fast yaw turn during a large tilt change swings the tilt round (the 180 deg static step overshot
-#: 0.57-0.75 m without the governor, benchmarks/results/preview_mpc.md)
+#: the yaw governor (the firmware's roll/pitch loop coupled to the yaw rate: ``gyroscopic_coupling`` G,
+#: ``yaw_tilt_authority`` c, ``yaw_tilt_precession`` w; ``PredictionModel.yaw_governor_cap``): while the QP asks
+#: the tilt acceleration to change by more than YAW_GOVERNOR_DEMAND [m/s^2] at t0, and YAW_GOVERNOR_HOLD [s]
+#: after, the yaw rate is held to where the tilt steps are turned by at most atan(YAW_GOVERNOR_TURN) (|G r| <=
+#: YAW_GOVERNOR_TURN), the loop keeps 1 - YAW_GOVERNOR_AUTHORITY of its rate (c tau |r| <= YAW_GOVERNOR_AUTHORITY)
+#: and the tilt precesses by at most YAW_GOVERNOR_TURN rad per time constant (|w r| tau): ~21 deg/s with the shipped
+#: model; a fast yaw turn during a large tilt change swings the tilt round or holds it (the 180 deg static step
+#: overshot by 1.2 m without the governor, benchmarks/results/preview_mpc.md; a cap of 31-41 deg/s settles the
+#: heading sooner but overshoots by 0.1-0.2 m with ground truth as state)
 YAW_GOVERNOR_DEMAND = 0.5
 YAW_GOVERNOR_TURN = 0.5
+YAW_GOVERNOR_AUTHORITY = 0.2
 YAW_GOVERNOR_HOLD = 0.3
 #: state indices: x (forward) p, v, a; y (left) p, v, a; z p, v
 PX, VX, AX, PY, VY, AY, PZ, VZ = range(NX)
@@ -120,7 +125,9 @@ MODEL_KEYS = ('gravity', 'attitude_time_constant', 'attitude_delay', 'vertical_s
               'drag_linear', 'drag_quadratic', 'estimate_lag', 'position_lag', 'position_fix_gain',
               'sample_period', 'max_tilt_deg', 'max_vertical_speed', 'max_yaw_rate_deg',
               'tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full',
-              'vertical_acceleration_limit', 'tilt_rate_limit', 'gyroscopic_coupling')
+              'vertical_acceleration_limit', 'tilt_rate_limit', 'gyroscopic_coupling', 'yaw_tilt_authority',
+              'yaw_tilt_precession')
+_SIGNED = ('gyroscopic_coupling', 'yaw_tilt_precession')
 
 
 class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
@@ -138,9 +145,11 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
         drone along its velocity, ramped in from v0 to tilt_attenuation_speed_full) is commanded in advance;
         vertical_acceleration_limit [m/s^2] (0 = none) clips the vertical loop in the forward prediction and the
         disturbance estimate, tilt_rate_limit [rad/s] (0 = none) the tilt acceleration's rate (g x R) in the
-        forward prediction (the QP's model stays linear: the limits bind only on large steps), gyroscopic_coupling
-        G [s] (0 = none, signed): while the drone yaws at r the firmware's tilt step is (I - G r J)^-1 times the
-        first order's, in the forward prediction (r: the last measured yaw rate, held) and in the yaw governor."""
+        forward prediction (the QP's model stays linear: the limits bind only on large steps), the roll/pitch
+        loop's coupling to the yaw rate r (gyroscopic_coupling G [s], yaw_tilt_authority c [1/rad],
+        yaw_tilt_precession w [-]; 0 = none, G and w signed; ``anafi_control.frames.tilt_loop_step``) in the
+        forward prediction (r: the last measured yaw rate, held; the body's own turn under the held commands is
+        not predicted: the governor keeps it small) and in the yaw governor."""
         lag = float(model.get('estimate_delay', 0.0)) + float(model.get('estimate_time_constant', 0.0))
         fusion = bool(model.get('estimate_position_fusion', False))
         return cls(float(model['gravity']), float(model['attitude_time_constant']), float(model['attitude_delay']),
@@ -153,7 +162,17 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
                    float(model.get('tilt_attenuation', 0.0)), float(model.get('tilt_attenuation_speed', 0.0)),
                    float(model.get('tilt_attenuation_speed_full', 0.0)),
                    float(model.get('vertical_acceleration_limit', 0.0)),
-                   float(model.get('tilt_rate_limit', 0.0)), float(model.get('gyroscopic_coupling', 0.0)))
+                   float(model.get('tilt_rate_limit', 0.0)), float(model.get('gyroscopic_coupling', 0.0)),
+                   float(model.get('yaw_tilt_authority', 0.0)), float(model.get('yaw_tilt_precession', 0.0)))
+
+    def yaw_governor_cap(self):
+        """The yaw rate [rad/s] the governor holds the drone to while a large tilt change is asked (module doc:
+        YAW_GOVERNOR_*); inf when the model has no coupling to the yaw rate."""
+        tau = self.attitude_time_constant
+        caps = [YAW_GOVERNOR_TURN / abs(self.gyroscopic_coupling) if self.gyroscopic_coupling else math.inf,
+                YAW_GOVERNOR_AUTHORITY / (self.yaw_tilt_authority * tau) if self.yaw_tilt_authority else math.inf,
+                YAW_GOVERNOR_TURN / (abs(self.yaw_tilt_precession) * tau) if self.yaw_tilt_precession else math.inf]
+        return min(caps)
 
     def vertical_acceleration(self, command, vz):
         """Vertical acceleration [m/s^2] of the firmware's vertical-speed loop at ``vz`` [m/s] under ``command``."""
@@ -189,9 +208,9 @@ class PredictionModel(collections.namedtuple('PredictionModel', MODEL_KEYS)):
     def check(self):
         for key, value in zip(MODEL_KEYS, self):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or (value < 0.0 and key != 'gyroscopic_coupling'):
+                    or (value < 0.0 and key not in _SIGNED):
                 raise ValueError('prediction model %s must be a finite number%s, got %r'
-                                 % (key, '' if key == 'gyroscopic_coupling' else ' >= 0', value))
+                                 % (key, '' if key in _SIGNED else ' >= 0', value))
         for key in ('gravity', 'attitude_time_constant', 'vertical_speed_time_constant', 'max_tilt_deg',
                     'max_vertical_speed', 'max_yaw_rate_deg'):
             if not getattr(self, key) > 0.0:
@@ -310,6 +329,7 @@ class PreviewMpc(Controller):
         if not isinstance(model, PredictionModel):
             raise ValueError('model must be a PredictionModel, got %r' % (model,))
         self.model = model.check()
+        self._yaw_cap = self.model.yaw_governor_cap()  # [rad/s] the yaw governor's limit (inf: no coupling)
         self.params = check_params(params)
         p = self.params
         Controller.__init__(self, p['state_timeout'], p['waypoint_timeout'],
@@ -499,7 +519,8 @@ class PreviewMpc(Controller):
         ca = 1.0 - math.exp(-h / m.attitude_time_constant)
         cz = 1.0 - math.exp(-h / m.vertical_speed_time_constant)
         kl, kq = m.drag_linear, m.drag_quadratic
-        turn = m.gyroscopic_coupling * smp.get('yaw_rate', 0.0)    # G r: the firmware turns its tilt steps
+        r = smp.get('yaw_rate', 0.0)                 # the firmware's tilt loop is coupled to the yaw rate
+        rate_cap = m.gravity * m.tilt_rate_limit     # the tilt-rate limit R as a rate of the tilt acceleration
         cmds = list(self.commands)
         i, active = 0, None
         for _ in range(steps):
@@ -507,16 +528,8 @@ class PreviewMpc(Controller):
                 active = cmds[i]
                 i += 1
             ux, uy, uz = (a[0], a[1], v[2]) if active is None else active[1:]
-            dax, day = ca * (ux - a[0]), ca * (uy - a[1])
-            if turn != 0.0:
-                dax, day = gyroscopic_step(dax, day, turn)
-            if m.tilt_rate_limit > 0.0:                  # the firmware turns the tilt at most at R
-                cap = m.gravity * m.tilt_rate_limit * h
-                norm = math.hypot(dax, day)
-                if norm > cap:
-                    dax, day = dax * cap / norm, day * cap / norm
-            a[0] += dax
-            a[1] += day
+            a[0], a[1] = tilt_loop_step(a[0], a[1], ux, uy, ca, h, r, m.attitude_time_constant,
+                                        m.gyroscopic_coupling, m.yaw_tilt_authority, m.yaw_tilt_precession, rate_cap)
             k = kl + kq * math.hypot(v[0], v[1])
             v[0] += h * (a[0] - k * v[0] + d[0])
             v[1] += h * (a[1] - k * v[1] + d[1])
@@ -607,7 +620,7 @@ class PreviewMpc(Controller):
         dx = sol[:self.n_x].reshape(N + 1, NX)
         du = sol[self.n_x:].reshape(N, NU)
         u0 = np.clip(u_ref[0] + du[0], -self.u_max, self.u_max)
-        if m.gyroscopic_coupling != 0.0 and math.hypot(u0[0] - ah0[0], u0[1] - ah0[1]) > YAW_GOVERNOR_DEMAND:
+        if self._yaw_cap < math.inf and math.hypot(u0[0] - ah0[0], u0[1] - ah0[1]) > YAW_GOVERNOR_DEMAND:
             self._yaw_governed_until = t + YAW_GOVERNOR_HOLD       # a large tilt change ahead: no fast yaw
         x_pred = ref[:N + 1] + dx
         result.predicted = self._to_world(x_pred, yaw, origin)
@@ -625,8 +638,8 @@ class PreviewMpc(Controller):
         yaw_err = math.degrees(wrap_angle(math.radians(yaw_ref[0]) - yaw))
         yaw_rate_ref = (yaw_ref[1] - yaw_ref[0]) / dt
         yaw_rate = max(-m.max_yaw_rate_deg, min(m.max_yaw_rate_deg, p['yaw_gain'] * yaw_err + yaw_rate_ref))
-        if m.gyroscopic_coupling != 0.0 and t < self._yaw_governed_until:
-            cap = math.degrees(YAW_GOVERNOR_TURN / abs(m.gyroscopic_coupling))
+        if t < self._yaw_governed_until:
+            cap = math.degrees(self._yaw_cap)
             yaw_rate = max(-cap, min(cap, yaw_rate))
         command = [roll, pitch, yaw_rate, float(u0[2])]
         realised = list(command)

@@ -1365,56 +1365,73 @@ def _fit_limited_loop(name, series, cost, start, fatol, baseline_time_constant):
     return limit, tau, rms, first, per_file, fit(series), tuple(s[0] for s in used)
 
 
-GyroscopicFit = collections.namedtuple('GyroscopicFit', ['coupling', 'rms', 'rms_off', 'per_file', 'files'])
+GyroscopicFit = collections.namedtuple('GyroscopicFit', ['coupling', 'authority', 'precession', 'rms', 'rms_off',
+                                                           'per_file', 'files', 'alone'])
 GyroscopicFit.__doc__ = (
-    'The roll/pitch loop\'s coupling to the yaw rate: coupling G [s] (``AnafiModel``\'s gyroscopic_coupling), '
-    'rms [rad] of roll/pitch over the static steps with it, rms_off without it (G = 0), {file: (rms off, rms '
-    'with G)} [rad], files (the fit\'s: every clean static log, PID and MPC).')
+    'The roll/pitch loop\'s coupling to the yaw rate (``AnafiModel``\'s gyroscopic_coupling effect): coupling G [s], '
+    'authority c [1/rad] and precession w [-] (``frames.tilt_loop_step``), rms [rad] of roll/pitch over the static '
+    'steps with them, rms_off without them, {file: (rms off, rms with G alone, rms with all three)} [rad], files '
+    '(the fit\'s: every clean static log, PID and MPC), alone: (G, rms) of G fitted alone (the model before the '
+    'authority and the precession).')
 
 
 def gyroscopic_tilt_response(t_u, roll_u, pitch_u, t_r, yaw_rate, time_constant, coupling, delay, t_out,
-                             step=ESTIMATE_STEP):
-    """(roll, pitch)(t_out) [rad] of the roll/pitch loop with ``AnafiModel``'s gyroscopic coupling: the exact
-    first-order step toward the held, ``delay``-ed setpoint (t_u, roll_u, pitch_u), multiplied in the (forward,
-    left) tilt plane by (I - G r J)^-1, r the yaw rate [rad/s] at that instant (interpolated from t_r,
-    yaw_rate). G = ``coupling`` [s]; 0 = the plain first order. Starts level."""
+                             step=ESTIMATE_STEP, authority=0.0, precession=0.0):
+    """(roll, pitch)(t_out) [rad] of the roll/pitch loop coupled to the yaw rate as ``AnafiModel`` steps it
+    (``frames.tilt_loop_step``): the exact first-order step toward the held, ``delay``-ed setpoint (t_u, roll_u,
+    pitch_u), with r the yaw rate [rad/s] at that instant (interpolated from t_r, yaw_rate): the loop's rate
+    reduced by ``authority`` x |r|, the step multiplied by (I - G r J)^-1 (G = ``coupling`` [s]), the tilt then
+    turned by ``precession`` x r x step. Every term 0 = the plain first order. Starts level."""
     t_out = np.asarray(t_out, dtype=np.float64)
     grid, targets = _held_tilt_setpoints(t_u, roll_u, pitch_u, delay, t_out, step)
-    turn = float(coupling) * np.interp(grid, t_r, yaw_rate)
-    c = 1.0 - math.exp(-step / time_constant) if time_constant > 1e-6 else 1.0
+    rates = np.interp(grid, t_r, yaw_rate).tolist()
+    lag = 1.0 - math.exp(-step / time_constant) if time_constant > 1e-6 else 1.0
+    g, c, w = float(coupling), float(authority), float(precession)
     roll = pitch = 0.0
     out = np.empty((len(grid), 2))
-    for k, (rs, ps, g) in enumerate(zip(targets[0], targets[1], turn)):
+    for k, (rs, ps, r) in enumerate(zip(targets[0].tolist(), targets[1].tolist(), rates)):
         out[k] = roll, pitch
-        dr, dp = frames.gyroscopic_step(c * (rs - roll), c * (ps - pitch), g)
-        roll += dr
-        pitch += dp
+        roll, pitch = frames.tilt_loop_step(roll, pitch, rs, ps, lag, step, r, time_constant, g, c, w)
     return np.interp(t_out, grid, out[:, 0]), np.interp(t_out, grid, out[:, 1])
 
 
 def fit_gyroscopic_coupling(logs, time_constant, delay, window=20.0, bounds=(-3.0, 3.0)):
-    """``GyroscopicFit``: G of the roll/pitch loop's coupling to the yaw rate (``gyroscopic_tilt_response``),
-    least squares on the roll and pitch of every clean static step (PID commands replayed, the MPC's recomputed
-    by eq. 15; 0.5 s before the step to ``window`` s after it, the yaw turns included: only they inform G) with
-    the model's first-order loop (``time_constant``, ``delay`` [s]; tilt_rate_limit off, as shipped) and the
-    truth's yaw rate. Through Sphinx's 180 deg turns the tilt keeps its magnitude and swings round the long way
-    in the sense of the yaw, where a plain first order cuts through level (docs/calibration.md)."""
+    """``GyroscopicFit``: the roll/pitch loop's coupling to the yaw rate (``gyroscopic_tilt_response``), least
+    squares on the roll and pitch of every clean static step (PID commands replayed, the MPC's recomputed by
+    eq. 15; 0.5 s before the step to ``window`` s after it, the yaw turns included: only they inform it) with the
+    model's first-order loop (``time_constant``, ``delay`` [s]; tilt_rate_limit off, as shipped) and the truth's
+    yaw rate. Through Sphinx's 180 deg turns the tilt keeps its magnitude and swings round the long way in the
+    sense of the yaw, where a plain first order cuts through level (docs/calibration.md). First G alone (bounded
+    scalar search in ``bounds``), then G, the authority c >= 0 and the precession w together (Nelder-Mead from
+    G alone and from a held tilt)."""
     series = [(log.name, tr, log.t[m], log.roll_sphinx[m], log.pitch_sphinx[m], log.t, measured_yaw_rate(log))
               for log, pid, tr, m in _static_steps(logs, window)]
     if not series:
         raise ValueError('fit_gyroscopic_coupling: no clean static-waypoint log')
 
-    def cost(group, g):
+    def cost(group, g, c=0.0, w=0.0):
+        if c < 0.0:
+            return 1.0 + c * c
         parts = []
         for _, tr, t, roll, pitch, t_r, rate in group:
-            r, p = gyroscopic_tilt_response(tr.t, tr.roll, tr.pitch, t_r, rate, time_constant, g, delay, t)
+            r, p = gyroscopic_tilt_response(tr.t, tr.roll, tr.pitch, t_r, rate, time_constant, g, delay, t,
+                                            authority=c, precession=w)
             parts += [roll - r, pitch - p]
         return float(np.sqrt(np.mean(np.concatenate(parts) ** 2)))
 
     res = minimize_scalar(lambda g: cost(series, g), bounds=bounds, method='bounded', options={'xatol': 1e-3})
-    g = float(res.x)
-    per_file = collections.OrderedDict((s[0], (cost([s], 0.0), cost([s], g))) for s in series)
-    return GyroscopicFit(g, cost(series, g), cost(series, 0.0), per_file, tuple(s[0] for s in series))
+    alone = float(res.x)
+    best = None
+    for start in ((alone, 0.0, 0.0), (alone, 3.0, 1.2), (0.0, 3.5, 1.2)):
+        res = minimize(lambda q: cost(series, *q), start, method='Nelder-Mead',
+                       options={'maxiter': 400, 'xatol': 1e-3, 'fatol': 1e-6})
+        if best is None or res.fun < best.fun:
+            best = res
+    g, c, w = (float(v) for v in best.x)
+    per_file = collections.OrderedDict((s[0], (cost([s], 0.0), cost([s], alone), cost([s], g, c, w)))
+                                       for s in series)
+    return GyroscopicFit(g, c, w, cost(series, g, c, w), cost(series, 0.0), per_file, tuple(s[0] for s in series),
+                         (alone, cost(series, alone)))
 
 
 QuantumFit = collections.namedtuple('QuantumFit', ['steps', 'on_grid', 'truth_on_grid', 'samples', 'grids'])
@@ -1588,6 +1605,8 @@ def fit_effects(logs, params, commands, estimate, trim_pitch=0.0, shipped=None):
     fitted['tilt_rate_limit'] = tilt_rate.rate
     fitted['attitude_time_constant'] = tilt_rate.time_constant
     fitted['gyroscopic_coupling'] = gyroscopic.coupling
+    fitted['yaw_tilt_authority'] = gyroscopic.authority
+    fitted['yaw_tilt_precession'] = gyroscopic.precession
     fitted['estimate_position_fusion'] = True
     fitted['estimate_position_fix_delay'] = fusion.fix_delay
     fitted['estimate_position_fix_gain'] = fusion.fix_gain

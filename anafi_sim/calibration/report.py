@@ -69,10 +69,16 @@ def _effect_comments(cal):
                            '%.4f rad' % (np.degrees(f.tilt_rate.rate), f.tilt_rate.time_constant,
                                          f.tilt_rate.first_order[1], f.tilt_rate.rms),
         'gyroscopic_coupling': 's, G: while yawing at r the roll/pitch step is multiplied by (I - G r J)^-1 '
-                               '(turned by atan(G r), slowed); static steps roll/pitch rms %.4f -> %.4f rad '
-                               '(yaw-180 MPC %.4f -> %.4f, PID %.4f -> %.4f)'
-                               % ((f.gyroscopic.rms_off, f.gyroscopic.rms)
-                                  + _turn_rms(f.gyroscopic, 'mpc') + _turn_rms(f.gyroscopic, 'pid')),
+                               '(turned by atan(G r), slowed); fitted with the next two: static steps roll/pitch '
+                               'rms %.4f -> %.4f rad (yaw-180 MPC %.4f -> %.4f, PID %.4f -> %.4f; G alone %.3f: '
+                               '%.4f)' % ((f.gyroscopic.rms_off, f.gyroscopic.rms)
+                                          + _turn_rms(f.gyroscopic, 'mpc') + _turn_rms(f.gyroscopic, 'pid')
+                                          + tuple(f.gyroscopic.alone)),
+        'yaw_tilt_authority': '1/rad, c: the roll/pitch loop\'s rate 1/tau reduced by c |r| (the tilt held beyond '
+                              '|r| = 1/(c tau) = %.0f deg/s)' % np.degrees(
+                                  1.0 / (f.gyroscopic.authority * cal.params['attitude_time_constant'])
+                                  if f.gyroscopic.authority > 0.0 else np.inf),
+        'yaw_tilt_precession': '-, w: the tilt turns in the body frame at w r (with the yaw for w > 0)',
         'vertical_acceleration_limit': 'm/s^2, A: the vertical-speed loop ramps at most this fast (refits '
                                        'vertical_speed_time_constant to %.4f s); PID replay of the climbs rms %.4f '
                                        '-> %.4f m/s' % (f.vertical.time_constant, f.vertical.first_order[1],
@@ -93,9 +99,9 @@ def _effect_comments(cal):
 
 def _turn_rms(gyroscopic, controller):
     """(rms off, rms on) [rad] of the static yaw-180 log of ``controller`` in a ``GyroscopicFit`` (NaN if absent)."""
-    for name, pair in gyroscopic.per_file.items():
+    for name, figures in gyroscopic.per_file.items():
         if 'yaw_180' in name and name.endswith('_' + controller):
-            return pair
+            return figures[0], figures[-1]
     return (float('nan'), float('nan'))
 
 
@@ -207,8 +213,10 @@ def format_summary(cal):
     out.append('  tilt rate limit                 R %.1f deg/s, tau %.4f s: steps roll/pitch rms %.4f -> %.4f rad'
                % (np.degrees(f.tilt_rate.rate), f.tilt_rate.time_constant, f.tilt_rate.first_order[1],
                   f.tilt_rate.rms))
-    out.append('  gyroscopic coupling             G %.3f s: static steps roll/pitch rms %.4f -> %.4f rad'
-               % (f.gyroscopic.coupling, f.gyroscopic.rms_off, f.gyroscopic.rms))
+    out.append('  gyroscopic coupling             G %.3f s, c %.3f 1/rad, w %.3f: static steps roll/pitch rms '
+               '%.4f -> %.4f rad (G alone %.4f)' % (f.gyroscopic.coupling, f.gyroscopic.authority,
+                                                   f.gyroscopic.precession, f.gyroscopic.rms_off, f.gyroscopic.rms,
+                                                   f.gyroscopic.alone[1]))
     out.append('  vertical acceleration limit     A %.2f m/s^2, tau %.4f s: climbs vz rms %.4f -> %.4f m/s'
                % (f.vertical.limit, f.vertical.time_constant, f.vertical.first_order[1], f.vertical.rms))
     for note in cal.notes:
@@ -447,10 +455,13 @@ def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs')
 
 
 def _without_with_table(per_log, without, with_, number):
-    """Markdown rows: per log (``per_log`` {log: (without, with)}) the two figures, formatted with ``number``."""
-    rows = ['| log | %s | %s |' % (without, with_), '|---|---|---|']
-    for name, (before, after) in per_log.items():
-        rows.append(('| %s | ' + number + ' | ' + number + ' |') % (name, before, after))
+    """Markdown rows: per log (``per_log`` {log: (without, with, ...)}) its figures, formatted with ``number``,
+    under the headers ``without`` and ``with_`` (a string, or a tuple of headers for the figures after the
+    first)."""
+    heads = (without,) + ((with_,) if isinstance(with_, str) else tuple(with_))
+    rows = ['| log | %s |' % ' | '.join(heads), '|---' * (len(heads) + 1) + '|']
+    for name, figures in per_log.items():
+        rows.append('| %s | %s |' % (name, ' | '.join(number % v for v in figures)))
     return rows
 
 
@@ -698,38 +709,45 @@ def format_effects(cal):
     gy = f.gyroscopic
     add('### Attitude: coupling to the yaw rate (gyroscopic)')
     add('')
-    add('Model: while the drone yaws at r [rad/s] each step of the roll/pitch loop of section (c) (the exact '
-        'first-order step toward the delayed setpoint) is multiplied, in the (forward, left) tilt plane, by '
-        '(I - G r J)^-1, J a quarter turn counter-clockwise (`AnafiModel`, `gyroscopic_coupling` G [s]): '
-        'd(tilt)/dt = (setpoint - tilt) / tau + G r J d(tilt)/dt, a term in the tilt\'s own rate as a gyroscopic '
-        'torque would give; each step is turned by atan(G r) and shortened by 1 / sqrt(1 + (G r)^2); nothing '
-        'changes without a yaw rate. Why: through the 180 deg turns of both static yaw-180 logs Sphinx\'s tilt '
-        'keeps its magnitude (25-30 deg) and swings round the long way, in the sense of the yaw (counter-clockwise '
-        'in the MPC run, clockwise in the PID run), to the direction the command turned to, where the replayed '
-        'command (PID) or the recomputed one (MPC, eq. 15; it cuts through ~5 deg) and a plain first order cut '
-        'through level; in the yaw-0 logs the tilt follows the command through level. Fit: one value, least '
-        'squares on roll and pitch of every clean static step (0.5 s before the step to 20 s after it, the '
-        'turns included, the truth\'s yaw rate), with the first order of section (c) (tau %.4f s, delay %.4f s; '
-        'tilt_rate_limit off, as shipped): G = %.3f s, rms %.4f -> %.4f rad. Per static log, roll/pitch rms '
-        '[rad] without -> with it:' % (cal.params['attitude_time_constant'], cal.params['attitude_delay'],
-                                       gy.coupling, gy.rms_off, gy.rms))
+    add('Model (`frames.tilt_loop_step`, used by `AnafiModel`, this fit and the preview MPC): while the drone yaws '
+        'at r [rad/s] the roll/pitch loop of section (c) changes in three ways, in the (forward, left) tilt plane '
+        '(J a quarter turn counter-clockwise): its rate 1 / tau is reduced by c |r| (`yaw_tilt_authority` c '
+        '[1/rad]; none left beyond |r| = 1 / (c tau): the tilt is held, not driven to the setpoint); its exact '
+        'first-order step is multiplied by (I - G r J)^-1 (`gyroscopic_coupling` G [s]: d(tilt)/dt = (setpoint - '
+        'tilt) / tau + G r J d(tilt)/dt, a term in the tilt\'s own rate as a gyroscopic torque would give; each '
+        'step turned by atan(G r) and shortened by 1 / sqrt(1 + (G r)^2)); and the tilt then turns by w r dt '
+        '(`yaw_tilt_precession` w [-], with the yaw for w > 0). Nothing changes without a yaw rate. Why: through '
+        'the 180 deg turns of both static yaw-180 logs Sphinx\'s tilt keeps its magnitude (25-30 deg) and swings '
+        'round the long way, in the sense of the yaw (counter-clockwise in the MPC run, clockwise in the PID run), '
+        'turning in the body frame at ~1.3x the yaw rate, where the replayed command (PID) or the recomputed one '
+        '(MPC, eq. 15; it swings through ~5 deg) and a plain first order cut through level; in the yaw-0 logs the '
+        'tilt follows the command through level. Fit: least squares on roll and pitch of every clean static step '
+        '(0.5 s before the step to 20 s after it, the turns included, the truth\'s yaw rate), with the first order '
+        'of section (c) (tau %.4f s, delay %.4f s; tilt_rate_limit off, as shipped): G alone (the model before the '
+        'other two terms) %.3f s, rms %.4f -> %.4f rad; all three together: G = %.3f s, c = %.3f 1/rad (the tilt '
+        'held from |r| = %.0f deg/s on), w = %.3f, rms %.4f rad. Per static log, roll/pitch rms [rad]:'
+        % (cal.params['attitude_time_constant'], cal.params['attitude_delay'], gy.alone[0], gy.rms_off,
+           gy.alone[1], gy.coupling, gy.authority,
+           np.degrees(1.0 / (gy.authority * cal.params['attitude_time_constant'])) if gy.authority > 0 else np.inf,
+           gy.precession, gy.rms))
     add('')
-    L.extend(_without_with_table(gy.per_file, 'rms without [rad]', 'with [rad]', '%.4f'))
+    L.extend(_without_with_table(gy.per_file, 'none', ('G alone', 'G, c, w'), '%.4f'))
     add('')
-    add('Both turn senses give the same sign: the coupling multiplies the yaw rate. Tried and rejected on the '
-        'same data (offline checks of 2026-11-25, not recomputed by this script; roll/pitch rms over the 4 s '
-        'after the yaw-180 steps): the step turned by kappa x r at full length (best kappa -0.6 s: ~7-8 deg '
-        'against ~5 deg with the coupling, ~9-10 deg without; the tilt still cuts through level); the step '
-        'turned by atan(G r) and shortened by (1 + (G r)^2)^(-p/2) with p free: the fit returns p = 1.04, i.e. '
-        'the form above; a second-order roll/pitch loop with such a term in its rate fits the turns somewhat '
-        'better (~4 deg) with a delay of its own (0.084 s; the model delays the whole PCMD by one) and the yaw-0 '
-        'steps worse, and with the model\'s delay no better than this form (rms 0.0343 against 0.0342 rad over '
-        'the four steps): not taken. What the logs cannot identify: the source of '
-        'the term (the rotors\' angular momentum while their speeds differ to yaw the drone, or the firmware\'s '
-        'rate loop); whether it scales with the yaw rate, the yaw torque or the rotor speeds (one turn rate '
-        'per log, ~100 deg/s). anafi_model_fitted.yaml (every effect on) pairs this G with the tilt-rate limited '
-        'loop of its own (tau %.4f s): a mix of two fits, not refitted together (its yaw-180 attitude histories '
-        'are further from Sphinx\'s than the shipped model\'s, docs/fidelity.md).'
+    add('Both turn senses give the same signs: the terms follow the yaw rate (c its magnitude). Found by a fit '
+        'of a general linear coupling (offline, 2026-11-25: the loop\'s decay and its attraction to the setpoint '
+        'each changed by r times a scalar and a quarter turn, four numbers): its decay and attraction terms came '
+        'out equal and opposite (a loss of the loop\'s rate with |r|, c) and its turn of the tilt itself as a '
+        'precession (w); the four-number form fits no better than these three. Tried and rejected on the same '
+        'data before (offline checks of 2026-11-25, roll/pitch rms over the 4 s after the yaw-180 steps): the '
+        'step turned by kappa x r at full length (best kappa -0.6 s: ~7-8 deg against ~5 deg with G alone, ~9-10 '
+        'deg without; the tilt still cuts through level); the step turned by atan(G r) and shortened by (1 + (G '
+        'r)^2)^(-p/2) with p free: p = 1.04, i.e. G\'s form; a second-order roll/pitch loop with such a term in '
+        'its rate, with the model\'s delay no better than G alone (rms 0.0343 against 0.0342 rad over the four '
+        'steps). What the logs cannot identify: the source of the terms (the mixer saturating while the rotors '
+        'yaw the drone, the rotors\' angular momentum, or the firmware\'s rate loop); whether they scale with the '
+        'yaw rate, the yaw torque or the rotor speeds (one turn rate per log, ~100-140 deg/s). '
+        'anafi_model_fitted.yaml (every effect on) pairs these terms with the tilt-rate limited loop of its own '
+        '(tau %.4f s): a mix of two fits, not refitted together (docs/fidelity.md).'
         % cal.fitted['attitude_time_constant'])
     add('')
 

@@ -46,8 +46,15 @@ fitted by ``anafi_sim/calibration/fit.py``, see docs/calibration.md):
   the exact first-order step, then the turn: the meaning of G depends slightly on
   dt, ~1.4 % at 5 ms, the step of the fit). With G < 0 (the fit) the tilt swings
   round the long way in the sense of the yaw, as Sphinx's does in the 180 deg
-  turns (docs/calibration.md; Sphinx's keeps more of its magnitude); no effect
-  without a yaw rate (0 = none, signed).
+  turns (docs/calibration.md); no effect without a yaw rate (0 = none, signed).
+  The same effect has two more terms, fitted with G: ``yaw_tilt_authority`` c
+  [1/rad]: the loop's rate 1 / tau is reduced by c |r| (none left beyond
+  |r| = 1 / (c tau): the tilt is held, not driven to the setpoint), and
+  ``yaw_tilt_precession`` w [-]: the tilt turns in the body frame at w r
+  (after the step). Through Sphinx's 180 deg turns (yaw rate 100-140 deg/s) the
+  tilt keeps its magnitude (25-30 deg) and turns with the body at ~1.3x the yaw
+  rate while the command swings through level (docs/calibration.md). The whole
+  loop: ``frames.tilt_loop_step``.
 
 The estimate's effects (position fusion, yaw bias, quantisation) are
 ``anafi_sim/sim/state_estimate.py``'s. With every effect off the model is bit
@@ -107,6 +114,8 @@ EFFECTS_OFF = collections.OrderedDict((
     ('vertical_acceleration_limit', 0.0),  # m/s^2, vertical-speed loop acceleration limit (0 = none)
     ('tilt_rate_limit', 0.0),        # rad/s, roll/pitch loop: largest rate of the tilt vector (0 = none)
     ('gyroscopic_coupling', 0.0),    # s, roll/pitch step turned by atan(G x yaw rate) and slowed (0 = none, signed)
+    ('yaw_tilt_authority', 0.0),     # 1/rad, roll/pitch loop's rate 1/tau reduced by this x |yaw rate| (0 = none)
+    ('yaw_tilt_precession', 0.0),    # -, the tilt turned in the body frame at this x yaw rate (0 = none, signed)
 ))
 EFFECTS_OFF.update(state_estimate.EFFECTS_OFF)
 # The effects by name and their keys (the estimate's delay/smoothing, refitted on velocity and attitude alone
@@ -119,7 +128,7 @@ EFFECT_GROUPS = collections.OrderedDict((
     ('max_descent_speed', ('max_descent_speed',)),
     ('vertical_acceleration_limit', ('vertical_acceleration_limit', 'vertical_speed_time_constant')),
     ('tilt_rate_limit', ('tilt_rate_limit', 'attitude_time_constant')),
-    ('gyroscopic_coupling', ('gyroscopic_coupling',)),
+    ('gyroscopic_coupling', ('gyroscopic_coupling', 'yaw_tilt_authority', 'yaw_tilt_precession')),
     ('yaw_bias', ('estimate_yaw_bias',)),
     ('quantisation', ('estimate_quantum_x', 'estimate_quantum_y', 'estimate_quantum_z', 'estimate_quantum_velocity')),
 ))
@@ -196,15 +205,16 @@ def validate_model_params(params):
     if given:
         effects = state_estimate.validate_effects(params)
         for key in ('tilt_attenuation', 'tilt_attenuation_speed', 'tilt_attenuation_speed_full',
-                    'max_descent_speed', 'vertical_acceleration_limit', 'tilt_rate_limit'):
+                    'max_descent_speed', 'vertical_acceleration_limit', 'tilt_rate_limit', 'yaw_tilt_authority'):
             value = params.get(key, EFFECTS_OFF[key])
             if not _is_number(value) or value < 0.0:
                 raise ValueError('model parameter %s must be a finite number >= 0, got %r' % (key, value))
             effects[key] = float(value)
-        value = params.get('gyroscopic_coupling', EFFECTS_OFF['gyroscopic_coupling'])
-        if not _is_number(value):
-            raise ValueError('model parameter gyroscopic_coupling must be a finite number, got %r' % (value,))
-        effects['gyroscopic_coupling'] = float(value)
+        for key in ('gyroscopic_coupling', 'yaw_tilt_precession'):     # signed
+            value = params.get(key, EFFECTS_OFF[key])
+            if not _is_number(value):
+                raise ValueError('model parameter %s must be a finite number, got %r' % (key, value))
+            effects[key] = float(value)
         if not effects['tilt_attenuation'] < 1.0:
             raise ValueError('model parameter tilt_attenuation must be < 1, got %r' % (effects['tilt_attenuation'],))
         if effects['tilt_attenuation_speed'] > 0.0 and \
@@ -286,6 +296,8 @@ class AnafiModel(object):
         self._vz_accel_limit = effects['vertical_acceleration_limit']
         self._tilt_rate_limit = effects['tilt_rate_limit']
         self._gyro = effects['gyroscopic_coupling']
+        self._yaw_authority = effects['yaw_tilt_authority']
+        self._yaw_precession = effects['yaw_tilt_precession']
         self._max_tilt = math.radians(self.mapping.max_tilt_deg)
         self._max_vs = self.mapping.max_vertical_speed
         self._max_yaw_rate = math.radians(self.mapping.max_yaw_rate_deg)
@@ -530,19 +542,11 @@ class AnafiModel(object):
 
         # Attitude: first order towards the setpoints; Euler rates -> body rates.
         roll0, pitch0, yaw0 = self.roll, self.pitch, self.yaw
-        c_att = self._c_att
-        d_roll = c_att * (roll_sp - roll0)
-        d_pitch = c_att * (pitch_sp - pitch0)
-        if self._gyro != 0.0:                       # the yaw turns and slows the step: (I - G r J)^-1
-            d_roll, d_pitch = frames.gyroscopic_step(d_roll, d_pitch, self._gyro * self.yaw_rate)
-        if self._tilt_rate_limit > 0.0:             # the firmware turns the tilt at most this fast
-            cap = self._tilt_rate_limit * dt
-            norm = math.sqrt(d_roll * d_roll + d_pitch * d_pitch)
-            if norm > cap:
-                d_roll *= cap / norm
-                d_pitch *= cap / norm
-        roll = roll0 + d_roll
-        pitch = pitch0 + d_pitch
+        # the firmware's roll/pitch loop (frames.tilt_loop_step: with the yaw terms and the rate limit off, the
+        # plain first order)
+        roll, pitch = frames.tilt_loop_step(roll0, pitch0, roll_sp, pitch_sp, self._c_att, dt, self.yaw_rate,
+                                            self._tau_att, self._gyro, self._yaw_authority,
+                                            self._yaw_precession, self._tilt_rate_limit)
         self.yaw_rate += self._c_yaw * (yaw_rate_sp - self.yaw_rate)
         yaw = yaw0 + self.yaw_rate * dt
         if yaw >= math.pi or yaw < -math.pi:

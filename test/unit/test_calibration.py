@@ -169,9 +169,11 @@ def test_rate_limited_tilt_response_is_the_simulators_attitude_loop():
         assert err < 0.01 * math.hypot(roll_sp, pitch_sp) + 1e-4, pcmd
 
 
-def test_gyroscopic_tilt_response_is_the_simulators_attitude_loop():
+@pytest.mark.parametrize('terms', [{}, {'yaw_tilt_authority': 2.0, 'yaw_tilt_precession': 1.2}])
+def test_gyroscopic_tilt_response_is_the_simulators_attitude_loop(terms):
     """fit.gyroscopic_tilt_response (the coupling fit's model) against AnafiModel's roll/pitch for a tilt step
-    while the drone yaws (its own yaw rate fed in), with G and with the opposite sign (which must not match)."""
+    while the drone yaws (its own yaw rate fed in), with G (and the loss of authority and the precession) and
+    with the opposite signs (which must not match)."""
     from anafi_sim.sim.bridge import PilotingMapping
     from anafi_sim.sim.drone_model import AnafiModel
     base = dict(gravity=9.81, attitude_time_constant=0.18, attitude_delay=0.0, yaw_rate_time_constant=0.1,
@@ -179,7 +181,7 @@ def test_gyroscopic_tilt_response_is_the_simulators_attitude_loop():
                 estimate_delay=0.0, estimate_time_constant=0.0, estimate_rate=20.0, estimate_float16=False)
     mapping = PilotingMapping()
     dt = 0.005
-    drone = AnafiModel(dict(base, gyroscopic_coupling=-1.0), mapping=mapping)
+    drone = AnafiModel(dict(base, gyroscopic_coupling=-1.0, **terms), mapping=mapping)
     drone.reset(0.0, 0.0, 20.0, 0.0, flying=True)
     t_out, att, rate = [], [], []
     t = 0.0
@@ -194,9 +196,11 @@ def test_gyroscopic_tilt_response_is_the_simulators_attitude_loop():
         att.append((drone.roll, drone.pitch))
     roll_sp, pitch_sp = mapping.pcmd_to_setpoints(40, 70, -60, 0)[:2]
     t_r = np.array(t_out) - dt                                       # rate[k] holds over the step from t_out - dt
+    c, w = terms.get('yaw_tilt_authority', 0.0), terms.get('yaw_tilt_precession', 0.0)
     for g, close in ((-1.0, True), (1.0, False)):
         r, p = cal.gyroscopic_tilt_response([0.0, 0.5, 2.0], [0.0, roll_sp, roll_sp], [0.0, pitch_sp, pitch_sp],
-                                            t_r, np.array(rate), 0.18, g, 0.0, np.array(t_out), step=dt)
+                                            t_r, np.array(rate), 0.18, g, 0.0, np.array(t_out), step=dt,
+                                            authority=c, precession=w * math.copysign(1.0, -g))
         err = np.max(np.hypot(r - np.array(att)[:, 0], p - np.array(att)[:, 1]))
         if close:
             assert err < 0.02 * math.hypot(roll_sp, pitch_sp), err
@@ -636,16 +640,21 @@ def test_real_log_effects(real):
     assert tr.rms < 0.8 * tr.first_order[1]
     for name, (before, after) in tr.per_file.items():
         assert after < before, name
-    # gyroscopic coupling: one negative G (~ -1.1 s) from both turn senses (MPC counter-clockwise, PID clockwise)
-    # halves the roll/pitch residual of both yaw-180 steps and leaves the yaw-0 steps as they were
+    # coupling to the yaw rate: one set (G < 0, the loss of authority c > 0, the precession w > 0 with the yaw) from
+    # both turn senses (MPC counter-clockwise, PID clockwise); G alone (~ -1.1 s) halves the roll/pitch residual of
+    # both yaw-180 steps, the three terms take another third off each; the yaw-0 steps stay as they were
     gy = f.gyroscopic
     assert set(gy.files) == {'static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('pid', 'mpc')}
-    assert -1.5 < p['gyroscopic_coupling'] == gy.coupling < -0.7 and gy.rms < 0.7 * gy.rms_off
-    for name, (before, after) in gy.per_file.items():
+    assert -1.5 < gy.alone[0] < -0.7 and gy.alone[1] < 0.7 * gy.rms_off
+    assert -1.2 < p['gyroscopic_coupling'] == gy.coupling < -0.3
+    assert 2.0 < p['yaw_tilt_authority'] == gy.authority < 5.0
+    assert 0.8 < p['yaw_tilt_precession'] == gy.precession < 1.6
+    assert gy.rms < 0.75 * gy.alone[1]
+    for name, (before, alone, after) in gy.per_file.items():
         if 'yaw_180' in name:
-            assert after < 0.65 * before, name
+            assert alone < 0.65 * before and after < 0.8 * alone, name
         else:
-            assert after == pytest.approx(before, rel=0.03), name
+            assert alone == pytest.approx(before, rel=0.03) and after == pytest.approx(before, rel=0.03), name
     # quantisation: z and the velocities of the estimate on a 1/256 grid, the truth not
     assert p['estimate_quantum_z'] == p['estimate_quantum_velocity'] == 1.0 / 256.0
     for column in ('z', 'vx', 'vy', 'vz'):

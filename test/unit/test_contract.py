@@ -413,7 +413,7 @@ def _controllers(state_timeout=None, waypoint_timeout=None):
 def _prediction_model():
     from anafi_control.preview_mpc import PredictionModel
     return PredictionModel(9.81, 0.18, 0.12, 0.16, 0.2, 0.02, 0.02, 0.2, 0.26, 0.05, 30.64, 2.0, 180.0,
-                           0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+                           0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def test_every_controller_has_the_contract_timeouts_and_rule():

@@ -524,6 +524,43 @@ def test_gyroscopic_coupling_turns_and_slows_the_tilt_step_only_while_yawing():
     assert expected is not None and (roll0, pitch0) == (0.0, 0.0)
 
 
+def test_yaw_holds_the_tilt_and_turns_it_with_the_body():
+    """yaw_tilt_authority c, yaw_tilt_precession w (with G = 0): without a yaw rate nothing changes, bit for bit;
+    yawing at |r| > 1 / (c tau) the roll/pitch loop has no authority left: a tilt held before the yaw does not
+    follow the new (level) setpoint, it keeps its magnitude and turns in the (roll, pitch) plane by w r dt per
+    step (counter-clockwise with a counter-clockwise yaw for w > 0); with less yaw the loop's rate is reduced."""
+    calm, plain = flying_model(yaw_tilt_authority=3.0, yaw_tilt_precession=1.2), flying_model()
+    for m in (calm, plain):
+        run(m, 1.0, pcmd=(40, 60, 0, 0))
+    assert calm.truth_sample() == plain.truth_sample()
+    tau = PARAMS['attitude_time_constant']
+    model = flying_model(yaw_tilt_authority=3.0, yaw_tilt_precession=1.2)
+    t = run(model, 1.0, pcmd=(0, 80, 0, 0))          # tilted forward (24.5 deg)
+    t = run(model, 1.0, t0=t, pcmd=(0, 80, -100, 0))  # then yawing counter-clockwise at the max rate
+    r = model.yaw_rate
+    assert r > 1.0 / (3.0 * tau)                                    # beyond the authority: the tilt is held
+    model.set_command(0, 0, -100, 0, t)                             # level setpoint, still yawing
+    t = run(model, PARAMS['attitude_delay'] + 0.05, t0=t, pcmd=None)
+    before = (model.roll, model.pitch, model.yaw_rate)
+    model.step(DT, t)
+    a = 1.2 * before[2] * DT
+    expected = (math.cos(a) * before[0] - math.sin(a) * before[1], math.sin(a) * before[0] + math.cos(a) * before[1])
+    assert (model.roll, model.pitch) == pytest.approx(expected, abs=1e-12)
+    assert math.hypot(model.roll, model.pitch) == pytest.approx(math.hypot(before[0], before[1]), rel=1e-12)
+    assert math.hypot(before[0], before[1]) > math.radians(15.0)   # held through the level setpoint
+    # the loop's rate reduced by c |r| below that: the same step without the precession
+    slow = flying_model(yaw_tilt_authority=3.0)
+    t = run(slow, 2.0, pcmd=(0, 40, -20, 0))                        # a slow yaw
+    r = slow.yaw_rate
+    assert 0.0 < 3.0 * abs(r) < 1.0 / tau
+    slow.set_command(0, 0, -20, 0, t)
+    t = run(slow, PARAMS['attitude_delay'] + 0.05, t0=t, pcmd=None)
+    before = (slow.roll, slow.pitch, slow.yaw_rate)
+    slow.step(DT, t)
+    lag = 1.0 - math.exp(-(1.0 / tau - 3.0 * abs(before[2])) * DT)
+    assert (slow.roll, slow.pitch) == pytest.approx(((1 - lag) * before[0], (1 - lag) * before[1]), abs=1e-12)
+
+
 def test_every_effect_off_is_bit_for_bit_the_model_without_them():
     from anafi_sim.sim.drone_model import EFFECTS_OFF
     plain = flying_model(settings={'wind_x': 1.0, 'gust_std_horizontal': 0.5}, seed=3)
@@ -543,6 +580,8 @@ def test_every_effect_off_is_bit_for_bit_the_model_without_them():
     ('vertical_acceleration_limit', -1.0), ('vertical_acceleration_limit', float('nan')),
     ('tilt_rate_limit', -0.5), ('tilt_rate_limit', 'fast'),
     ('gyroscopic_coupling', float('nan')), ('gyroscopic_coupling', 'strong'), ('gyroscopic_coupling', True),
+    ('yaw_tilt_authority', -1.0), ('yaw_tilt_authority', float('inf')), ('yaw_tilt_precession', float('nan')),
+    ('yaw_tilt_precession', 'fast'),
     ('estimate_position_fusion', 'yes'), ('estimate_position_fix_gain', -0.2), ('estimate_quantum_x', float('inf'))])
 def test_bad_effect_values_raise_value_error(key, value):
     with pytest.raises(ValueError, match=key):
@@ -562,7 +601,8 @@ def test_fitted_config_file_is_valid_and_has_every_effect_on():
     assert fitted['estimate_position_fusion'] is True
     assert fitted['tilt_attenuation'] > 0.0 and fitted['max_descent_speed'] > 0.0
     assert fitted['vertical_acceleration_limit'] > 0.0 and fitted['tilt_rate_limit'] > 0.0
-    assert fitted['gyroscopic_coupling'] < 0.0
+    assert fitted['gyroscopic_coupling'] < 0.0 and fitted['yaw_tilt_authority'] > 0.0
+    assert fitted['yaw_tilt_precession'] > 0.0
     shipped = load_model_params(DEFAULT_MODEL_FILE)
     from anafi_sim.sim.drone_model import EFFECT_GROUPS
     refitted = set(k for keys in EFFECT_GROUPS.values() for k in keys)     # an effect's keys, refits included

@@ -152,3 +152,31 @@ def test_gyroscopic_step_is_the_same_law_in_every_tilt_coordinate(turn):
         wx, wy = frames.stability_to_world(d_pitch, -d_roll, yaw)
         gx, gy = frames.gyroscopic_step(wx, wy, turn)
         assert (gx, gy) == pytest.approx(frames.stability_to_world(f, l, yaw))
+
+
+def test_tilt_loop_step_terms():
+    """The firmware's roll/pitch loop (frames.tilt_loop_step): without a yaw rate the plain first-order step
+    whatever the yaw terms; the gyroscopic coupling is gyroscopic_step's; the loss of authority replaces the lag
+    by the exact step of the reduced rate, and none beyond; the precession turns the tilt after the step; the
+    rate limit caps the step; the law is the same in (roll, pitch) and (forward, left) = (pitch, -roll)."""
+    tau, dt = 0.18, 0.005
+    lag = 1.0 - math.exp(-dt / tau)
+    x, y, xs, ys = 0.1, -0.2, 0.3, 0.25
+    plain = (x + lag * (xs - x), y + lag * (ys - y))
+    assert frames.tilt_loop_step(x, y, xs, ys, lag, dt, 0.0, tau, -1.0, 3.0, 1.2) == plain
+    gx, gy = frames.gyroscopic_step(lag * (xs - x), lag * (ys - y), -1.0 * 1.5)
+    assert frames.tilt_loop_step(x, y, xs, ys, lag, dt, 1.5, tau, coupling=-1.0) == pytest.approx((x + gx, y + gy))
+    slow = 1.0 - math.exp(-(1.0 / tau - 2.0 * 1.5) * dt)
+    assert frames.tilt_loop_step(x, y, xs, ys, lag, dt, -1.5, tau, authority=2.0) == pytest.approx(
+        (x + slow * (xs - x), y + slow * (ys - y)))
+    assert frames.tilt_loop_step(x, y, xs, ys, lag, dt, 4.0, tau, authority=2.0) == (x, y)     # held
+    a = 1.2 * 1.5 * dt
+    px, py = plain
+    assert frames.tilt_loop_step(x, y, xs, ys, lag, dt, 1.5, tau, precession=1.2) == pytest.approx(
+        (math.cos(a) * px - math.sin(a) * py, math.sin(a) * px + math.cos(a) * py))
+    capped = frames.tilt_loop_step(x, y, xs, ys, lag, dt, rate_limit=0.1)
+    assert math.hypot(capped[0] - x, capped[1] - y) == pytest.approx(0.1 * dt)
+    every = dict(yaw_rate=1.5, time_constant=tau, coupling=-0.7, authority=2.0, precession=1.2, rate_limit=2.0)
+    r, p = frames.tilt_loop_step(x, y, xs, ys, lag, dt, **every)
+    f, l = frames.tilt_loop_step(y, -x, ys, -xs, lag, dt, **every)         # (forward, left)
+    assert (f, l) == pytest.approx((p, -r))

@@ -74,10 +74,11 @@ def _effect_comments(cal):
                                '%.4f)' % ((f.gyroscopic.rms_off, f.gyroscopic.rms)
                                           + _turn_rms(f.gyroscopic, 'mpc') + _turn_rms(f.gyroscopic, 'pid')
                                           + tuple(f.gyroscopic.alone)),
-        'yaw_tilt_authority': '1/rad, c: the roll/pitch loop\'s rate 1/tau reduced by c |r| (the tilt held beyond '
-                              '|r| = 1/(c tau) = %.0f deg/s)' % np.degrees(
+        'yaw_tilt_authority': '1/rad, c: the roll/pitch loop\'s rate 1/tau reduced by c |r| (fitted with the first '
+                              'order\'s tau %.4f s: the tilt held beyond |r| = 1/(c tau) = %.0f deg/s)' % (
+                                  cal.params['attitude_time_constant'], np.degrees(
                                   1.0 / (f.gyroscopic.authority * cal.params['attitude_time_constant'])
-                                  if f.gyroscopic.authority > 0.0 else np.inf),
+                                  if f.gyroscopic.authority > 0.0 else np.inf)),
         'yaw_tilt_precession': '-, w: the tilt turns in the body frame at w r (with the yaw for w > 0)',
         'vertical_acceleration_limit': 'm/s^2, A: the vertical-speed loop ramps at most this fast (refits '
                                        'vertical_speed_time_constant to %.4f s); PID replay of the climbs rms %.4f '

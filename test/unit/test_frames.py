@@ -176,7 +176,14 @@ def test_tilt_loop_step_terms():
         (math.cos(a) * px - math.sin(a) * py, math.sin(a) * px + math.cos(a) * py))
     capped = frames.tilt_loop_step(x, y, xs, ys, lag, dt, rate_limit=0.1)
     assert math.hypot(capped[0] - x, capped[1] - y) == pytest.approx(0.1 * dt)
-    every = dict(yaw_rate=1.5, time_constant=tau, coupling=-0.7, authority=2.0, precession=1.2, rate_limit=2.0)
+    every = dict(yaw_rate=1.5, time_constant=tau, coupling=-0.7, authority=2.0, precession=1.2, rate_limit=0.5)
     r, p = frames.tilt_loop_step(x, y, xs, ys, lag, dt, **every)
+    # the order: the reduced rate's step, turned by G, capped, added, then the precession
+    dx, dy = frames.gyroscopic_step(slow * (xs - x), slow * (ys - y), -0.7 * 1.5)
+    k = min(1.0, 0.5 * dt / math.hypot(dx, dy))
+    assert k < 1.0                                                          # the cap binds here
+    px, py = x + k * dx, y + k * dy
+    assert (r, p) == pytest.approx((math.cos(a) * px - math.sin(a) * py, math.sin(a) * px + math.cos(a) * py),
+                                   abs=1e-15)
     f, l = frames.tilt_loop_step(y, -x, ys, -xs, lag, dt, **every)         # (forward, left)
     assert (f, l) == pytest.approx((p, -r))

@@ -238,8 +238,9 @@ def test_smith_predictor_predicts_the_tilt_of_a_yawing_drone_with_the_gyroscopic
             t += PHYSICS_DT
         _, v, _ = ctrl._propagate(t)
         errors[name] = math.hypot(v[0] - drone.velocity()[0], v[1] - drone.velocity()[1])
-    assert errors['plain'] > 1.7 * errors['coupled']      # 0.11 vs 0.06 m/s (the rest: the Smith predictor holds
-    # its commands in the world frame, the firmware in the turning body frame)
+    # 0.15 vs 0.034 m/s (G alone: 0.13; the precession's sign flipped: 0.055); the rest: the Smith predictor
+    # holds its commands in the world frame, the firmware in the turning body frame
+    assert errors['plain'] > 3.5 * errors['coupled']
 
 
 def test_the_180_deg_static_step_on_the_coupled_stand_in_governs_the_yaw():
@@ -274,7 +275,7 @@ def test_the_yaw_governor_keeps_the_180_deg_step_from_overshooting_in_the_engine
     """static_wp1 in the engine (the drone's estimate as state, the ROS graph's schedule): with the governor the
     preview MPC overshoots by less than 5 cm (ground truth along the step, step_response.overshoot); without it
     (YAW_GOVERNOR_DEMAND never reached) the fast turn during the translation makes it overshoot by more than
-    0.5 m (benchmarks/results/preview_mpc.md: 0.004 against 1.25 m)."""
+    0.5 m (benchmarks/results/preview_mpc.md: 0.003 against 1.25 m)."""
     from anafi_control import preview_mpc
     from anafi_sim.experiments import step_response
     from anafi_sim.experiments.engine import Engine

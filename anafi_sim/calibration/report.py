@@ -21,9 +21,14 @@ def _fmt(value, digits=6):
     return text
 
 
-def _effect_comments(cal):
-    """{effect key: how it was fitted and its residual} from ``cal.effects`` (the fitted values)."""
+def _effect_comments(cal, fitted=False):
+    """{effect key: how it was fitted and its residual} from ``cal.effects`` (the fitted values); ``fitted``: for
+    anafi_model_fitted.yaml (the coupling to the yaw rate is refitted on its tilt-rate limited loop)."""
     f = cal.effects
+    gy = f.gyroscopic_limited if fitted else f.gyroscopic
+    loop = ('the tilt-rate limited loop\'s tau %.4f s' % cal.fitted['attitude_time_constant'] if fitted
+            else 'the first order\'s tau %.4f s' % cal.params['attitude_time_constant'])
+    tau = cal.fitted['attitude_time_constant'] if fitted else cal.params['attitude_time_constant']
     fu, de, qu, yw, ts = f.fusion, f.descent, f.quanta, f.yaw, f.tilt_speed
     lags = f.replay.steady_lag
     clean_lags = [v for name, v in lags.items() if name in fu.files]
@@ -71,14 +76,11 @@ def _effect_comments(cal):
         'gyroscopic_coupling': 's, G: while yawing at r the roll/pitch step is multiplied by (I - G r J)^-1 '
                                '(turned by atan(G r), slowed); fitted with the next two: static steps roll/pitch '
                                'rms %.4f -> %.4f rad (yaw-180 MPC %.4f -> %.4f, PID %.4f -> %.4f; G alone %.3f: '
-                               '%.4f)' % ((f.gyroscopic.rms_off, f.gyroscopic.rms)
-                                          + _turn_rms(f.gyroscopic, 'mpc') + _turn_rms(f.gyroscopic, 'pid')
-                                          + tuple(f.gyroscopic.alone)),
-        'yaw_tilt_authority': '1/rad, c: the roll/pitch loop\'s rate 1/tau reduced by c |r| (fitted with the first '
-                              'order\'s tau %.4f s: the tilt held beyond |r| = 1/(c tau) = %.0f deg/s)' % (
-                                  cal.params['attitude_time_constant'], np.degrees(
-                                  1.0 / (f.gyroscopic.authority * cal.params['attitude_time_constant'])
-                                  if f.gyroscopic.authority > 0.0 else np.inf)),
+                               '%.4f)' % ((gy.rms_off, gy.rms) + _turn_rms(gy, 'mpc') + _turn_rms(gy, 'pid')
+                                          + tuple(gy.alone)),
+        'yaw_tilt_authority': '1/rad, c: the roll/pitch loop\'s rate 1/tau reduced by c |r| (fitted with %s: the '
+                              'tilt held beyond |r| = 1/(c tau) = %.0f deg/s)'
+                              % (loop, np.degrees(1.0 / (gy.authority * tau) if gy.authority > 0.0 else np.inf)),
         'yaw_tilt_precession': '-, w: the tilt turns in the body frame at w r (with the yaw for w > 0)',
         'vertical_acceleration_limit': 'm/s^2, A: the vertical-speed loop ramps at most this fast (refits '
                                        'vertical_speed_time_constant to %.4f s); PID replay of the climbs rms %.4f '
@@ -154,7 +156,7 @@ def format_model_yaml(cal, log_names, fitted=False):
     if p.get('vertical_acceleration_limit', 0.0) > 0.0:   # the small-signal lag of the limited loop
         comments['vertical_speed_time_constant'] = ('s, with vertical_acceleration_limit: PID replay of the climbs '
                                                     'with attitude_delay (rms %.3f m/s)' % cal.effects.vertical.rms)
-    effects = _effect_comments(cal)
+    effects = _effect_comments(cal, fitted)
     for key, off in EFFECTS_OFF.items():
         if p[key] == off and cal.fitted[key] != off:
             comments[key] = 'OFF (fitted: %s in anafi_model_fitted.yaml; %s)' % (_fmt(cal.fitted[key]), effects[key])
@@ -746,10 +748,20 @@ def format_effects(cal):
         'its rate, with the model\'s delay no better than G alone (rms 0.0343 against 0.0342 rad over the four '
         'steps). What the logs cannot identify: the source of the terms (the mixer saturating while the rotors '
         'yaw the drone, the rotors\' angular momentum, or the firmware\'s rate loop); whether they scale with the '
-        'yaw rate, the yaw torque or the rotor speeds (one turn rate per log, ~100-140 deg/s). '
-        'anafi_model_fitted.yaml (every effect on) pairs these terms with the tilt-rate limited loop of its own '
-        '(tau %.4f s): a mix of two fits, not refitted together (docs/fidelity.md).'
-        % cal.fitted['attitude_time_constant'])
+        'yaw rate, the yaw torque or the rotor speeds (one turn rate per log, ~100-140 deg/s).')
+    add('')
+    gl = f.gyroscopic_limited
+    add('anafi_model_fitted.yaml (every effect on) has the tilt-rate limited loop of the section above (tau %.4f s, '
+        'R %.1f deg/s): the three terms are refitted on it (the same fit with the rate limit in every step; the '
+        'terms fitted on the first order, on this loop: rms %.4f rad): G alone %.3f s, rms %.4f -> %.4f rad; all '
+        'three: G = %.3f s, c = %.3f 1/rad (the tilt held from |r| = %.0f deg/s on), w = %.3f, rms %.4f rad. Per '
+        'static log, roll/pitch rms [rad] on that loop:'
+        % (cal.fitted['attitude_time_constant'], np.degrees(cal.fitted['tilt_rate_limit']),
+           gl.compared, gl.alone[0], gl.rms_off, gl.alone[1], gl.coupling, gl.authority,
+           np.degrees(1.0 / (gl.authority * cal.fitted['attitude_time_constant'])) if gl.authority > 0 else np.inf,
+           gl.precession, gl.rms))
+    add('')
+    L.extend(_without_with_table(gl.per_file, 'none', ('G alone', 'G, c, w'), '%.4f'))
     add('')
 
     ve = f.vertical

@@ -560,9 +560,13 @@ def test_yaml_text_has_exactly_the_model_keys_and_validates(real):
         for key in EFFECTS_OFF:                                     # every effect says how it was fitted
             assert len(comments[key].strip()) > 20, key
     shipped = yaml.safe_load(report.format_model_yaml(result, names))
+    on_own_loop = {'gyroscopic_coupling': result.effects.gyroscopic}     # refitted on the fitted file's loop
     for name, keys in cal.EFFECT_GROUPS.items():       # the shipped groups have the fitted values, the others are off
         for key in keys:
-            if name in result.effects_on:
+            if name in on_own_loop and 'tilt_rate_limit' not in result.effects_on:
+                value = on_own_loop[name][keys.index(key)]          # (G, c, w): the first-order loop's fit
+                assert shipped[key] == pytest.approx(value, rel=1e-5), (name, key)
+            elif name in result.effects_on:
                 assert shipped[key] == pytest.approx(result.fitted[key], rel=1e-5), (name, key)
             elif key in EFFECTS_OFF:
                 assert shipped[key] == EFFECTS_OFF[key], (name, key)
@@ -646,15 +650,23 @@ def test_real_log_effects(real):
     gy = f.gyroscopic
     assert set(gy.files) == {'static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('pid', 'mpc')}
     assert -1.5 < gy.alone[0] < -0.7 and gy.alone[1] < 0.7 * gy.rms_off
-    assert -1.2 < p['gyroscopic_coupling'] == gy.coupling < -0.3
-    assert 2.0 < p['yaw_tilt_authority'] == gy.authority < 5.0
-    assert 0.8 < p['yaw_tilt_precession'] == gy.precession < 1.6
+    shipped = result.params
+    assert -1.2 < shipped['gyroscopic_coupling'] == gy.coupling < -0.3
+    assert 2.0 < shipped['yaw_tilt_authority'] == gy.authority < 5.0
+    assert 0.8 < shipped['yaw_tilt_precession'] == gy.precession < 1.6
     assert gy.rms < 0.75 * gy.alone[1]
-    for name, (before, alone, after) in gy.per_file.items():
-        if 'yaw_180' in name:
-            assert alone < 0.65 * before and after < 0.8 * alone, name
-        else:
-            assert alone == pytest.approx(before, rel=0.03) and after == pytest.approx(before, rel=0.03), name
+    # the fitted file's loop (tilt-rate limited) has the terms refitted on it: the first order's would fit it
+    # half as well
+    gl = f.gyroscopic_limited
+    assert (p['gyroscopic_coupling'], p['yaw_tilt_authority'], p['yaw_tilt_precession']) == gl[:3]
+    assert gl.coupling < 0.0 and gl.authority > 0.0 and gl.precession > 0.0
+    assert gl.rms < 0.6 * gl.compared and gl.rms < 0.75 * gl.alone[1]
+    for fit_ in (gy, gl):
+        for name, (before, alone, after) in fit_.per_file.items():
+            if 'yaw_180' in name:
+                assert alone < 0.65 * before and after < 0.8 * alone, name
+            else:
+                assert alone == pytest.approx(before, rel=0.03) and after == pytest.approx(before, rel=0.03), name
     # quantisation: z and the velocities of the estimate on a 1/256 grid, the truth not
     assert p['estimate_quantum_z'] == p['estimate_quantum_velocity'] == 1.0 / 256.0
     for column in ('z', 'vx', 'vy', 'vz'):

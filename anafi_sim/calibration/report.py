@@ -783,7 +783,14 @@ def format_effects(cal):
     add('The same fit on all four static logs gives A = %.3f m/s^2, tau = %.4f s (rms %.4f m/s). What the logs '
         'cannot identify: the MPC static runs climb at up to 2.4 m/s under the 2.0 m/s command and then come '
         'back (an overshoot a PI loop with wind-up would give; the PID runs show none)'
-        ', which no single model of both explains, so the MPC runs are left out of the fit; the creep '
+        ', which no single model of both explains, so the MPC runs are left out of the fit (tried offline, '
+        '2026-11-25, vz rms of the MPC / PID static steps against 0.12-0.15 / 0.034 m/s with this loop: a gain on '
+        'the MPC\'s command, 1.06-1.10: MPC 0.09-0.14; the command taken from another step of the prediction, '
+        'x_pred[2..8]: step 5 fits best; a PI or altitude-reference loop integrating below a saturated command: '
+        'MPC 0.06-0.11 but PID 0.04-0.06; a two-degree-of-freedom loop - feed-forward, slow feedback, a lagged '
+        'tilt compensation, vertical drag; six numbers - all four 0.082 -> 0.070: none kept; the MPC runs\' tilt '
+        'and vertical speed start ~0.1 s after the delay of the PID fit, the one cycle of age of the authors\' '
+        'node, `paper_timing`); the creep '
         'from ~94 %% to the command (seconds) is not modelled; the limit for descents is assumed equal to the one '
         'for climbs (no large descent step in a clean log).' % ve.all_static)
     add('')

@@ -1239,22 +1239,9 @@ def rate_limited_tilt_response(t_u, roll_u, pitch_u, time_constant, rate, delay,
     """(roll, pitch)(t_out) [rad] of the roll/pitch loop with a tilt-rate limit, discretised as ``AnafiModel``
     does: each step moves the tilt vector by the exact first-order step toward the setpoint (held after each
     sample (t_u, roll_u, pitch_u), delayed by ``delay`` [s]), shortened to ``rate`` x step when longer
-    (``rate`` [rad/s] <= 0: the first order). Starts level."""
-    t_out = np.asarray(t_out, dtype=np.float64)
-    grid, targets = _held_tilt_setpoints(t_u, roll_u, pitch_u, delay, t_out, step)
-    c = 1.0 - math.exp(-step / time_constant) if time_constant > 1e-6 else 1.0
-    cap = float(rate) * step if rate > 0.0 else float('inf')
-    roll = pitch = 0.0
-    out = np.empty((len(grid), 2))
-    for k, (rs, ps) in enumerate(zip(*targets)):   # a clipped vector loop: step it (5 ms)
-        out[k] = roll, pitch
-        dr, dp = c * (rs - roll), c * (ps - pitch)
-        norm = math.sqrt(dr * dr + dp * dp)
-        if norm > cap:
-            dr, dp = dr * cap / norm, dp * cap / norm
-        roll += dr
-        pitch += dp
-    return np.interp(t_out, grid, out[:, 0]), np.interp(t_out, grid, out[:, 1])
+    (``rate`` [rad/s] <= 0: the first order). Starts level. ``gyroscopic_tilt_response`` without a yaw rate."""
+    return gyroscopic_tilt_response(t_u, roll_u, pitch_u, [0.0], [0.0], time_constant, 0.0, delay, t_out, step,
+                                    rate_limit=max(float(rate), 0.0))
 
 
 TiltRateFit = collections.namedtuple('TiltRateFit', [
@@ -1403,8 +1390,9 @@ def fit_gyroscopic_coupling(logs, time_constant, delay, window=20.0, bounds=(-3.
     squares on the roll and pitch of every clean static step (PID commands replayed, the MPC's recomputed by
     eq. 15; 0.5 s before the step to ``window`` s after it, the yaw turns included: only they inform it) with the
     model's loop (``time_constant``, ``delay`` [s], ``rate_limit`` [rad/s]: 0 = the first order, as shipped; the
-    tilt-rate limited loop for the fitted file) and the truth's yaw rate. Through Sphinx's 180 deg turns the tilt keeps its magnitude and swings round the long way in the
-    sense of the yaw, where a plain first order cuts through level (docs/calibration.md). First G alone (bounded
+    tilt-rate limited loop for the fitted file) and the truth's yaw rate. Through Sphinx's 180 deg turns the
+    tilt keeps its magnitude and swings round the long way in the sense of the yaw, where a plain first order
+    cuts through level (docs/calibration.md). First G alone (bounded
     scalar search in ``bounds``), then G, the authority c >= 0 and the precession w together (Nelder-Mead from
     G alone and from a held tilt). ``compare``: terms (G, c, w) fitted elsewhere, whose rms on this loop is
     reported."""

@@ -51,10 +51,11 @@ fitted by ``anafi_sim/calibration/fit.py``, see docs/calibration.md):
   [1/rad]: the loop's rate 1 / tau is reduced by c |r| (none left beyond
   |r| = 1 / (c tau): the tilt is held, not driven to the setpoint), and
   ``yaw_tilt_precession`` w [-]: the tilt turns in the body frame at w r
-  (after the step; not bound by ``tilt_rate_limit``, which caps the step). Through Sphinx's 180 deg turns (yaw rate 100-140 deg/s) the
-  tilt keeps its magnitude (25-30 deg) and turns with the body at ~1.3x the yaw
-  rate while the command swings through level (docs/calibration.md). The whole
-  loop: ``frames.tilt_loop_step``.
+  (after the step; not bound by ``tilt_rate_limit``, which caps the step).
+  Through Sphinx's 180 deg turns (yaw rate 100-140 deg/s) the tilt keeps its
+  magnitude (25-30 deg) and turns with the body at ~1.3x the yaw rate while the
+  command swings through level (docs/calibration.md). The whole loop:
+  ``frames.tilt_loop_step``.
 
 The estimate's effects (position fusion, yaw bias, quantisation) are
 ``anafi_sim/sim/state_estimate.py``'s. With every effect off the model is bit

@@ -42,8 +42,10 @@ Variants (``Variant``): a model dict (``anafi_sim/config/anafi_model.yaml`` = ef
 effects on, or one effect at a time: ``effect_variants``), MPC parameters (e.g. ``paper_timing``), engine
 schedule overrides (timer phases). ``run_log_variants`` / ``replay_all`` run them side by side;
 ``render_markdown`` writes docs/fidelity.md (benchmarks/fidelity.py is the command line);
-``plot_replay`` one figure per log (matplotlib Agg). ``table3_runs``: the paper's straight-line scenarios
-(Table 3) on the engine for a variant.
+``plot_replay`` one figure per log (matplotlib Agg). ``scenario_runs``: the paper's scenarios (static waypoints,
+Tables 3-5) on the engine per variant (``table3_runs``: the straight lines, keyed by speed; ``age_variants``: a
+variant at other timer phases); ``held_out_bounds``: what the issue's comparison with Sphinx's held-out runs
+(Tables 4 and 5) implies for each such cell of a configuration.
 
 Units: positions [m], velocities [m/s] (ENU world), attitude [rad], waypoint yaw [deg], time [s].
 """
@@ -56,7 +58,7 @@ import re
 import numpy as np
 
 from anafi_sim.experiments import report
-from anafi_sim.experiments.engine import Engine
+from anafi_sim.experiments.engine import DEFAULT_SCHEDULE, Engine
 from anafi_sim.experiments.evaluation import interpolate
 from anafi_sim.experiments.reference_log import (COLUMNS, INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES,
                                                  WAYPOINT_COLUMNS, ReferenceLog, as_logged, detect_garbage,
@@ -663,8 +665,9 @@ def effect_variants(off, fitted):
     return out
 
 
-# ---------------------------------------------------------------------------------------------- Table 3
-def _table3_one(args):
+# ---------------------------------------------------------------------------------------------- the paper's scenarios
+def _scenario_one(args):
+    """Worker: (scenario, controller, variant, seed) -> plain record of one engine run (picklable)."""
     scenario, controller, variant, seed = args
     engine = Engine(scenario, controller, seed=seed,
                     controller_params=_controller_params(variant, controller),
@@ -679,16 +682,89 @@ def _table3_one(args):
                 e_max=(s.get('estimate') or {}).get('e_max'))
 
 
+def scenario_runs(variants, scenarios=report.ALL_SCENARIOS, seed=None, workers=1, progress=None, label='scenarios'):
+    """The paper's scenarios (``report.ALL_SCENARIOS``: static waypoints, Tables 3-5) on the engine, PID and MPC
+    (a variant's ``controllers`` only), for every variant; {(variant, controller, scenario): record with e_mu
+    (vs the estimate, the paper's metric), e_mu_truth, e_max, ok}."""
+    from anafi_sim.experiments import runs
+    tasks = [(s, c, v, seed) for v in variants for c in report.CONTROLLERS for s in scenarios
+             if v is None or not v.controllers or c in v.controllers]
+    records = runs.execute(tasks, workers=workers, progress=progress, label=label, function=_scenario_one)
+    return collections.OrderedDict(((r['variant'], r['controller'], r['scenario']), r) for r in records)
+
+
 def table3_runs(variants, seed=None, workers=1, progress=None):
     """The paper's straight-line scenarios (Table 3: straight_1..5, PID and MPC) on the engine for every
     variant; {(variant, controller, speed): record with e_mu (vs estimate, the paper's), e_mu_truth}."""
-    from anafi_sim.experiments import runs
-    tasks = [(s, c, v, seed) for v in variants for c in report.CONTROLLERS for s in report.STRAIGHT
-             if v is None or not v.controllers or c in v.controllers]
-    records = runs.execute(tasks, workers=workers, progress=progress, label='table3', function=_table3_one)
-    out = collections.OrderedDict()
-    for r in records:
-        out[(r['variant'], r['controller'], int(r['scenario'].rsplit('_', 1)[1]))] = r
+    records = scenario_runs(variants, report.STRAIGHT, seed=seed, workers=workers, progress=progress,
+                            label='table3')
+    return collections.OrderedDict(((v, c, int(s.rsplit('_', 1)[1])), r) for (v, c, s), r in records.items())
+
+
+def age_variants(variant, ages):
+    """``variant`` with the waypoint ``age`` [s] old at the MPC's cycle, one per age (engine schedule
+    ``generator_phase`` against the default ``controller_phase``; the ROS graph's phase is random per start-up):
+    names ``<name>_ageNN`` (NN in ms), MPC only."""
+    out = []
+    controller_phase = DEFAULT_SCHEDULE['controller_phase']
+    for age in ages:
+        schedule = dict(variant.schedule or {})
+        schedule['generator_phase'] = round((controller_phase - age) % 0.1, 6)
+        out.append(variant._replace(name='%s_age%02d' % (variant.name, round(age * 1e3)),
+                                    label='waypoint %d ms old' % round(age * 1e3),
+                                    schedule=schedule, controllers=('mpc',)))
+    return out
+
+
+# The held-out cells (Tables 4 and 5 in Sphinx) are not in this repository. What the issue says of them
+# (issue 10, "Why") is a ratio range of the first delivery's stand-in to Sphinx per group of cells; with the
+# first delivery's own figures that bounds each Sphinx value. Figures: e_mu [m] of the first delivery's ROS
+# batch (7494c02, benchmarks/results/experiments.md, tables 4 and 5), per (controller, source).
+FIRST_DELIVERY = {
+    ('mpc', 'estimate'): dict(zip(report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
+                                  (0.62, 0.40, 1.24, 0.28, 0.85, 1.69, 0.40, 0.20, 0.67))),
+    ('mpc', 'truth'): dict(zip(report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
+                               (0.58, 0.37, 1.16, 0.25, 0.79, 1.58, 0.37, 0.19, 0.62))),
+    ('pid', 'estimate'): dict(zip(report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
+                                  (1.19, 1.26, 2.32, 1.24, 2.39, 3.51, 0.59, 0.63, 1.19))),
+    ('pid', 'truth'): dict(zip(report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
+                               (1.16, 1.22, 2.25, 1.20, 2.31, 3.41, 0.57, 0.60, 1.14))),
+}
+_FAST_CIRCLES = ('circle_r3_v2', 'circle_r3_v3')
+# (controller, source, scenarios, (low, high) first delivery / Sphinx, what the issue says)
+ISSUE_RATIOS = (
+    ('pid', 'estimate', report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS, (0.78, 1.00),
+     'PID: all 18 cells 0.78-1.00'),
+    ('pid', 'truth', report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS, (0.78, 1.00),
+     'PID: all 18 cells 0.78-1.00'),
+    ('mpc', 'estimate', report.VERTICAL_SCENARIOS, (1.3, 1.9), 'MPC vertical vs the estimate 1.3-1.9'),
+    ('mpc', 'estimate', _FAST_CIRCLES, (0.69, 0.71), 'MPC circles r 3 m at 2 and 3 m/s 0.69-0.71'),
+    ('mpc', 'estimate', tuple(s for s in report.CIRCLE_SCENARIOS if s not in _FAST_CIRCLES), (0.75, 1.25),
+     'MPC other circles: not among the cells it names as > 25 % off'),
+    ('mpc', 'truth', report.CIRCLE_SCENARIOS, (0.50, 0.84), 'MPC circles vs ground truth 0.50-0.84'),
+)
+
+
+def held_out_bounds(records, variant, variant_pid=None):
+    """What the issue's comparison implies for each held-out cell of a configuration: [(controller, source,
+    scenario, first delivery e_mu, (low, high) first / Sphinx, (Sphinx low, high) [m], stand-in e_mu now,
+    (low, mid, high) now / Sphinx, the issue's words)], mid at the geometric middle of the issue's range. ``records``: ``scenario_runs`` output; ``variant`` names
+    the MPC's runs, ``variant_pid`` the PID's (default the same). A bound, not a measurement: the issue gives
+    one range per group of cells, and its figures of the first delivery came from its own runs of it, whose
+    timer phases (``age_variants``) may differ from the committed batch's."""
+    out = []
+    for controller, source, scenarios, (lo, hi), words in ISSUE_RATIOS:
+        name = variant if controller == 'mpc' else (variant_pid or variant)
+        key = 'e_mu' if source == 'estimate' else 'e_mu_truth'
+        for scenario in scenarios:
+            first = FIRST_DELIVERY[(controller, source)][scenario]
+            r = records.get((name, controller, scenario))
+            now = r.get(key) if r and r.get('ok') else None
+            sphinx = (first / hi, first / lo)
+            mid = first / math.sqrt(lo * hi)
+            ratio = ((now / sphinx[1], now / mid, now / sphinx[0]) if now is not None
+                     else (float('nan'),) * 3)
+            out.append((controller, source, scenario, first, (lo, hi), sphinx, now, ratio, words))
     return out
 
 
@@ -894,6 +970,75 @@ def table3_table(t3, columns):
                 v = r.get('e_mu') if r and r.get('ok') else None
                 parts += [fmt(v), ratio_text(v / paper if v is not None else None)]
             lines.append('| %s | %d | %.2f | %s |' % (report.LABELS[c], k + 1, paper, ' | '.join(parts)))
+    return '\n'.join(lines)
+
+
+def _pair(record):
+    """'est / truth' e_mu of a scenario record ('-' when missing or failed)."""
+    if not record or not record.get('ok'):
+        return '-'
+    return '%s / %s' % (fmt(record.get('e_mu')), fmt(record.get('e_mu_truth')))
+
+
+def _span(records, names, controller, scenario):
+    """'lo-hi / lo-hi' e_mu (est / truth) over the variants ``names`` ('-' when none ran)."""
+    rows = [records.get((n, controller, scenario)) for n in names]
+    rows = [r for r in rows if r and r.get('ok') and r.get('e_mu') is not None]
+    if not rows:
+        return '-'
+    parts = []
+    for key in ('e_mu', 'e_mu_truth'):
+        v = [r[key] for r in rows if r.get(key) is not None]
+        parts.append('%s-%s' % (fmt(min(v)), fmt(max(v))) if v else '-')
+    return ' / '.join(parts)
+
+
+def scenario_table(records, columns, scenarios=report.ALL_SCENARIOS):
+    """Markdown table: e_mu vs estimate / vs ground truth [m] of every scenario, one column per (title,
+    controller, variant names): one name -> its run, several -> their range (min-max)."""
+    lines = ['| scenario | ' + ' | '.join(t for t, _, _ in columns) + ' |', '|' + '---|' * (1 + len(columns))]
+    for s in scenarios:
+        cells = [(_pair(records.get((names[0], c, s))) if len(names) == 1 else _span(records, names, c, s))
+                 for _, c, names in columns]
+        lines.append('| %s | %s |' % (s, ' | '.join(cells)))
+    return '\n'.join(lines)
+
+
+def held_out_score(records, variant, variant_pid=None, band=BANDS[2]):
+    """(cells whose mid now / Sphinx lies within +-``band``, cells outside it, mean abs(ln(mid))) of a
+    configuration's ``held_out_bounds`` (cells not run are left out)."""
+    mids = [row[7][1] for row in held_out_bounds(records, variant, variant_pid) if math.isfinite(row[7][1])]
+    inside = sum(1 for m in mids if within(m, band))
+    return inside, len(mids) - inside, (float(np.mean([abs(math.log(m)) for m in mids])) if mids else float('nan'))
+
+
+def held_out_table(records, configurations, band=BANDS[2]):
+    """Markdown table of ``held_out_bounds`` for each (title, MPC variant, PID variant) configuration: the
+    stand-in's e_mu now and now / Sphinx as 'low-high (mid)', the mid in bold outside +-``band``; a last row
+    with ``held_out_score`` per configuration."""
+    bounds = [held_out_bounds(records, v, p) for _, v, p in configurations]
+    head = ('| controller | vs | scenario | first delivery [m] | the issue: first / Sphinx | Sphinx implied [m] | '
+            + ' | '.join('%s [m] | / Sphinx' % t for t, _, _ in configurations) + ' |')
+    lines = [head, '|' + '---|' * (6 + 2 * len(configurations))]
+    for i, row in enumerate(bounds[0]):
+        controller, source, scenario, first, (lo, hi), sphinx = row[:6]
+        parts = []
+        for b in bounds:
+            now, ratio = b[i][6], b[i][7]
+            if now is None or not all(math.isfinite(x) for x in ratio):
+                parts += ['-', '-']
+                continue
+            parts += [fmt(now), ('%.2f-%.2f (%.2f)' if within(ratio[1], band) else '%.2f-%.2f (**%.2f**)')
+                      % (ratio[0], ratio[2], ratio[1])]
+        lines.append('| %s | %s | %s | %.2f | %.2f-%.2f | %.3f-%.3f | %s |'
+                     % (report.LABELS[controller], 'est' if source == 'estimate' else 'truth', scenario, first,
+                        lo, hi, sphinx[0], sphinx[1], ' | '.join(parts)))
+    tally = []
+    for _, v, p in configurations:
+        inside, outside, mean = held_out_score(records, v, p, band)
+        tally += ['', '%d / %d, %s' % (inside, outside, fmt(mean))]
+    lines.append('| **cells** | | mid inside / outside +-%d %%, mean abs ln(mid) | | | | %s |'
+                 % (round(band * 100), ' | '.join(tally)))
     return '\n'.join(lines)
 
 

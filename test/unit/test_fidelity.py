@@ -308,6 +308,80 @@ def test_compare_and_band():
     assert F.within(1.1, 0.1) and not F.within(1.16, 0.15) and not F.within(float('nan'), 0.15)
 
 
+# ------------------------------------------------------------------------ the paper's scenarios, held-out bounds
+def test_age_variants_set_the_waypoint_age_at_the_mpc_cycle():
+    from anafi_sim.experiments.engine import DEFAULT_SCHEDULE
+    base = F.Variant('shipped', 'shipped defaults', {'k': 1}, {'mpc': {'paper_timing': True}}, {'x': 1})
+    out = F.age_variants(base, (0.005, 0.08))
+    assert [v.name for v in out] == ['shipped_age05', 'shipped_age80']
+    for v, age in zip(out, (0.005, 0.08)):
+        # the generator ticks ``age`` before the MPC's cycle (mod the 0.1 s period)
+        assert (DEFAULT_SCHEDULE['controller_phase'] - v.schedule['generator_phase']) % 0.1 == pytest.approx(age)
+        assert v.schedule['x'] == 1 and v.controller_params == base.controller_params
+        assert v.model_params is base.model_params and v.controllers == ('mpc',)
+    assert base.schedule == {'x': 1}                      # the variant given is not changed
+
+
+def test_scenario_runs_key_every_paper_scenario_by_variant_controller_and_name():
+    out = F.scenario_runs([F.Variant('v', 'v', None, controllers=('mpc',))], scenarios=('vertical_r2_v1',))
+    assert list(out) == [('v', 'mpc', 'vertical_r2_v1')]
+    r = out[('v', 'mpc', 'vertical_r2_v1')]
+    assert r['ok'] and 0.0 < r['e_mu'] < 1.0 and 0.0 < r['e_mu_truth'] < 1.0
+
+
+def _held_records(scale_mpc=1.0, scale_pid=1.0, variant='x'):
+    out = {}
+    for (controller, source), cells in F.FIRST_DELIVERY.items():
+        key = 'e_mu' if source == 'estimate' else 'e_mu_truth'
+        for scenario, first in cells.items():
+            rec = out.setdefault((variant, controller, scenario), {'ok': True})
+            rec[key] = first * (scale_mpc if controller == 'mpc' else scale_pid)
+    return out
+
+
+def test_held_out_bounds_divide_the_first_delivery_by_the_issues_ranges():
+    rows = F.held_out_bounds(_held_records(), 'x')
+    # every group the issue states, each cell once: PID 9 + 9, MPC vertical 3, fast circles 2, others 4, truth 6
+    assert len(rows) == 33 and len(set((r[0], r[1], r[2]) for r in rows)) == 33
+    for controller, source, scenario, first, (lo, hi), sphinx, now, ratio, words in rows:
+        assert sphinx == pytest.approx((first / hi, first / lo))
+        # the stand-in unchanged since the first delivery: now / Sphinx is the issue's own range
+        assert ratio == pytest.approx((lo, math.sqrt(lo * hi), hi))
+        assert words
+    vertical = [r for r in rows if r[0] == 'mpc' and r[2] == 'vertical_r2_v1']
+    assert vertical[0][5] == pytest.approx((0.20 / 1.9, 0.20 / 1.3))
+    # a stand-in whose MPC errors halve: every MPC ratio halves, the PID's stay
+    halved = F.held_out_bounds(_held_records(scale_mpc=0.5), 'x')
+    for a, b in zip(rows, halved):
+        assert b[7] == pytest.approx(tuple(x * (0.5 if a[0] == 'mpc' else 1.0) for x in a[7]))
+
+
+def test_held_out_score_and_table_count_the_middles():
+    # unchanged: the middles are the issue's (PID 0.88, MPC vertical 1.57, fast circles 0.70, truth 0.65 out)
+    inside, outside, mean = F.held_out_score(_held_records(), 'x')
+    assert (inside, outside) == (18 + 4, 3 + 2 + 6)
+    assert mean > 0.1
+    # the MPC's errors scaled by 1 / the vertical middle: the vertical cells come in, the circles go out
+    inside2, outside2, _ = F.held_out_score(_held_records(scale_mpc=1.0 / math.sqrt(1.3 * 1.9)), 'x')
+    assert inside2 == 18 + 3
+    text = F.held_out_table(_held_records(), [('now', 'x', 'x')])
+    lines = text.splitlines()
+    assert len(lines) == 2 + 33 + 1
+    assert '(**1.57**)' in text and '| 22 / 11, ' in lines[-1]
+    # a configuration not run shows dashes and counts nothing
+    text = F.held_out_table(_held_records(), [('now', 'x', 'x'), ('absent', 'y', 'y')])
+    assert '| 0 / 0, - |' in text.splitlines()[-1]
+
+
+def test_scenario_table_shows_a_run_or_the_range_over_several():
+    rec = {('a', 'mpc', 's'): {'ok': True, 'e_mu': 1.0, 'e_mu_truth': 2.0},
+           ('b', 'mpc', 's'): {'ok': True, 'e_mu': 1.5, 'e_mu_truth': 1.0},
+           ('c', 'mpc', 's'): {'ok': False, 'e_mu': 9.0, 'e_mu_truth': 9.0}}
+    text = F.scenario_table(rec, [('one', 'mpc', ['a']), ('span', 'mpc', ['a', 'b', 'c']), ('none', 'pid', ['a'])],
+                            scenarios=('s',))
+    assert text.splitlines()[-1] == '| s | 1.000 / 2.000 | 1.000-1.500 / 1.000-2.000 | - |'
+
+
 # ----------------------------------------------------------------------------------------- the shared logs
 @pytest.fixture(scope='module')
 def replays():

@@ -708,7 +708,7 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
               'other jobs)' % COMMAND,
               '%s --steps replay   # one step; the others are kept in docs/fidelity/fidelity.yaml' % COMMAND,
               'python -m pytest -q test/unit/test_fidelity.py    # the regression guard (shipped defaults)',
-              '```', '', 'Wall time of the last run of each step [s] (a step run on a subset of the logs or variants keeps the others' figures): %s.' % ', '.join('%s %s' % kv for kv in sorted(walls.items())), '']
+              '```', '', 'Wall time of the last run of each step [s] (a step run on a subset of the logs or variants keeps the figures of the rest): %s.' % ', '.join('%s %s' % kv for kv in sorted(walls.items())), '']
     return '\n'.join(lines)
 
 

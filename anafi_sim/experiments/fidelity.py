@@ -701,17 +701,23 @@ def table3_runs(variants, seed=None, workers=1, progress=None):
     return collections.OrderedDict(((v, c, int(s.rsplit('_', 1)[1])), r) for (v, c, s), r in records.items())
 
 
+def age_name(name, age):
+    """Name of ``name``'s variant with the waypoint ``age`` [s] old at the MPC's cycle: '<name>_ageNN' (ms)."""
+    return '%s_age%02d' % (name, round(age * 1e3))
+
+
 def age_variants(variant, ages):
     """``variant`` with the waypoint ``age`` [s] old at the MPC's cycle, one per age (engine schedule
-    ``generator_phase`` against the default ``controller_phase``; the ROS graph's phase is random per start-up):
-    names ``<name>_ageNN`` (NN in ms), MPC only."""
+    ``generator_phase`` against the variant's ``controller_phase``, modulo the generator's period; the ROS
+    graph's phase is random per start-up): names ``age_name``, MPC only."""
     out = []
-    controller_phase = DEFAULT_SCHEDULE['controller_phase']
+    base = dict(DEFAULT_SCHEDULE)
+    base.update(variant.schedule or {})
+    period = 1.0 / base['generator_rate']
     for age in ages:
         schedule = dict(variant.schedule or {})
-        schedule['generator_phase'] = round((controller_phase - age) % 0.1, 6)
-        out.append(variant._replace(name='%s_age%02d' % (variant.name, round(age * 1e3)),
-                                    label='waypoint %d ms old' % round(age * 1e3),
+        schedule['generator_phase'] = round((base['controller_phase'] - age) % period, 6)
+        out.append(variant._replace(name=age_name(variant.name, age), label='waypoint %d ms old' % round(age * 1e3),
                                     schedule=schedule, controllers=('mpc',)))
     return out
 
@@ -719,19 +725,28 @@ def age_variants(variant, ages):
 # The held-out cells (Tables 4 and 5 in Sphinx) are not in this repository. What the issue says of them
 # (issue 10, "Why") is a ratio range of the first delivery's stand-in to Sphinx per group of cells; with the
 # first delivery's own figures that bounds each Sphinx value. Figures: e_mu [m] of the first delivery's ROS
-# batch (7494c02, benchmarks/results/experiments.md, tables 4 and 5), per (controller, source).
+# batch (7494c02, benchmarks/results/experiments.yaml), per (controller, source) and scenario.
 FIRST_DELIVERY = {
-    ('mpc', 'estimate'): dict(zip(report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
-                                  (0.62, 0.40, 1.24, 0.28, 0.85, 1.69, 0.40, 0.20, 0.67))),
-    ('mpc', 'truth'): dict(zip(report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
-                               (0.58, 0.37, 1.16, 0.25, 0.79, 1.58, 0.37, 0.19, 0.62))),
-    ('pid', 'estimate'): dict(zip(report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
-                                  (1.19, 1.26, 2.32, 1.24, 2.39, 3.51, 0.59, 0.63, 1.19))),
-    ('pid', 'truth'): dict(zip(report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
-                               (1.16, 1.22, 2.25, 1.20, 2.31, 3.41, 0.57, 0.60, 1.14))),
+    ('mpc', 'estimate'): {'circle_r1_v1': 0.6189, 'circle_r2_v1': 0.3989, 'circle_r2_v2': 1.2404,
+                          'circle_r3_v1': 0.285, 'circle_r3_v2': 0.8524, 'circle_r3_v3': 1.6896,
+                          'vertical_r1_v1': 0.3953, 'vertical_r2_v1': 0.2029, 'vertical_r2_v2': 0.6745},
+    ('mpc', 'truth'): {'circle_r1_v1': 0.5836, 'circle_r2_v1': 0.3657, 'circle_r2_v2': 1.163,
+                       'circle_r3_v1': 0.2538, 'circle_r3_v2': 0.7904, 'circle_r3_v3': 1.5764,
+                       'vertical_r1_v1': 0.3704, 'vertical_r2_v1': 0.1926, 'vertical_r2_v2': 0.6206},
+    ('pid', 'estimate'): {'circle_r1_v1': 1.1901, 'circle_r2_v1': 1.2594, 'circle_r2_v2': 2.3173,
+                          'circle_r3_v1': 1.2443, 'circle_r3_v2': 2.3911, 'circle_r3_v3': 3.5109,
+                          'vertical_r1_v1': 0.5921, 'vertical_r2_v1': 0.6294, 'vertical_r2_v2': 1.1885},
+    ('pid', 'truth'): {'circle_r1_v1': 1.1553, 'circle_r2_v1': 1.2189, 'circle_r2_v2': 2.2474,
+                       'circle_r3_v1': 1.2026, 'circle_r3_v2': 2.3134, 'circle_r3_v3': 3.408,
+                       'vertical_r1_v1': 0.5693, 'vertical_r2_v1': 0.6035, 'vertical_r2_v2': 1.1426},
 }
 _FAST_CIRCLES = ('circle_r3_v2', 'circle_r3_v3')
-# (controller, source, scenarios, (low, high) first delivery / Sphinx, what the issue says)
+HELD_OUT_BAND = 0.25      # the issue's goal for the held-out cells: all within +-25 % (BANDS[2])
+# (controller, source, scenarios, (low, high) first delivery / Sphinx, what the issue says). The issue names
+# the MPC cells more than 25 % off (10 of 18) by group: the vertical motions and the fast circles against the
+# estimate, the circles against ground truth (0.50-0.84: at most five of them off). The other circles against
+# the estimate are not among them: within +-25 %. The vertical motions against ground truth are not stated, and
+# the count (10 = 3 + 2 + five more among the nine ground-truth cells) does not tell which: left out.
 ISSUE_RATIOS = (
     ('pid', 'estimate', report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS, (0.78, 1.00),
      'PID: all 18 cells 0.78-1.00'),
@@ -739,19 +754,22 @@ ISSUE_RATIOS = (
      'PID: all 18 cells 0.78-1.00'),
     ('mpc', 'estimate', report.VERTICAL_SCENARIOS, (1.3, 1.9), 'MPC vertical vs the estimate 1.3-1.9'),
     ('mpc', 'estimate', _FAST_CIRCLES, (0.69, 0.71), 'MPC circles r 3 m at 2 and 3 m/s 0.69-0.71'),
-    ('mpc', 'estimate', tuple(s for s in report.CIRCLE_SCENARIOS if s not in _FAST_CIRCLES), (0.75, 1.25),
-     'MPC other circles: not among the cells it names as > 25 % off'),
+    ('mpc', 'estimate', tuple(s for s in report.CIRCLE_SCENARIOS if s not in _FAST_CIRCLES),
+     (1.0 - HELD_OUT_BAND, 1.0 + HELD_OUT_BAND), 'MPC other circles: not among the cells it names as > 25 % off'),
     ('mpc', 'truth', report.CIRCLE_SCENARIOS, (0.50, 0.84), 'MPC circles vs ground truth 0.50-0.84'),
 )
+HELD_OUT_CELLS = sum(len(g[2]) for g in ISSUE_RATIOS)
+INFERRED_RANGE = ISSUE_RATIOS[4][3]     # the range inferred for the other MPC circles vs the estimate
 
 
 def held_out_bounds(records, variant, variant_pid=None):
     """What the issue's comparison implies for each held-out cell of a configuration: [(controller, source,
     scenario, first delivery e_mu, (low, high) first / Sphinx, (Sphinx low, high) [m], stand-in e_mu now,
-    (low, mid, high) now / Sphinx, the issue's words)], mid at the geometric middle of the issue's range. ``records``: ``scenario_runs`` output; ``variant`` names
-    the MPC's runs, ``variant_pid`` the PID's (default the same). A bound, not a measurement: the issue gives
-    one range per group of cells, and its figures of the first delivery came from its own runs of it, whose
-    timer phases (``age_variants``) may differ from the committed batch's."""
+    (low, mid, high) now / Sphinx, the issue's words)], mid at the geometric middle of the issue's range.
+    ``records``: ``scenario_runs`` output; ``variant`` names the MPC's runs, ``variant_pid`` the PID's
+    (default the same). A bound, not a measurement: the issue gives one range per group of cells, and its
+    figures of the first delivery came from its own runs of it, whose timer phases (``age_variants``) may
+    differ from the committed batch's."""
     out = []
     for controller, source, scenarios, (lo, hi), words in ISSUE_RATIOS:
         name = variant if controller == 'mpc' else (variant_pid or variant)
@@ -845,7 +863,7 @@ def plot_replay(path, log, series, title=None, dpi=80):
 
 
 # ---------------------------------------------------------------------------------------------- report
-BANDS = (0.10, 0.15, 0.25)
+BANDS = (0.10, 0.15, HELD_OUT_BAND)
 CELL_LABELS = {('estimate', 'e_mu'): 'e_mu est', ('estimate', 'e_max'): 'e_max est',
                ('truth', 'e_mu'): 'e_mu truth', ('truth', 'e_max'): 'e_max truth'}
 
@@ -1004,15 +1022,15 @@ def scenario_table(records, columns, scenarios=report.ALL_SCENARIOS):
     return '\n'.join(lines)
 
 
-def held_out_score(records, variant, variant_pid=None, band=BANDS[2]):
+def held_out_score(records, variant, variant_pid=None, band=HELD_OUT_BAND):
     """(cells whose mid now / Sphinx lies within +-``band``, cells outside it, mean abs(ln(mid))) of a
-    configuration's ``held_out_bounds`` (cells not run are left out)."""
+    configuration's ``held_out_bounds``, over the cells that ran (``HELD_OUT_CELLS`` when all did)."""
     mids = [row[7][1] for row in held_out_bounds(records, variant, variant_pid) if math.isfinite(row[7][1])]
     inside = sum(1 for m in mids if within(m, band))
     return inside, len(mids) - inside, (float(np.mean([abs(math.log(m)) for m in mids])) if mids else float('nan'))
 
 
-def held_out_table(records, configurations, band=BANDS[2]):
+def held_out_table(records, configurations, band=HELD_OUT_BAND):
     """Markdown table of ``held_out_bounds`` for each (title, MPC variant, PID variant) configuration: the
     stand-in's e_mu now and now / Sphinx as 'low-high (mid)', the mid in bold outside +-``band``; a last row
     with ``held_out_score`` per configuration."""
@@ -1030,7 +1048,7 @@ def held_out_table(records, configurations, band=BANDS[2]):
                 continue
             parts += [fmt(now), ('%.2f-%.2f (%.2f)' if within(ratio[1], band) else '%.2f-%.2f (**%.2f**)')
                       % (ratio[0], ratio[2], ratio[1])]
-        lines.append('| %s | %s | %s | %.2f | %.2f-%.2f | %.3f-%.3f | %s |'
+        lines.append('| %s | %s | %s | %.3f | %.2f-%.2f | %.3f-%.3f | %s |'
                      % (report.LABELS[controller], 'est' if source == 'estimate' else 'truth', scenario, first,
                         lo, hi, sphinx[0], sphinx[1], ' | '.join(parts)))
     tally = []

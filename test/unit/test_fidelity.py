@@ -322,6 +322,12 @@ def test_age_variants_set_the_waypoint_age_at_the_mpc_cycle():
     assert base.schedule == {'x': 1}                      # the variant given is not changed
 
 
+def test_the_waypoint_age_is_felt_by_the_mpc():
+    out = F.scenario_runs(F.age_variants(F.Variant('v', 'v', None), (0.005, 0.08)), scenarios=('vertical_r2_v1',))
+    young, old = out[('v_age05', 'mpc', 'vertical_r2_v1')], out[('v_age80', 'mpc', 'vertical_r2_v1')]
+    assert young['ok'] and old['ok'] and young['e_mu'] < 0.95 * old['e_mu']     # an older waypoint: a larger error
+
+
 def test_scenario_runs_key_every_paper_scenario_by_variant_controller_and_name():
     out = F.scenario_runs([F.Variant('v', 'v', None, controllers=('mpc',))], scenarios=('vertical_r2_v1',))
     assert list(out) == [('v', 'mpc', 'vertical_r2_v1')]
@@ -349,11 +355,28 @@ def test_held_out_bounds_divide_the_first_delivery_by_the_issues_ranges():
         assert ratio == pytest.approx((lo, math.sqrt(lo * hi), hi))
         assert words
     vertical = [r for r in rows if r[0] == 'mpc' and r[2] == 'vertical_r2_v1']
-    assert vertical[0][5] == pytest.approx((0.20 / 1.9, 0.20 / 1.3))
+    assert vertical[0][5] == pytest.approx((0.2029 / 1.9, 0.2029 / 1.3))
     # a stand-in whose MPC errors halve: every MPC ratio halves, the PID's stay
     halved = F.held_out_bounds(_held_records(scale_mpc=0.5), 'x')
     for a, b in zip(rows, halved):
         assert b[7] == pytest.approx(tuple(x * (0.5 if a[0] == 'mpc' else 1.0) for x in a[7]))
+
+
+def test_held_out_constants_are_the_first_delivery_and_the_issues_words():
+    # the first delivery's ROS batch (7494c02, benchmarks/results/experiments.yaml), a few cells pinned by name
+    fd = F.FIRST_DELIVERY
+    assert fd[('mpc', 'estimate')]['circle_r3_v2'] == 0.8524 and fd[('mpc', 'estimate')]['circle_r3_v3'] == 1.6896
+    assert fd[('mpc', 'estimate')]['vertical_r2_v1'] == 0.2029 and fd[('mpc', 'truth')]['circle_r1_v1'] == 0.5836
+    assert fd[('pid', 'truth')]['vertical_r2_v2'] == 1.1426 and fd[('pid', 'estimate')]['circle_r2_v2'] == 2.3173
+    for cells in fd.values():
+        assert sorted(cells) == sorted(F.report.CIRCLE_SCENARIOS + F.report.VERTICAL_SCENARIOS)
+    # the issue's ranges, in order: PID est / truth, MPC vertical, fast circles, other circles (inferred), truth
+    assert [g[3] for g in F.ISSUE_RATIOS] == [(0.78, 1.0), (0.78, 1.0), (1.3, 1.9), (0.69, 0.71), (0.75, 1.25),
+                                              (0.50, 0.84)]
+    assert [g[:2] for g in F.ISSUE_RATIOS] == [('pid', 'estimate'), ('pid', 'truth'), ('mpc', 'estimate'),
+                                               ('mpc', 'estimate'), ('mpc', 'estimate'), ('mpc', 'truth')]
+    assert F.ISSUE_RATIOS[3][2] == ('circle_r3_v2', 'circle_r3_v3')
+    assert F.INFERRED_RANGE == F.ISSUE_RATIOS[4][3] and F.HELD_OUT_CELLS == 33
 
 
 def test_held_out_score_and_table_count_the_middles():
@@ -368,6 +391,9 @@ def test_held_out_score_and_table_count_the_middles():
     lines = text.splitlines()
     assert len(lines) == 2 + 33 + 1
     assert '(**1.57**)' in text and '| 22 / 11, ' in lines[-1]
+    # whole rows: low-high of now / Sphinx, then the middle (bold outside the band)
+    assert '| MPC | est | vertical_r2_v1 | 0.203 | 1.30-1.90 | 0.107-0.156 | 0.203 | 1.30-1.90 (**1.57**) |' in text
+    assert '| PID | truth | circle_r1_v1 | 1.155 | 0.78-1.00 | 1.155-1.481 | 1.155 | 0.78-1.00 (0.88) |' in text
     # a configuration not run shows dashes and counts nothing
     text = F.held_out_table(_held_records(), [('now', 'x', 'x'), ('absent', 'y', 'y')])
     assert '| 0 / 0, - |' in text.splitlines()[-1]

@@ -397,6 +397,28 @@ def _timing_text(scen):
                min(cpct), max(cpct)))
 
 
+def _table3_timing_text(scen):
+    """The issue's criterion for the MPC's timing (the one that best reproduces Table 3), shipped model, with
+    the spread the timer phase alone gives (the ``scenarios`` step's runs; '' without them)."""
+    t3 = F.table3_from_scenarios(scen or {})
+    if not any(k[0] == 'shipped_pt' for k in t3):
+        return ''
+    parts, means, spreads = [], [], []
+    for title, v in (('shipped defaults', 'shipped'), ('with paper_timing', 'shipped_pt')):
+        k, n, m = F.table3_score(t3, 'shipped', v)
+        ages = [F.table3_score(t3, 'shipped', F.age_name(v, a))[2] for a in AGES]
+        means.append(m)
+        spreads.append(max(ages) - min(ages))
+        parts.append('%s %d / %d, mean abs ln %s (%s-%s with the waypoint %s ms old)'
+                     % (title, k, n, F.fmt(m), F.fmt(min(ages)), F.fmt(max(ages)),
+                        ' / '.join(str(round(a * 1e3)) for a in AGES)))
+    verdict = ('the two timings differ on Table 3 by far less than one timer phase from another'
+               if abs(means[0] - means[1]) < 0.25 * min(spreads) else
+               'Table 3 prefers %s' % ('the shipped timing' if means[0] < means[1] else 'paper_timing'))
+    return (' The MPC\'s timing on Table 3 (the issue\'s criterion for its default; shipped model, `scenarios` '
+            'step): %s: %s.' % ('; '.join(parts), verdict))
+
+
 def _age_spread(scen, mpc_v, pid_v):
     """(fewest, most) held-out middles within the band over the MPC variant's waypoint ages, and the ages as
     text; None when those runs are missing."""
@@ -498,7 +520,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
         t3best = sorted(configurations(cols), key=lambda c: (-F.table3_score(t3, c[1], c[2])[0], F.table3_score(t3, c[1], c[2])[2]))
         lines += ['Best on the paper\'s Table 3 (engine runs of straight_1..5, e_mu vs the estimate): **%s** '
                   '(%d / %d cells within +-10 %%).' % (t3best[0][0], F.table3_score(t3, t3best[0][1], t3best[0][2])[0],
-                                                     F.table3_score(t3, t3best[0][1], t3best[0][2])[1]), '']
+                                                     F.table3_score(t3, t3best[0][1], t3best[0][2])[1])
+                  + _table3_timing_text(scen), '']
     lines += ['## Recommendation for the defaults', '']
     k, n, m = F.score(F.combined(records, logs, best[0][2], best[0][1]))
     if best[0][1] == 'shipped':

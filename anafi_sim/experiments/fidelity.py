@@ -696,9 +696,8 @@ def scenario_runs(variants, scenarios=report.ALL_SCENARIOS, seed=None, workers=1
 def table3_runs(variants, seed=None, workers=1, progress=None):
     """The paper's straight-line scenarios (Table 3: straight_1..5, PID and MPC) on the engine for every
     variant; {(variant, controller, speed): record with e_mu (vs estimate, the paper's), e_mu_truth}."""
-    records = scenario_runs(variants, report.STRAIGHT, seed=seed, workers=workers, progress=progress,
-                            label='table3')
-    return collections.OrderedDict(((v, c, int(s.rsplit('_', 1)[1])), r) for (v, c, s), r in records.items())
+    return table3_from_scenarios(scenario_runs(variants, report.STRAIGHT, seed=seed, workers=workers,
+                                               progress=progress, label='table3'))
 
 
 def age_name(name, age):
@@ -784,6 +783,13 @@ def held_out_bounds(records, variant, variant_pid=None):
                      else (float('nan'),) * 3)
             out.append((controller, source, scenario, first, (lo, hi), sphinx, now, ratio, words))
     return out
+
+
+def table3_from_scenarios(records):
+    """The straight-line runs of ``scenario_runs`` records keyed as ``table3_runs`` keys them:
+    {(variant, controller, speed): record}."""
+    return collections.OrderedDict(((v, c, int(s.rsplit('_', 1)[1])), r) for (v, c, s), r in records.items()
+                                   if s in report.STRAIGHT)
 
 
 def table3_ratios(records, variant):

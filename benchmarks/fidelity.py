@@ -45,6 +45,7 @@ STEPS = ('replay', 'ablation', 'phases', 'table3', 'scenarios')
 METHODS = ('settled', 'nostalls', 'unstored')    # variants that are replay methods, not configurations
 PLOTTED = ('off', 'settled', 'shipped')       # the variants in each log's figure: before (settled start) / after
 AGES = (0.005, 0.030, 0.055, 0.080)          # s, waypoint age at the MPC's cycle
+AGES_TEXT = ' / '.join(str(round(a * 1e3)) for a in AGES)     # '5 / 30 / 55 / 80' [ms]
 COMMAND = 'python benchmarks/fidelity.py'
 
 
@@ -189,8 +190,7 @@ def main(argv=None):
     records = collections.OrderedDict(((r['log'], r['variant']), r) for r in store.get('replays', []))
     t3 = collections.OrderedDict(((r['variant'], r['controller'], int(r['scenario'].rsplit('_', 1)[1])), r)
                                  for r in store.get('table3', []))
-    scen = collections.OrderedDict(((r['variant'], r['controller'], r['scenario']), r)
-                                   for r in store.get('scenarios', []))
+    scen = F.scenario_records(store.get('scenarios', []))
     walls = dict((k, v) for k, v in (store.get('walls') or {}).items() if k in STEPS)   # steps it still has
     variants = main_variants(off, on, timing, shipped_model)
     scen_variants = scenario_variants(shipped_model, on, timing)
@@ -356,7 +356,7 @@ def _held_out_text(scen, timing):
             text = '%s %d / %d, %s' % (title, inside, F.HELD_OUT_CELLS, F.fmt(mean))
             spread = _age_spread(scen, mpc_v, pid_v)
             if spread:
-                text += ' (%d-%d with the waypoint %s ms old)' % spread
+                text += ' (%d-%d with the waypoint %s ms old)' % (spread + (AGES_TEXT,))
             parts.append(text)
     if not parts:
         return 'The held-out cells: the `scenarios` step has not run for every configuration. '
@@ -378,6 +378,8 @@ def _held_out_text(scen, timing):
 def _timing_text(scen):
     """What ``paper_timing`` does to the paper's vertical motions and circles (the ``scenarios`` step's MPC runs
     of the shipped model), in words."""
+    scen = scen or {}
+
     def change(scenarios, keys):
         out = []
         for s in scenarios:
@@ -411,7 +413,7 @@ def _table3_timing_text(scen):
         spreads.append(max(ages) - min(ages))
         parts.append('%s %d / %d, mean abs ln %s (%s-%s with the waypoint %s ms old)'
                      % (title, k, n, F.fmt(m), F.fmt(min(ages)), F.fmt(max(ages)),
-                        ' / '.join(str(round(a * 1e3)) for a in AGES)))
+                        AGES_TEXT))
     verdict = ('the two timings differ on Table 3 by far less than one timer phase from another'
                if abs(means[0] - means[1]) < 0.25 * min(spreads) else
                'Table 3 prefers %s' % ('the shipped timing' if means[0] < means[1] else 'paper_timing'))
@@ -420,15 +422,15 @@ def _table3_timing_text(scen):
 
 
 def _age_spread(scen, mpc_v, pid_v):
-    """(fewest, most) held-out middles within the band over the MPC variant's waypoint ages, and the ages as
-    text; None when those runs are missing."""
+    """(fewest, most) held-out middles within the band over the MPC variant's waypoint ages (``AGES``); None
+    when those runs are missing."""
     counts = []
     for age in AGES:
         inside, outside, _ = F.held_out_score(scen or {}, F.age_name(mpc_v, age), pid_v)
         if inside + outside != F.HELD_OUT_CELLS:
             return None
         counts.append(inside)
-    return min(counts), max(counts), ' / '.join(str(round(a * 1e3)) for a in AGES)
+    return min(counts), max(counts)
 
 
 def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, args, scen=None):
@@ -725,7 +727,7 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
                   'can differ from another for that reason alone, at least: the ages sampled cover %s of the '
                   '0-%d ms cycle), with `paper_timing` true, and the effects-on model. The PID framework does not '
                   'depend on `paper_timing`.'
-                  % (round(default_age * 1e3), ' / '.join(str(round(a * 1e3)) for a in AGES), span,
+                  % (round(default_age * 1e3), AGES_TEXT, span,
                      round(1e3 / DEFAULT_SCHEDULE['generator_rate'])), '',
                   F.scenario_table(scen, cols), '',
                   '### The held-out cells: what the issue\'s comparison implies', '',

@@ -690,6 +690,12 @@ def scenario_runs(variants, scenarios=report.ALL_SCENARIOS, seed=None, workers=1
     tasks = [(s, c, v, seed) for v in variants for c in report.CONTROLLERS for s in scenarios
              if v is None or not v.controllers or c in v.controllers]
     records = runs.execute(tasks, workers=workers, progress=progress, label=label, function=_scenario_one)
+    return scenario_records(records)
+
+
+def scenario_records(records):
+    """``scenario_runs``' mapping {(variant, controller, scenario): record} of a list of its records (e.g. as
+    stored in docs/fidelity/fidelity.yaml)."""
     return collections.OrderedDict(((r['variant'], r['controller'], r['scenario']), r) for r in records)
 
 

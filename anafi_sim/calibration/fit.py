@@ -839,6 +839,37 @@ def fit_position_fusion(logs, rate, baseline_delay, baseline_time_constant):
                              tuple(log.name for log in clean if not log.name.startswith('static')), pure)
 
 
+FusionProfileRow = collections.namedtuple('FusionProfileRow', ['fix_gain', 'effective_delay', 'fix_delay', 'rms',
+                                                               'rms_static', 'rms_straight'])
+FusionProfileRow.__doc__ = (
+    'The position fusion fit at a given fix gain k [1/s]: the best effective delay D [s] for that k (all clean '
+    'series), the model fix delay [s] (D - 0.5/rate), and the rms [m] over all series, the static-waypoint '
+    'ones and the straight-line ones (each series weighted equally, as ``fit_position_fusion``).')
+
+
+def fusion_profile(logs, gains, rate):
+    """How well the shared logs allow each fix gain k in ``gains`` [1/s]: the fusion fit with k held and D
+    refitted (bounded scalar search over 0..0.6 s); [``FusionProfileRow``]. ``rate``: the estimate's
+    rate [Hz] (the hold adds half a period to the model's delay)."""
+    from scipy.optimize import minimize_scalar
+    clean = [log for log in logs if is_clean(log)]
+    if not clean:
+        raise ValueError('fusion_profile: no clean log')
+    every = _fusion_series(clean, ('x', 'y', 'z'))
+    static = _fusion_series([log for log in clean if log.name.startswith('static')], ('x', 'y', 'z'))
+    straight = _fusion_series([log for log in clean if not log.name.startswith('static')], ('x', 'y'))
+    rows = []
+    for k in gains:
+        k = float(k)
+        best = minimize_scalar(lambda d: _fusion_cost(every, k, d), bounds=(0.0, 0.6), method='bounded',
+                               options={'xatol': 1e-5})
+        d = float(best.x)
+        rows.append(FusionProfileRow(k, d, max(0.0, d - 0.5 / rate), math.sqrt(float(best.fun)),
+                                     math.sqrt(_fusion_cost(static, k, d)) if static else float('nan'),
+                                     math.sqrt(_fusion_cost(straight, k, d)) if straight else float('nan')))
+    return rows
+
+
 VelocityErrorFit = collections.namedtuple('VelocityErrorFit', ['time_constant', 'rms', 'rms_zero', 'per_series',
                                                                'files', 'window'])
 VelocityErrorFit.__doc__ = (

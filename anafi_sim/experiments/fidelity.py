@@ -1072,6 +1072,68 @@ def held_out_table(records, configurations, band=HELD_OUT_BAND):
     return '\n'.join(lines)
 
 
+# The position fusion's gain k is a model parameter the shared logs pin loosely: fitted on the static-waypoint
+# logs alone and on the straight-line logs alone it differs by 2x (docs/calibration.md), and it sets how much of
+# the steady lag builds up in a periodic motion (1/k = 3.8 s against the circles' 6-19 s periods).
+FUSION_GAIN_PROBES = (0.5, 1.0)     # 1/s: gains beyond the subsets' fits, to show the trend past them
+
+
+def gain_name(name, gain):
+    """Name of ``name``'s variant with the fusion's fix gain ``gain`` [1/s]: '<name>_kNNN' (gain x 100)."""
+    return '%s_k%03d' % (name, round(gain * 100))
+
+
+def fusion_gain_variants(variant, rows):
+    """``variant`` with the fusion's fix gain and fix delay of each ``fit.FusionProfileRow`` in ``rows`` (the
+    delay refitted for that gain), one per row: names ``gain_name``."""
+    out = []
+    for row in rows:
+        model = dict(variant.model_params)
+        model['estimate_position_fix_gain'] = float(row.fix_gain)
+        model['estimate_position_fix_delay'] = float(row.fix_delay)
+        out.append(variant._replace(name=gain_name(variant.name, row.fix_gain),
+                                    label='fix gain %.3g 1/s' % row.fix_gain, model_params=model))
+    return out
+
+
+def fusion_gain_rows(records, scen, entries, logs):
+    """Per ``entries`` item (label, ``FusionProfileRow``, variant name): the profile row, the shared-log
+    ``score`` (cells within +-10 %, cells, mean abs ln) of that variant's replays of ``logs``, its
+    ``held_out_score`` (None when its held-out runs are incomplete), the held-out middles of the fast MPC
+    circles against the estimate and of the MPC circles against ground truth ({scenario: mid});
+    [(label, row, score, held-out score, fast mids, truth mids)]."""
+    out = []
+    for label, row, name in entries:
+        shared = score(combined(records, logs, name, name))
+        held = held_out_score(scen, name)
+        held = held if held[0] + held[1] == HELD_OUT_CELLS else None
+        bounds = held_out_bounds(scen, name)
+        fast = collections.OrderedDict((b[2], b[7][1]) for b in bounds
+                                       if b[0] == 'mpc' and b[1] == 'estimate' and b[2] in _FAST_CIRCLES)
+        truth = collections.OrderedDict((b[2], b[7][1]) for b in bounds if b[0] == 'mpc' and b[1] == 'truth')
+        out.append((label, row, shared, held, fast, truth))
+    return out
+
+
+def fusion_gain_table(rows, band=HELD_OUT_BAND):
+    """Markdown table of ``fusion_gain_rows``: k, the refitted D, the fit's rms (all, static, straight), the
+    shared-log cells within +-10 % and mean abs ln, the held-out middles inside +-``band`` and mean abs ln, the
+    fast circles' middles (vs the estimate) and the range of the circles' middles vs ground truth."""
+    lines = ['| k [1/s] | from | D [s] | fit rms all / static / straight [m] | shared-log cells within +-10 %%, '
+             'mean abs ln | held-out middles inside +-%d %%, mean abs ln | MPC %s vs the estimate (middle) | '
+             'MPC circles vs ground truth (middles) |' % (round(band * 100), ' / '.join(_FAST_CIRCLES)),
+             '|---|---|---|---|---|---|---|---|']
+    for label, row, shared, held, fast, truth in rows:
+        mids = [m for m in truth.values() if math.isfinite(m)]
+        lines.append('| %.3f | %s | %.3f | %.4f / %.4f / %.4f | %d / %d, %s | %s | %s | %s |' % (
+            row.fix_gain, label, row.fix_delay, row.rms, row.rms_static, row.rms_straight, shared[0], shared[1],
+            fmt(shared[2]), '%d / %d, %s' % (held[0], HELD_OUT_CELLS, fmt(held[2])) if held else '-',
+            ' / '.join('%.2f' % m if math.isfinite(m) else '-' for m in fast.values())
+            if any(math.isfinite(m) for m in fast.values()) else '-',
+            '%.2f-%.2f' % (min(mids), max(mids)) if mids else '-'))
+    return '\n'.join(lines)
+
+
 def table3_score(t3, pid_v, mpc_v, band=BANDS[0]):
     """(cells of Table 3 within ``band``, cells, mean |ln ratio|) of a configuration."""
     ratios = []

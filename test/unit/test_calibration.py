@@ -385,6 +385,24 @@ def test_position_fusion_fit_recovers_gain_and_delay():
     assert fit.groups['static'][3] < fit.pure_delay['steady position lag'][1]
 
 
+def test_fusion_profile_holds_the_gain_and_refits_the_delay():
+    logs = [synthetic_fusion_log('static_fusion_a', 0.2, 0.4, seed=11),
+            synthetic_fusion_log('x_straight_fusion', 0.2, 0.4, seed=12, cruise=3.0)]
+    rows = cal.fusion_profile(logs, (0.1, 0.4, 1.6), 20.0)
+    assert [r.fix_gain for r in rows] == [0.1, 0.4, 1.6]
+    true = rows[1]
+    # at the true gain: the true delay and a residual as small as the free fit's
+    assert true.effective_delay == pytest.approx(0.2, abs=0.01)
+    assert true.fix_delay == pytest.approx(true.effective_delay - 0.5 / 20.0)
+    assert true.rms < 0.01 and true.rms_static < 0.01 and true.rms_straight < 0.01
+    # a gain away from the truth fits worse, on the transients and in steady flight
+    for other in (rows[0], rows[2]):
+        assert other.rms > 3.0 * true.rms
+        assert other.rms_static > true.rms_static and other.rms_straight > true.rms_straight
+    with pytest.raises(ValueError):
+        cal.fusion_profile([], (0.4,), 20.0)
+
+
 def test_fused_position_response_matches_independent_integration():
     t = np.arange(0.0, 10.0, 0.05)
     truth = 2.0 * t + np.sin(t)

@@ -101,17 +101,22 @@ def models(args, paths_):
 
 
 def fusion_gain_entries(fusion, shipped, logs):
-    """[(label, ``fit.FusionProfileRow``, variant name)] of the ``fusion_gain`` step: the fix gain k fitted on the
-    static-waypoint logs alone, the shipped one (all clean logs: the ``shipped`` runs of the other steps), the
-    one fitted on the straight-line logs alone, and ``FUSION_GAIN_PROBES``; each with the delay refitted for it
-    on every clean log (``fit.fusion_profile``). ``fusion``: the calibration's ``PositionFusionFit``."""
-    gains = [('static-waypoint logs alone', fusion.groups['static'][0]),
-             ('every clean log (shipped)', shipped['estimate_position_fix_gain']),
-             ('straight-line logs alone', fusion.groups['straight'][0])]
-    gains += [('probe beyond the fits', g) for g in F.FUSION_GAIN_PROBES]
-    rows = fit.fusion_profile(logs, [g for _, g in gains], shipped['estimate_rate'])
-    return [(label, row, 'shipped' if i == 1 else F.gain_name('shipped', row.fix_gain))
-            for i, ((label, _), row) in enumerate(zip(gains, rows))]
+    """[(role, label, ``fit.FusionProfileRow``, variant name)] of the ``fusion_gain`` step (roles
+    ``F.FUSION_GAIN_ROLES``): the fix gain k fitted on the static-waypoint logs alone, the shipped model's (its
+    own delay: the ``shipped`` runs of the other steps), the one fitted on the straight-line logs alone, and
+    ``F.FUSION_GAIN_PROBES``; the others with the delay refitted for their k on every clean log
+    (``fit.fusion_profile``). ``fusion``: the calibration's ``PositionFusionFit`` (a subset without static or
+    straight logs has no fit of its own: left out)."""
+    rate = shipped['estimate_rate']
+    gains = [('static', 'static-waypoint logs alone', (fusion.groups.get('static') or (None,))[0], None),
+             ('shipped', 'shipped model', shipped['estimate_position_fix_gain'],
+              shipped['estimate_position_fix_delay'] + 0.5 / rate),
+             ('straight', 'straight-line logs alone', (fusion.groups.get('straight') or (None,))[0], None)]
+    gains += [('probe', 'probe beyond the fits', g, None) for g in F.FUSION_GAIN_PROBES]
+    gains = [g for g in gains if g[2] is not None]
+    rows = fit.fusion_profile(logs, [g[2] for g in gains], rate, [g[3] for g in gains])
+    return [(role, label, row, 'shipped' if role == 'shipped' else F.gain_name('shipped', row.fix_gain))
+            for (role, label, _, _), row in zip(gains, rows)]
 
 
 def supports_paper_timing():
@@ -210,8 +215,8 @@ def main(argv=None):
     t3 = collections.OrderedDict(((r['variant'], r['controller'], int(r['scenario'].rsplit('_', 1)[1])), r)
                                  for r in store.get('table3', []))
     scen = F.scenario_records(store.get('scenarios', []))
-    gains = [(g['label'], fit.FusionProfileRow(*[g[f] for f in fit.FusionProfileRow._fields]), g['name'])
-             for g in store.get('fusion_gain', [])]
+    gains = [(g['role'], g['label'], fit.FusionProfileRow(*[g[f] for f in fit.FusionProfileRow._fields]), g['name'])
+             for g in store.get('fusion_gain', []) if 'role' in g]
     if 'fusion_gain' in args.steps:
         gains = fusion_gain_entries(fusion, shipped_model, [read_log(p) for p in all_paths])
     walls = dict((k, v) for k, v in (store.get('walls') or {}).items() if k in STEPS)   # steps it still has
@@ -227,9 +232,12 @@ def main(argv=None):
     # records of variants the script no longer has are dropped (a subset run keeps the others)
     known = set(v.name for v in variants + phases + phase_variants(on, 'on'))
     known.update('only_%s' % k for k in F.effect_variants(off, on))
-    known.update(name for _, _, name in gains)
+    known.update(name for _, _, _, name in gains)
     for key in [k for k in records if k[1] not in known]:
         del records[key]
+    known_scen = set(v.name for v in scen_variants) | set(name for _, _, _, name in gains)
+    for key in [k for k in scen if k[0] not in known_scen]:
+        del scen[key]
     t0 = time.perf_counter()
     measured_meta = dict(store.get('meta') or {})
 
@@ -250,8 +258,8 @@ def main(argv=None):
         store = {'meta': dict(meta), 'walls': walls, 'fitted': dict(on),
                  'replays': list(records.values()), 'table3': list(t3.values()),
                  'scenarios': list(scen.values()),
-                 'fusion_gain': [dict([('label', label), ('name', name)] + list(row._asdict().items()))
-                                 for label, row, name in gains]}
+                 'fusion_gain': [dict([('role', role), ('label', label), ('name', name)] + list(row._asdict().items()))
+                                 for role, label, row, name in gains]}
         with open(store_path, 'w') as stream:
             yaml.safe_dump(store, stream, default_flow_style=False, sort_keys=False)
         with open(args.out, 'w') as stream:
@@ -282,11 +290,13 @@ def main(argv=None):
             scen.update(F.scenario_runs([v for v in scen_variants if not chosen or v.name in chosen],
                                         workers=args.workers))
         else:
-            base = F.Variant('shipped', 'shipped defaults', shipped_model,
-                             {'mpc': {'paper_timing': False}} if timing else None)
-            probes = F.fusion_gain_variants(base, [row for _, row, name in gains if name != 'shipped'])
-            new = F.replay_all(log_paths, probes, workers=args.workers)
-            scen.update(F.scenario_runs(probes, report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
+            # each step's own 'shipped' variant with the other gains (the same MPC timing as the runs they join)
+            rows = [row for role, _, row, _ in gains if role != 'shipped']
+            new = F.replay_all(log_paths, F.fusion_gain_variants(
+                [v for v in variants if v.name == 'shipped'][0], rows), workers=args.workers)
+            scen.update(F.scenario_runs(F.fusion_gain_variants([v for v in scen_variants if v.name == 'shipped'][0],
+                                                               rows),
+                                        report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
                                         workers=args.workers, label='fusion_gain'))
         records.update((k, strip(r)) for k, r in new.items())
         walls[step] = round(time.perf_counter() - t, 1)
@@ -467,35 +477,51 @@ def _age_spread(scen, mpc_v, pid_v):
     return min(counts), max(counts)
 
 
+def _fusion_gain_intro(rows):
+    """The fusion-gain section's first paragraph, its figures computed (the subsets' gains from ``rows``, the
+    circles' periods from ``report.CIRCLES``)."""
+    fits = dict((r.role, r.profile.fix_gain) for r in rows if r.role in ('static', 'straight', 'shipped'))
+    periods = [2.0 * math.pi * radius / speed for radius, speed in report.CIRCLES]
+    spread = ('fitted on the straight-line logs alone it is %.1fx the fit on the static-waypoint logs alone'
+              % (fits['straight'] / fits['static']) if 'static' in fits and 'straight' in fits else
+              'the logs of one kind alone do not fit it here')
+    return ('The position fusion\'s gain k (1/k: how long the steady lag D x speed takes to build up) is a model '
+            'parameter the shared logs pin loosely: %s (docs/calibration.md). It sets how much of the steady lag a '
+            'periodic motion builds (the circles\' periods are %.0f-%.0f s%s), and so how stale the MPC\'s state '
+            'is in a circle. The shipped model with k at those fits and at probes beyond them '
+            '(`fidelity.FUSION_GAIN_PROBES`), D refitted for each k on every clean log (the shipped row: the '
+            'shipped model\'s own k and D; `fit.fusion_profile`): the fit\'s rms, the shared-log replays '
+            '(summary\'s cells) and the held-out middles (table above), `fusion_gain` step.'
+            % (spread, min(periods), max(periods),
+               ' against 1/k = %.1f s shipped' % (1.0 / fits['shipped']) if fits.get('shipped') else ''))
+
+
 def _fusion_gain_text(rows):
     """The reading of the ``fusion_gain`` table in words (computed from its rows: ``F.fusion_gain_rows``)."""
-    def fast(r):
-        return ' / '.join('%.2f' % m for m in r[4].values())
-
-    def truth(r):
-        mids = list(r[5].values())
-        return '%.2f-%.2f' % (min(mids), max(mids)) if mids else '-'
-    shipped = [r for r in rows if r[0].endswith('(shipped)')]
-    fits = [r for r in rows if r[0].endswith('alone')]
-    probes = [r for r in rows if r[0].startswith('probe')]
-    if not (shipped and fits and all(r[3] for r in rows)):
+    shipped = [r for r in rows if r.role == 'shipped']
+    fits = [r for r in rows if r.role in ('static', 'straight')]
+    probes = [r for r in rows if r.role == 'probe']
+    if not (shipped and fits and all(r.held for r in rows)):
         return 'The `fusion_gain` step has not run for every gain.'
     s = shipped[0]
     text = ('Over the gains the subsets fit (k %s 1/s; shipped %.3f) the fast MPC circles\' middles against the '
             'estimate are %s (shipped %s) and the circles\' against ground truth %s (shipped %s); the held-out '
             'middles inside the band %s (shipped %d), the shared-log cells within +-10 %% %s (shipped %d).'
-            % (' and '.join('%.3f' % r[1].fix_gain for r in fits), s[1].fix_gain,
-               ', '.join(fast(r) for r in fits), fast(s), ', '.join(truth(r) for r in fits), truth(s),
-               ', '.join(str(r[3][0]) for r in fits), s[3][0], ', '.join(str(r[2][0]) for r in fits), s[2][0]))
+            % (' and '.join('%.3f' % r.profile.fix_gain for r in fits), s.profile.fix_gain,
+               ', '.join(F.mids_text(r.fast) for r in fits), F.mids_text(s.fast),
+               ', '.join(F.mids_range(r.truth) for r in fits), F.mids_range(s.truth),
+               ', '.join(str(r.held[0]) for r in fits), s.held[0], ', '.join(str(r.shared[0]) for r in fits),
+               s.shared[0]))
     if probes:
+        worse = all(r.profile.rms_static > s.profile.rms_static for r in probes)
         text += (' Beyond them, k %s 1/s: the fast circles %s, the circles vs ground truth %s, held-out middles '
-                 'inside %s, shared-log cells %s, at a fit rms on the static-waypoint logs of %s m against the '
-                 'shipped %.4f m: the static steps show no lag building within a second or two, which a gain that '
-                 'large would give.'
-                 % (' / '.join('%.2f' % r[1].fix_gain for r in probes), ', '.join(fast(r) for r in probes),
-                    ', '.join(truth(r) for r in probes), ', '.join(str(r[3][0]) for r in probes),
-                    ', '.join(str(r[2][0]) for r in probes), ', '.join('%.4f' % r[1].rms_static for r in probes),
-                    s[1].rms_static))
+                 'inside %s, shared-log cells %s; they fit the static-waypoint logs %s (rms %s m, shipped %.4f m).'
+                 % (' / '.join('%.2f' % r.profile.fix_gain for r in probes),
+                    ', '.join(F.mids_text(r.fast) for r in probes), ', '.join(F.mids_range(r.truth) for r in probes),
+                    ', '.join(str(r.held[0]) for r in probes), ', '.join(str(r.shared[0]) for r in probes),
+                    'worse' if worse else 'not all worse', ', '.join('%.4f' % r.profile.rms_static
+                                                                          for r in probes),
+                    s.profile.rms_static))
     return text
 
 
@@ -816,16 +842,7 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
         if gains:
             rows = F.fusion_gain_rows(records, scen, gains, logs)
             lines += ['### The fusion gain: what the shared logs allow, and the held-out cells', '',
-                      'The position fusion\'s gain k (1/k: how long the steady lag D x speed takes to build up) is '
-                      'a model parameter the shared logs pin loosely: fitted on the static-waypoint logs alone and '
-                      'on the straight-line logs alone it differs by about 2x (docs/calibration.md). It sets how '
-                      'much of the steady lag a periodic motion builds (the circles\' periods are 6-19 s against '
-                      '1/k = %.1f s shipped), and so how stale the MPC\'s state is in a circle. The shipped model '
-                      'with k at those fits and at probes beyond them (`fidelity.FUSION_GAIN_PROBES`), D refitted '
-                      'for each k on every clean log (`fit.fusion_profile`): the fit\'s rms, the shared-log replays '
-                      '(summary\'s cells) and the held-out middles (table above), `fusion_gain` step.'
-                      % (1.0 / [r for r in rows if r[0].endswith('(shipped)')][0][1].fix_gain
-                         if any(r[0].endswith('(shipped)') for r in rows) else float('nan')), '',
+                      _fusion_gain_intro(rows), '',
                       F.fusion_gain_table(rows), '', _fusion_gain_text(rows), '']
     present = []
     for _, v in records:

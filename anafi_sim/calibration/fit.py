@@ -814,8 +814,7 @@ def fit_position_fusion(logs, rate, baseline_delay, baseline_time_constant):
     per_series = collections.OrderedDict()
     _fusion_cost(series, k, d, per_series)
     groups = collections.OrderedDict()
-    static = [log for log in clean if log.name.startswith('static')]
-    straight = [log for log in clean if not log.name.startswith('static')]
+    static, straight = _static_and_straight(clean)
     subsets = (('horizontal', clean, ('x', 'y')), ('vertical', clean, ('z',)),
                ('static', static, ('x', 'y', 'z')), ('straight', straight, ('x', 'y')))
     for group, subset, axes in subsets:
@@ -842,29 +841,42 @@ def fit_position_fusion(logs, rate, baseline_delay, baseline_time_constant):
 FusionProfileRow = collections.namedtuple('FusionProfileRow', ['fix_gain', 'effective_delay', 'fix_delay', 'rms',
                                                                'rms_static', 'rms_straight'])
 FusionProfileRow.__doc__ = (
-    'The position fusion fit at a given fix gain k [1/s]: the best effective delay D [s] for that k (all clean '
-    'series), the model fix delay [s] (D - 0.5/rate), and the rms [m] over all series, the static-waypoint '
-    'ones and the straight-line ones (each series weighted equally, as ``fit_position_fusion``).')
+    'The position fusion fit at a given fix gain k [1/s]: the effective delay D [s] (the best for that k over '
+    'all clean series, or the one ``fusion_profile`` was told to hold), the model fix delay [s] (D - 0.5/rate), '
+    'and the rms [m] over all series, the static-waypoint ones and the straight-line ones (each series weighted '
+    'equally, as ``fit_position_fusion``).')
 
 
-def fusion_profile(logs, gains, rate):
-    """How well the shared logs allow each fix gain k in ``gains`` [1/s]: the fusion fit with k held and D
-    refitted (bounded scalar search over 0..0.6 s); [``FusionProfileRow``]. ``rate``: the estimate's
+def _static_and_straight(clean):
+    """(static-waypoint logs, straight-line logs) of ``clean`` (by name): the transients and the steady flight."""
+    return ([log for log in clean if log.name.startswith('static')],
+            [log for log in clean if not log.name.startswith('static')])
+
+
+def fusion_profile(logs, gains, rate, effective_delays=None):
+    """How well the shared logs allow each fix gain k in ``gains`` [1/s]: the fusion fit with k held and the
+    effective delay D refitted (bounded scalar search over 0..0.6 s), or held at ``effective_delays[i]`` [s]
+    where that is given (not None: e.g. a model's own delay); [``FusionProfileRow``]. ``rate``: the estimate's
     rate [Hz] (the hold adds half a period to the model's delay)."""
     from scipy.optimize import minimize_scalar
     clean = [log for log in logs if is_clean(log)]
     if not clean:
         raise ValueError('fusion_profile: no clean log')
+    static_logs, straight_logs = _static_and_straight(clean)
     every = _fusion_series(clean, ('x', 'y', 'z'))
-    static = _fusion_series([log for log in clean if log.name.startswith('static')], ('x', 'y', 'z'))
-    straight = _fusion_series([log for log in clean if not log.name.startswith('static')], ('x', 'y'))
+    static = _fusion_series(static_logs, ('x', 'y', 'z'))
+    straight = _fusion_series(straight_logs, ('x', 'y'))
+    delays = list(effective_delays) if effective_delays is not None else [None] * len(gains)
+    if len(delays) != len(gains):
+        raise ValueError('fusion_profile: %d gains but %d delays' % (len(gains), len(delays)))
     rows = []
-    for k in gains:
+    for k, d in zip(gains, delays):
         k = float(k)
-        best = minimize_scalar(lambda d: _fusion_cost(every, k, d), bounds=(0.0, 0.6), method='bounded',
-                               options={'xatol': 1e-5})
-        d = float(best.x)
-        rows.append(FusionProfileRow(k, d, max(0.0, d - 0.5 / rate), math.sqrt(float(best.fun)),
+        if d is None:
+            d = float(minimize_scalar(lambda x: _fusion_cost(every, k, x), bounds=(0.0, 0.6), method='bounded',
+                                      options={'xatol': 1e-5}).x)
+        d = float(d)
+        rows.append(FusionProfileRow(k, d, max(0.0, d - 0.5 / rate), math.sqrt(_fusion_cost(every, k, d)),
                                      math.sqrt(_fusion_cost(static, k, d)) if static else float('nan'),
                                      math.sqrt(_fusion_cost(straight, k, d)) if straight else float('nan')))
     return rows

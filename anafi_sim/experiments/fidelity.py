@@ -1076,16 +1076,17 @@ def held_out_table(records, configurations, band=HELD_OUT_BAND):
 # logs alone and on the straight-line logs alone it differs by 2x (docs/calibration.md), and it sets how much of
 # the steady lag builds up in a periodic motion (1/k = 3.8 s against the circles' 6-19 s periods).
 FUSION_GAIN_PROBES = (0.5, 1.0)     # 1/s: gains beyond the subsets' fits, to show the trend past them
+FUSION_GAIN_ROLES = ('static', 'shipped', 'straight', 'probe')   # where a gain of the table comes from
 
 
 def gain_name(name, gain):
-    """Name of ``name``'s variant with the fusion's fix gain ``gain`` [1/s]: '<name>_kNNN' (gain x 100)."""
-    return '%s_k%03d' % (name, round(gain * 100))
+    """Name of ``name``'s variant with the fusion's fix gain ``gain`` [1/s]: '<name>_kNNNN' (gain x 1000)."""
+    return '%s_k%04d' % (name, round(gain * 1000))
 
 
 def fusion_gain_variants(variant, rows):
     """``variant`` with the fusion's fix gain and fix delay of each ``fit.FusionProfileRow`` in ``rows`` (the
-    delay refitted for that gain), one per row: names ``gain_name``."""
+    delay refitted for that gain), one per row: names ``gain_name`` (ValueError when two gains share one)."""
     out = []
     for row in rows:
         model = dict(variant.model_params)
@@ -1093,44 +1094,64 @@ def fusion_gain_variants(variant, rows):
         model['estimate_position_fix_delay'] = float(row.fix_delay)
         out.append(variant._replace(name=gain_name(variant.name, row.fix_gain),
                                     label='fix gain %.3g 1/s' % row.fix_gain, model_params=model))
+    names = [v.name for v in out]
+    if len(set(names)) != len(names):
+        raise ValueError('fusion_gain_variants: gains too close for distinct names: %s' % names)
     return out
 
 
+FusionGainRow = collections.namedtuple('FusionGainRow', 'role label profile shared held fast truth')
+FusionGainRow.__doc__ = (
+    'One gain of the fusion-gain table: role (``FUSION_GAIN_ROLES``), label, ``fit.FusionProfileRow``, the '
+    'shared-log ``score`` of its replays, its ``held_out_score`` (None when its held-out runs are incomplete), '
+    '{scenario: held-out middle} of the fast MPC circles against the estimate and of the MPC circles against '
+    'ground truth.')
+
+
 def fusion_gain_rows(records, scen, entries, logs):
-    """Per ``entries`` item (label, ``FusionProfileRow``, variant name): the profile row, the shared-log
-    ``score`` (cells within +-10 %, cells, mean abs ln) of that variant's replays of ``logs``, its
-    ``held_out_score`` (None when its held-out runs are incomplete), the held-out middles of the fast MPC
-    circles against the estimate and of the MPC circles against ground truth ({scenario: mid});
-    [(label, row, score, held-out score, fast mids, truth mids)]."""
+    """``FusionGainRow`` per ``entries`` item (role, label, ``fit.FusionProfileRow``, variant name): that
+    variant's replays of ``logs`` (``records``) and held-out runs (``scen``, ``scenario_runs`` records)."""
     out = []
-    for label, row, name in entries:
-        shared = score(combined(records, logs, name, name))
+    for role, label, row, name in entries:
+        if role not in FUSION_GAIN_ROLES:
+            raise ValueError('fusion_gain_rows: unknown role %r' % (role,))
         held = held_out_score(scen, name)
-        held = held if held[0] + held[1] == HELD_OUT_CELLS else None
         bounds = held_out_bounds(scen, name)
         fast = collections.OrderedDict((b[2], b[7][1]) for b in bounds
                                        if b[0] == 'mpc' and b[1] == 'estimate' and b[2] in _FAST_CIRCLES)
         truth = collections.OrderedDict((b[2], b[7][1]) for b in bounds if b[0] == 'mpc' and b[1] == 'truth')
-        out.append((label, row, shared, held, fast, truth))
+        out.append(FusionGainRow(role, label, row, score(combined(records, logs, name, name)),
+                                 held if held[0] + held[1] == HELD_OUT_CELLS else None, fast, truth))
     return out
 
 
+def mids_text(mids):
+    """The middles of a {scenario: middle} mapping as 'a / b' ('-' when none is finite)."""
+    if not any(math.isfinite(m) for m in mids.values()):
+        return '-'
+    return ' / '.join('%.2f' % m if math.isfinite(m) else '-' for m in mids.values())
+
+
+def mids_range(mids):
+    """The range of the finite middles of a {scenario: middle} mapping as 'low-high' ('-' when none)."""
+    finite = [m for m in mids.values() if math.isfinite(m)]
+    return '%.2f-%.2f' % (min(finite), max(finite)) if finite else '-'
+
+
 def fusion_gain_table(rows, band=HELD_OUT_BAND):
-    """Markdown table of ``fusion_gain_rows``: k, the refitted D, the fit's rms (all, static, straight), the
-    shared-log cells within +-10 % and mean abs ln, the held-out middles inside +-``band`` and mean abs ln, the
-    fast circles' middles (vs the estimate) and the range of the circles' middles vs ground truth."""
+    """Markdown table of ``fusion_gain_rows``: k, D, the fit's rms (all, static, straight), the shared-log cells
+    within +-10 % and mean abs ln, the held-out middles inside +-``band`` and mean abs ln, the fast circles'
+    middles (vs the estimate) and the range of the circles' middles vs ground truth."""
     lines = ['| k [1/s] | from | D [s] | fit rms all / static / straight [m] | shared-log cells within +-10 %%, '
              'mean abs ln | held-out middles inside +-%d %%, mean abs ln | MPC %s vs the estimate (middle) | '
              'MPC circles vs ground truth (middles) |' % (round(band * 100), ' / '.join(_FAST_CIRCLES)),
              '|---|---|---|---|---|---|---|---|']
-    for label, row, shared, held, fast, truth in rows:
-        mids = [m for m in truth.values() if math.isfinite(m)]
+    for r in rows:
+        p, shared, held = r.profile, r.shared, r.held
         lines.append('| %.3f | %s | %.3f | %.4f / %.4f / %.4f | %d / %d, %s | %s | %s | %s |' % (
-            row.fix_gain, label, row.fix_delay, row.rms, row.rms_static, row.rms_straight, shared[0], shared[1],
+            p.fix_gain, r.label, p.fix_delay, p.rms, p.rms_static, p.rms_straight, shared[0], shared[1],
             fmt(shared[2]), '%d / %d, %s' % (held[0], HELD_OUT_CELLS, fmt(held[2])) if held else '-',
-            ' / '.join('%.2f' % m if math.isfinite(m) else '-' for m in fast.values())
-            if any(math.isfinite(m) for m in fast.values()) else '-',
-            '%.2f-%.2f' % (min(mids), max(mids)) if mids else '-'))
+            mids_text(r.fast), mids_range(r.truth)))
     return '\n'.join(lines)
 
 

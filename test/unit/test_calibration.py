@@ -399,8 +399,14 @@ def test_fusion_profile_holds_the_gain_and_refits_the_delay():
     for other in (rows[0], rows[2]):
         assert other.rms > 3.0 * true.rms
         assert other.rms_static > true.rms_static and other.rms_straight > true.rms_straight
+    # the delay is refitted for a wrong gain: better than the true delay at that gain; or held when given
+    held = cal.fusion_profile(logs, (1.6, 1.6), 20.0, (None, 0.2))
+    assert held[1].effective_delay == 0.2 and abs(held[0].effective_delay - 0.2) > 0.005
+    assert held[0].rms < held[1].rms
     with pytest.raises(ValueError):
         cal.fusion_profile([], (0.4,), 20.0)
+    with pytest.raises(ValueError):
+        cal.fusion_profile(logs, (0.4, 0.5), 20.0, (None,))
 
 
 def test_fused_position_response_matches_independent_integration():

@@ -408,35 +408,41 @@ def test_fusion_gain_variants_set_the_gain_and_its_delay():
     base = F.Variant('shipped', 'shipped defaults', {'estimate_position_fix_gain': 0.26,
                                                      'estimate_position_fix_delay': 0.21, 'other': 1},
                      {'mpc': {'paper_timing': False}})
-    out = F.fusion_gain_variants(base, [_profile_row(0.184, 0.209), _profile_row(1.0, 0.206)])
-    assert [v.name for v in out] == ['shipped_k018', 'shipped_k100'] and F.gain_name('x', 0.38) == 'x_k038'
-    assert out[0].model_params == {'estimate_position_fix_gain': 0.184, 'estimate_position_fix_delay': 0.209,
+    out = F.fusion_gain_variants(base, [_profile_row(0.1838, 0.209), _profile_row(1.0, 0.206)])
+    assert [v.name for v in out] == ['shipped_k0184', 'shipped_k1000'] and F.gain_name('x', 0.38) == 'x_k0380'
+    assert out[0].model_params == {'estimate_position_fix_gain': 0.1838, 'estimate_position_fix_delay': 0.209,
                                    'other': 1}
     assert out[1].model_params['estimate_position_fix_gain'] == 1.0 and out[1].controller_params == base.controller_params
     assert base.model_params['estimate_position_fix_gain'] == 0.26          # the variant given is not changed
+    with pytest.raises(ValueError):                                          # two gains, one name: refused
+        F.fusion_gain_variants(base, [_profile_row(0.4996), _profile_row(0.5)])
 
 
 def test_fusion_gain_rows_and_table_score_each_gain():
     scen = dict(_held_records(variant='shipped'))
-    scen.update(_held_records(variant='shipped_k100', scale_mpc=1.0 / 0.7))   # the MPC's errors grow by 1/0.7
-    records = {('log_a', 'shipped'): {'log': 'log_a', 'controller': 'mpc', 'ratio': {'estimate_e_mu': 1.05, 'truth_e_mu': 1.3}},
-               ('log_a', 'shipped_k100'): {'log': 'log_a', 'controller': 'mpc', 'ratio': {'estimate_e_mu': 1.2}}}
-    rows = F.fusion_gain_rows(records, scen, [('shipped', _profile_row(0.26), 'shipped'),
-                                              ('probe', _profile_row(1.0), 'shipped_k100'),
-                                              ('not run', _profile_row(2.0), 'shipped_k200')], ['log_a'])
+    scen.update(_held_records(variant='shipped_k1000', scale_mpc=1.0 / 0.7))   # the MPC's errors grow by 1/0.7
+    records = {('log_a', 'shipped'): {'log': 'log_a', 'controller': 'mpc',
+                                      'ratio': {'estimate_e_mu': 1.05, 'truth_e_mu': 1.3}},
+               ('log_a', 'shipped_k1000'): {'log': 'log_a', 'controller': 'mpc', 'ratio': {'estimate_e_mu': 1.2}}}
+    rows = F.fusion_gain_rows(records, scen, [('shipped', 'shipped', _profile_row(0.26), 'shipped'),
+                                              ('probe', 'probe', _profile_row(1.0), 'shipped_k1000'),
+                                              ('probe', 'not run', _profile_row(2.0), 'shipped_k2000')], ['log_a'])
     shipped, probe, missing = rows
-    assert shipped[2][:2] == (1, 2) and probe[2][:2] == (0, 1)     # shared-log cells within +-10 % / with a ratio
-    assert shipped[3][:2] == (22, 11) and missing[3] is None         # held-out middles (as the issue's own ranges)
-    assert list(shipped[4]) == ['circle_r3_v2', 'circle_r3_v3']
-    assert shipped[4]['circle_r3_v3'] == pytest.approx(0.70, abs=0.005)
-    assert probe[4]['circle_r3_v3'] == pytest.approx(1.0, abs=0.01)  # 0.70 / 0.7
-    assert len(shipped[5]) == 6 and all(m == pytest.approx(math.sqrt(0.5 * 0.84)) for m in shipped[5].values())
+    assert shipped.shared[:2] == (1, 2) and probe.shared[:2] == (0, 1)   # shared-log cells within +-10 % / with a ratio
+    assert shipped.held[:2] == (22, 11) and missing.held is None          # held-out middles (as the issue's own ranges)
+    assert list(shipped.fast) == ['circle_r3_v2', 'circle_r3_v3']
+    assert shipped.fast['circle_r3_v3'] == pytest.approx(0.70, abs=0.005)
+    assert probe.fast['circle_r3_v3'] == pytest.approx(1.0, abs=0.01)    # 0.70 / 0.7
+    assert len(shipped.truth) == 6 and all(m == pytest.approx(math.sqrt(0.5 * 0.84)) for m in shipped.truth.values())
     text = F.fusion_gain_table(rows)
     lines = text.splitlines()
     assert len(lines) == 2 + 3
     assert lines[2] == ('| 0.260 | shipped | 0.200 | 0.0500 / 0.0400 / 0.0600 | 1 / 2, %s | 22 / 33, %s | 0.70 / 0.70 | '
-                        '0.65-0.65 |' % (F.fmt(shipped[2][2]), F.fmt(shipped[3][2])))
+                        '0.65-0.65 |' % (F.fmt(shipped.shared[2]), F.fmt(shipped.held[2])))
     assert lines[4].endswith('| 0 / 0, - | - | - | - |')
+    assert F.mids_text({'a': float('nan'), 'b': 0.5}) == '- / 0.50' and F.mids_range({'a': float('nan')}) == '-'
+    with pytest.raises(ValueError):
+        F.fusion_gain_rows(records, scen, [('elsewhere', 'x', _profile_row(0.3), 'shipped')], ['log_a'])
 
 
 def test_scenario_table_shows_a_run_or_the_range_over_several():
@@ -515,6 +521,13 @@ def test_report_rerender_keeps_the_measuring_run_and_ranks_the_shipped_defaults(
         assert meta[key] == measured[key]
     text = out.read_text()
     assert '(last: `%s`, %s,' % (measured['command'], measured['date']) in text
+    # the fusion gain's section comes from the stored figures alone (roles, profile rows, runs)
+
+    def section(t):
+        return t.split('### The fusion gain')[1].split('\n## ')[0]
+    with open(os.path.join(repo, 'docs', 'fidelity.md')) as stream:
+        committed = stream.read()
+    assert '| probe beyond the fits |' in section(text) and section(text) == section(committed)
     scores = {}
     for row in text.split('## Summary')[1].split('\n\n')[2].splitlines()[2:]:
         cells = [c.strip() for c in row.strip('|').split('|')]

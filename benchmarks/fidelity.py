@@ -23,9 +23,15 @@ the report re-rendered):
 - ``fusion_gain``: the shipped model with the position fusion's gain k (and its delay refitted) at the fits of
   the static-waypoint logs alone and of the straight-line logs alone, and at ``fidelity.FUSION_GAIN_PROBES``
   beyond them: how well the logs allow each k (``fit.fusion_profile``), the shared-log replays and the
-  held-out scenarios with it.
+  held-out scenarios with it;
+- ``self_replay``: the replay method on the stand-in's own runs of every paper scenario (``F.self_replay_runs``):
+  recorded as the paper's logger recorded Sphinx, replayed, compared (ratio 1 = the method adds nothing).
 
-    python benchmarks/fidelity.py [--steps replay,ablation,phases,table3,scenarios,fusion_gain] [--workers 2]
+Logs of other scenarios (e.g. Sphinx's runs of Tables 4 and 5, in the shared logs' format, named
+``<scenario>_<pid|mpc>.csv``) are replayed alike: ``--logs DIR --steps replay`` (with ``--out`` / ``--figures``
+elsewhere); the models are calibrated on ``--calibration-logs`` (default the shared logs) whatever ``--logs`` is.
+
+    python benchmarks/fidelity.py [--steps replay,...,self_replay] [--workers 2]
 """
 import argparse
 import collections
@@ -46,7 +52,7 @@ from anafi_sim.experiments.engine import DEFAULT_SCHEDULE, mpc_config
 from anafi_sim.experiments.reference_log import read_log
 from anafi_sim.sim.drone_model import EFFECTS_OFF, load_model_params
 
-STEPS = ('replay', 'ablation', 'phases', 'table3', 'scenarios', 'fusion_gain')
+STEPS = ('replay', 'ablation', 'phases', 'table3', 'scenarios', 'fusion_gain', 'self_replay')
 METHODS = ('settled', 'nostalls', 'unstored')    # variants that are replay methods, not configurations
 PLOTTED = ('off', 'settled', 'shipped')       # the variants in each log's figure: before (settled start) / after
 AGES = (0.005, 0.030, 0.055, 0.080)          # s, waypoint age at the MPC's cycle
@@ -59,6 +65,8 @@ def parse_args(argv):
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--logs', default=paths.reference_logs_dir(),
                         help='directory with the reference-log CSVs (default: <checkout>/../shared/reference_logs)')
+    parser.add_argument('--calibration-logs', default=paths.reference_logs_dir(),
+                        help='directory of the logs the models are calibrated on (default: the shared logs)')
     parser.add_argument('--out', default=os.path.join(root, 'docs', 'fidelity.md'), help='Markdown report')
     parser.add_argument('--figures', default=os.path.join(root, 'docs', 'fidelity'),
                         help='directory of the figures and of fidelity.yaml (the measured figures)')
@@ -88,6 +96,8 @@ def models(args, paths_):
     ``fit.PositionFusionFit``)."""
     shipped = load_model_params()
     cal = fit.calibrate([read_log(p) for p in paths_])    # ~15 s: the baseline (every effect off)
+    # (paths_: the calibration logs, the shared ones by default: a --logs directory of other scenarios is only
+    # replayed)
     off = dict(cal.baseline)          # an effect's refitted keys (e.g. the vertical time constant) at their off values
     if os.path.isfile(args.fitted):
         on, how = load_model_params(args.fitted), os.path.relpath(os.path.realpath(args.fitted), paths.checkout())
@@ -206,7 +216,10 @@ def main(argv=None):
     only = [s for s in args.only.split(',') if s]
     log_paths = [p for p in all_paths if not only or os.path.splitext(os.path.basename(p))[0] in only]
     all_logs = [os.path.splitext(os.path.basename(p))[0] for p in all_paths]
-    off, on, shipped, how, shipped_model, fusion = models(args, all_paths)
+    calibration_paths = F.find_logs(args.calibration_logs)
+    if not calibration_paths:
+        sys.exit('no calibration logs in %s' % args.calibration_logs)
+    off, on, shipped, how, shipped_model, fusion = models(args, calibration_paths)
     timing = supports_paper_timing()
     os.makedirs(args.figures, exist_ok=True)
     store_path = os.path.join(args.figures, 'fidelity.yaml')
@@ -218,7 +231,8 @@ def main(argv=None):
     gains = [(g['role'], g['label'], fit.FusionProfileRow(*[g[f] for f in fit.FusionProfileRow._fields]), g['name'])
              for g in store.get('fusion_gain', []) if 'role' in g]
     if 'fusion_gain' in args.steps:
-        gains = fusion_gain_entries(fusion, shipped_model, [read_log(p) for p in all_paths])
+        gains = fusion_gain_entries(fusion, shipped_model, [read_log(p) for p in calibration_paths])
+    selfrep = F.scenario_records(store.get('self_replay', []))
     walls = dict((k, v) for k, v in (store.get('walls') or {}).items() if k in STEPS)   # steps it still has
     variants = main_variants(off, on, timing, shipped_model)
     scen_variants = scenario_variants(shipped_model, on, timing)
@@ -259,12 +273,13 @@ def main(argv=None):
                  'replays': list(records.values()), 'table3': list(t3.values()),
                  'scenarios': list(scen.values()),
                  'fusion_gain': [dict([('role', role), ('label', label), ('name', name)] + list(row._asdict().items()))
-                                 for role, label, row, name in gains]}
+                                 for role, label, row, name in gains],
+                 'self_replay': list(selfrep.values())}
         with open(store_path, 'w') as stream:
             yaml.safe_dump(store, stream, default_flow_style=False, sort_keys=False)
         with open(args.out, 'w') as stream:
             stream.write(render(records, t3, all_logs, variants, ablation, phases, on, meta, walls, args, scen,
-                                gains))
+                                gains, selfrep))
 
     for step in args.steps:
         t = time.perf_counter()
@@ -289,6 +304,10 @@ def main(argv=None):
             new = {}
             scen.update(F.scenario_runs([v for v in scen_variants if not chosen or v.name in chosen],
                                         workers=args.workers))
+        elif step == 'self_replay':
+            new = {}
+            selfrep.clear()
+            selfrep.update(F.self_replay_runs([v for v in scen_variants if v.name == 'shipped'], workers=args.workers))
         else:
             # each step's own 'shipped' variant with the other gains (the same MPC timing as the runs they join)
             rows = [row for role, _, row, _ in gains if role != 'shipped']
@@ -525,7 +544,39 @@ def _fusion_gain_text(rows):
     return text
 
 
-def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, args, scen=None, gains=None):
+def _self_replay_section(selfrep):
+    """The section on the replay method against the stand-in's own runs (``F.self_replay_runs``), figures
+    computed from its records."""
+    default = F.self_replay_score(selfrep, 'shipped')
+    own = F.self_replay_score(selfrep, 'shipped', key='ratio_latency')
+    lines_mpc = F.self_replay_score(selfrep, 'shipped', scenarios=report.STRAIGHT)
+    periodic = report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS
+    held = F.self_replay_score(selfrep, 'shipped', scenarios=periodic)
+    return ['## The replay method on the stand-in\'s own runs', '',
+            'A replay is only as good as the method that makes it. Every paper scenario is run on the engine with '
+            'the shipped defaults, recorded from %.1f s before its measured window to its end the way the paper\'s '
+            'logger recorded Sphinx (`fidelity.run_log`: 20 Hz, the latest waypoint, the estimate as a drifting '
+            'logger sees it, half floats), and that log replayed like a Sphinx log (`fidelity.self_replay_runs`): '
+            'ratio replay / log, 1 when the method adds nothing. A stream that repeats itself (circles, vertical '
+            'motions) gets its first period repeated as the lead-in and its initial state from a parabola '
+            '(`fidelity.stream_period`, `log_initial_state(curved=True)`). The waypoint latency (how long before '
+            'the logger shows a waypoint it was published) is not in a log: the first ratios assume half a sample '
+            '(as for Sphinx\'s logs), the second the recording\'s own (`fidelity.recorded_latency`).' % F.SELF_BEFORE,
+            '',
+            F.self_replay_table(selfrep, 'shipped'), '',
+            'Cells within +-10 %%: %d / %d with the assumed latency (largest |ln ratio| %s; the straight lines\' '
+            '%d / %d: the MPC lines move with the latency, as the `phases` step shows on Sphinx\'s), %d / %d with '
+            'the recording\'s own (largest %s); the circles and vertical motions, whose Sphinx logs are held '
+            'out, %d / %d with the assumed one (largest %s). A log of those, if like these it starts in steady flight '
+            'and covers a period and a second, is replayed with that little error of the method\'s own: Sphinx\'s '
+            'held-out logs (named `<scenario>_<pid|mpc>.csv`, in the shared logs\' format) with `python '
+            'benchmarks/fidelity.py --logs DIR --steps replay --out OUT.md --figures OUTDIR`.'
+            % (default[0], default[1], F.fmt(default[2]), lines_mpc[0], lines_mpc[1], own[0], own[1], F.fmt(own[2]),
+               held[0], held[1], F.fmt(held[2])), '']
+
+
+def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, args, scen=None, gains=None,
+           selfrep=None):
     timing = meta['paper_timing_supported']
     cols = _columns(variants, timing)
     rel_fig = os.path.relpath(args.figures, os.path.dirname(os.path.abspath(args.out)))
@@ -844,6 +895,8 @@ def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, a
             lines += ['### The fusion gain: what the shared logs allow, and the held-out cells', '',
                       _fusion_gain_intro(rows), '',
                       F.fusion_gain_table(rows), '', _fusion_gain_text(rows), '']
+    if selfrep:
+        lines += _self_replay_section(selfrep)
     present = []
     for _, v in records:
         if v not in present:

@@ -12,7 +12,8 @@ shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenari
    yet") are replaced by the hover point (the logged estimate's first position and yaw). A log that starts
    in motion (the straight lines: a steady-state segment) gets a lead-in: the first waypoint extrapolated
    backwards at its own velocity for ``lead`` s, so the controller has settled on the moving target when
-   the log begins. The ``Scenario`` (``anafi_sim.experiments.trajectory``): hover at the start for
+   the log begins; a stream that repeats itself (a circle, a periodic vertical motion: ``stream_period``)
+   repeats its first period backwards instead. The ``Scenario`` (``anafi_sim.experiments.trajectory``): hover at the start for
    ``approach`` s, the lead-in, then the replay (zero-order hold of the ticks), measured.
 2. ``run_replay``: the scenario on the in-process engine (``anafi_sim.experiments.engine.Engine``) with the
    log's controller and the given model / controller parameters / schedule, and the stand-in's estimate
@@ -45,7 +46,9 @@ schedule overrides (timer phases). ``run_log_variants`` / ``replay_all`` run the
 ``plot_replay`` one figure per log (matplotlib Agg). ``scenario_runs``: the paper's scenarios (static waypoints,
 Tables 3-5) on the engine per variant (``table3_runs``: the straight lines, keyed by speed; ``age_variants``: a
 variant at other timer phases); ``held_out_bounds``: what the issue's comparison with Sphinx's held-out runs
-(Tables 4 and 5) implies for each such cell of a configuration.
+(Tables 4 and 5) implies for each such cell of a configuration; ``fusion_gain_variants``: the fusion gain's
+sensitivity; ``run_log`` / ``self_replay_runs``: the stand-in's own runs recorded as the paper's logger recorded
+Sphinx and replayed (the method's own error).
 
 Units: positions [m], velocities [m/s] (ENU world), attitude [rad], waypoint yaw [deg], time [s].
 """
@@ -62,7 +65,8 @@ from anafi_sim.experiments.engine import DEFAULT_SCHEDULE, Engine
 from anafi_sim.experiments.evaluation import interpolate
 from anafi_sim.experiments.reference_log import (COLUMNS, INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES,
                                                  WAYPOINT_COLUMNS, ReferenceLog, as_logged, detect_garbage,
-                                                 initial_velocity_error, line_value, read_log, tracking_error)
+                                                 initial_velocity_error, line_value, read_log, tracking_error,
+                                                 velocity_lag)
 from anafi_sim.experiments.trajectory import Phase, Scenario, WaypointSample
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, load_model_params
 
@@ -85,7 +89,7 @@ INITIAL_AHEAD = 0.1          # s, the initial state is set this long before log 
 
 ReplayPlan = collections.namedtuple('ReplayPlan', 'log name controller scenario tick_log_time tick_tau '
                                                   'scenario_offset ticks slips markers moving shift initial_state '
-                                                  'stalls stored')
+                                                  'stalls stored period')
 ReplayPlan.__doc__ = ('How a log is replayed: log (ReferenceLog), name, controller (pid|mpc), scenario (Scenario), '
                       'tick_log_time (log time [s] of tick 0), tick_tau (trajectory time [s] of tick 0), '
                       'scenario_offset (scenario time [s] of log time 0), ticks (number of waypoint changes '
@@ -96,7 +100,9 @@ ReplayPlan.__doc__ = ('How a log is replayed: log (ReferenceLog), name, controll
                       'initial_state (``InitialState`` the replay is put in at log time 0, or None), stalls '
                       '(((start, end) log times [s] of the estimate stalls the replay reproduces, ``log_stalls``; () '
                       'when the log has none or the plan leaves them out), stored (``standin_log`` stores the '
-                      'stand-in\'s columns as the logs store theirs: half floats, ``reference_log.as_logged``).')
+                      'stand-in\'s columns as the logs store theirs: half floats, ``reference_log.as_logged``), '
+                      'period (ticks of a periodic stream whose lead-in repeats its first period, ``stream_period``; '
+                      'None: a straight lead-in).')
 
 InitialState = collections.namedtuple('InitialState', 'truth estimate velocity_error')
 InitialState.__doc__ = ('A log\'s state at log time 0: truth (x, y, z) [m], the estimate\'s position (x, y, z) [m] '
@@ -159,19 +165,24 @@ class ReplayTrajectory(object):
     """The logged waypoint stream as a trajectory: zero-order hold of one value per 10 Hz tick.
 
     ``values`` (K, 7): the waypoint of ticks 0..K-1 (x, y, z, vx, vy, vz, yaw [deg]; K >= 1); ``tick_tau``:
-    trajectory time [s] of tick 0 (a multiple of 1/rate, >= 0). Before tick 0 the first value extrapolated
-    backwards at its own velocity (the lead-in); after the last tick the last value. A trajectory time is
-    mapped to the nearest tick (the generator ticks at multiples of 1/rate of trajectory time).
+    trajectory time [s] of tick 0 (a multiple of 1/rate, >= 0). Before tick 0 (the lead-in) the first value
+    extrapolated backwards at its own velocity, or, with ``period`` P ticks (a periodic stream, 0 < P <= K,
+    ``stream_period``), the first period repeated backwards (tick -j is tick P - j mod P); after the last tick
+    the last value. A trajectory time is mapped to the nearest tick (the generator ticks at multiples of 1/rate
+    of trajectory time).
     """
 
     kind = 'replay'
 
-    def __init__(self, values, tick_tau, rate=DEFAULT_RATE):
+    def __init__(self, values, tick_tau, rate=DEFAULT_RATE, period=None):
         self.values = np.asarray(values, dtype=np.float64).reshape(-1, 7)
         if not len(self.values):
             raise ValueError('a replay needs at least one waypoint')
+        if period is not None and not 0 < int(period) <= len(self.values):
+            raise ValueError('a replay period must be 1..%d ticks, got %r' % (len(self.values), period))
         self.rate = float(rate)
         self.tick0 = int(round(float(tick_tau) * self.rate))
+        self.period_ticks = int(period) if period is not None else None
 
     def tick(self, t):
         """Tick index (relative to tick 0) of trajectory time ``t`` [s]."""
@@ -180,6 +191,8 @@ class ReplayTrajectory(object):
     def sample(self, t):
         """``WaypointSample`` at trajectory time ``t`` [s]."""
         j = self.tick(t)
+        if j < 0 and self.period_ticks:
+            j %= self.period_ticks
         if j < 0:
             v = self.values[0]
             dt = j / self.rate
@@ -190,14 +203,48 @@ class ReplayTrajectory(object):
     __call__ = sample
 
     def period(self):
-        """None: not periodic."""
+        """None: not periodic (the lead-in may repeat a period; the replay itself is the log's stream)."""
         return None
 
 
-def log_initial_state(log, window=INITIAL_WINDOW, estimate_rate=20.0, at=-INITIAL_AHEAD):
+PERIOD_MIN = 2.0        # s, shortest period ``stream_period`` looks for
+PERIOD_OVERLAP = 1.0    # s, at least this much of the stream must be seen twice to call it periodic
+PERIOD_TOLERANCE = 0.02 # m, rms of (position one period later - position) below which a stream repeats
+
+
+def stream_period(values, rate=DEFAULT_RATE, min_period=PERIOD_MIN, overlap=PERIOD_OVERLAP,
+                  tolerance=PERIOD_TOLERANCE):
+    """The period [ticks] of a waypoint tick stream ``values`` (K, 7) that repeats itself (a circle, a periodic
+    vertical motion), or None: the smallest lag L >= ``min_period`` s, leaving at least ``overlap`` s seen
+    twice, at which the rms of the position difference (values[i + L] - values[i], x y z) is below
+    ``tolerance`` [m] (or 1 % of the motion's extent, or the half-float step of the positions, if larger) and no
+    larger than at the lags beside it (the bottom of its dip: a circle's period is rarely a whole number of
+    ticks). A straight line never repeats; a hover does at every lag (not moving:
+    None)."""
+    v = np.asarray(values, dtype=np.float64).reshape(-1, 7)[:, :3]
+    k = len(v)
+    first = int(math.ceil(min_period * rate - 1e-9))
+    last = k - int(math.ceil(overlap * rate - 1e-9))
+    spread = float(np.max(np.ptp(v, axis=0))) if k else 0.0
+    if last <= first or spread <= tolerance:
+        return None
+    # a large motion or a half-float log far from the origin repeats only to within its own resolution
+    tolerance = max(tolerance, 0.01 * spread, float(np.spacing(np.float16(np.max(np.abs(v))))))
+    rms = dict((lag, float(np.sqrt(np.mean(np.sum((v[lag:] - v[:-lag]) ** 2, axis=1)))))
+               for lag in range(max(1, first - 1), min(k - 1, last + 1) + 1))
+    for lag in range(first, last + 1):
+        if rms[lag] < tolerance and rms[lag] <= rms.get(lag - 1, np.inf) and rms[lag] <= rms.get(lag + 1, np.inf):
+            return lag
+    return None
+
+
+def log_initial_state(log, window=INITIAL_WINDOW, estimate_rate=20.0, at=-INITIAL_AHEAD, curved=False):
     """``InitialState`` of ``log`` at log time ``at`` [s] (default just before the first sample): per axis a
     line through the first ``window`` s (``reference_log.line_value``: the columns are float16) of the truth,
-    of the estimate and of the velocity estimate's error; the truth at ``at``, the estimate half an
+    of the estimate and of the velocity estimate's error (``curved``, a turning path such as a circle: a
+    parabola through the positions, and the velocity error against the truth as old as the estimate's own lag,
+    ``reference_log.velocity_lag``, which a line and a same-time difference would take for an offset and an
+    error); the truth at ``at``, the estimate half an
     estimate period later (a held value is on average that old when logged: ``standin_log`` reads the
     stand-in's estimate the same way). An axis whose estimate column
     has garbage in the window is NaN (x_straight_2/3_pid: z wrapped, the truth sank under it)."""
@@ -213,10 +260,12 @@ def log_initial_state(log, window=INITIAL_WINDOW, estimate_rate=20.0, at=-INITIA
             estimate.append(float('nan'))
             continue
         ok = first & ~bad
-        truth.append(line_value(t, c[axis + '_sphinx'], ok, t[0] + at))
-        estimate.append(line_value(t, c[axis + '_anafi'], ok, t[0] + at + 0.5 / float(estimate_rate)))
-    velocity = tuple(initial_velocity_error(log, axis, window, at) if axis in VELOCITY_ERROR_AXES else float('nan')
-                     for axis in ('x', 'y', 'z'))
+        degree = 2 if curved else 1
+        truth.append(line_value(t, c[axis + '_sphinx'], ok, t[0] + at, degree))
+        estimate.append(line_value(t, c[axis + '_anafi'], ok, t[0] + at + 0.5 / float(estimate_rate), degree))
+    lag = velocity_lag(log) if curved else 0.0
+    velocity = tuple(initial_velocity_error(log, axis, window, at, lag) if axis in VELOCITY_ERROR_AXES
+                     else float('nan') for axis in ('x', 'y', 'z'))
     return InitialState(tuple(truth), tuple(estimate), velocity)
 
 
@@ -367,6 +416,7 @@ def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latenc
     if approach is None:
         approach = APPROACH_MOVING if moving else APPROACH_STATIC
     lead_in = float(lead) if moving else 0.0
+    repeat = stream_period(np.array(values, dtype=np.float64), rate) if moving else None
     # trajectory time tau of log time 0 must be >= lead_in; ticks at multiples of the period of tau
     first_tick_tau = math.ceil((lead_in - tick_log_time) * rate - 1e-9) * period
     first_tick_tau = max(first_tick_tau, 0.0)
@@ -379,11 +429,11 @@ def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latenc
     # take-off point: the dynamics do not depend on x, y, and the waypoint limits (geofence, jump from the
     # drone) hold for the logs far from the origin (x_straight_5: x = 153 .. 300 m)
     values = np.array(values, dtype=np.float64)
-    start = ReplayTrajectory(values, first_tick_tau, rate).sample(0.0)
+    start = ReplayTrajectory(values, first_tick_tau, rate, repeat).sample(0.0)
     shift = (float(start.x), float(start.y))
     values[:, 0] -= shift[0]
     values[:, 1] -= shift[1]
-    trajectory = ReplayTrajectory(values, first_tick_tau, rate)
+    trajectory = ReplayTrajectory(values, first_tick_tau, rate, repeat)
     duration = float(t[-1]) + TAIL
     phases = [Phase('approach', float(approach), True, False)]
     if tau_log0 > 1e-9:
@@ -394,8 +444,9 @@ def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latenc
     scenario_offset = float(approach) + tau_log0        # scenario time of log time 0
     return ReplayPlan(log, log.name, controller, scenario, tick_log_time, first_tick_tau, scenario_offset,
                       len(changes), slips, markers, moving, shift,
-                      log_initial_state(log) if initial_state else None, log_stalls(log) if stalls else (),
-                      bool(stored))
+                      log_initial_state(log, curved=repeat is not None) if initial_state else None,
+                      log_stalls(log) if stalls else (),
+                      bool(stored), repeat)
 
 
 # ---------------------------------------------------------------------------------------------- runs
@@ -428,22 +479,8 @@ def standin_log(plan, engine):
     if engine.started_at is None:
         raise ValueError('the replay of %s never started (the monitor\'s start rule did not pass)' % plan.name)
     t_sim = float(engine.started_at) + plan.scenario_offset + log.t           # sim time of each log sample
-    streams = engine.evaluator.streams
-    est = list(streams['estimate'])
-    truth = list(streams['truth'])
+    est_rows, truth_rows = logged_states(engine, t_sim)
     columns = collections.OrderedDict()
-    if est:
-        rate = float(engine.model_params['estimate_rate'])
-        t_est, rows = estimate_samples([s * 1e-9 for s, _ in est], [r for _, r in est], rate)
-        est_rows = interpolate(t_est, rows, t_sim - 0.5 / rate, max_gap=0.5, angle_columns=(6, 7, 8))
-    else:
-        est_rows = np.full((len(log), 9), np.nan)
-    if truth:
-        t_tr = np.array([s for s, _ in truth], dtype=np.float64) * 1e-9
-        rows = np.array([r for _, r in truth], dtype=np.float64)
-        truth_rows = interpolate(t_tr, rows, t_sim, max_gap=0.5, angle_columns=(6, 7, 8))
-    else:
-        truth_rows = np.full((len(log), 9), np.nan)
     for rows in (truth_rows, est_rows):
         rows[:, 0] += plan.shift[0]
         rows[:, 1] += plan.shift[1]
@@ -458,6 +495,63 @@ def standin_log(plan, engine):
         columns[name] = np.array(log.columns[name], dtype=np.float64)
     ordered = collections.OrderedDict((c, columns[c]) for c in COLUMNS[1:])
     return ReferenceLog(ordered, log.time_ns.copy(), path=log.path)
+
+
+def logged_states(engine, t_sim):
+    """(estimate, truth) (n, 9) rows of a finished engine run at sim times ``t_sim`` [s] as a 20 Hz logger sees
+    them (``standin_log``): the estimate's own samples (``estimate_samples``) interpolated half an estimate
+    period back (the mean of a zero-order hold over a drifting phase), the truth interpolated (angles
+    unwrapped); NaN where the run has no sample."""
+    streams = engine.evaluator.streams
+    est = list(streams['estimate'])
+    truth = list(streams['truth'])
+    if est:
+        rate = float(engine.model_params['estimate_rate'])
+        t_est, rows = estimate_samples([s * 1e-9 for s, _ in est], [r for _, r in est], rate)
+        est_rows = interpolate(t_est, rows, t_sim - 0.5 / rate, max_gap=0.5, angle_columns=(6, 7, 8))
+    else:
+        est_rows = np.full((len(t_sim), 9), np.nan)
+    if truth:
+        t_tr = np.array([s for s, _ in truth], dtype=np.float64) * 1e-9
+        rows = np.array([r for _, r in truth], dtype=np.float64)
+        truth_rows = interpolate(t_tr, rows, t_sim, max_gap=0.5, angle_columns=(6, 7, 8))
+    else:
+        truth_rows = np.full((len(t_sim), 9), np.nan)
+    return est_rows, truth_rows
+
+
+def run_log(engine, begin=None, end=None, rate=20.0, stored=True, name=None):
+    """A finished engine run as a reference log, recorded the way the paper's logger recorded Sphinx: samples at
+    ``rate`` [Hz] over [``begin``, ``end``] (sim time [s]; default the measured window), each with the latest
+    waypoint received and the estimate and ground truth as ``logged_states`` reads them, stored as half floats
+    (``reference_log.as_logged``; ``stored=False``: unrounded); ``ReferenceLog`` with time in ns of sim time,
+    named ``name`` (e.g. 'circle_r2_v2_mpc': ``replay_plan`` takes the controller from it). E.g. to replay the
+    stand-in's own runs."""
+    ev = engine.evaluator
+    begin = ev.t_begin * 1e-9 if begin is None and ev.t_begin is not None else begin
+    end = ev.t_end * 1e-9 if end is None and ev.t_end is not None else end
+    if begin is None or end is None or not end > begin:
+        raise ValueError('run_log: no window to record (begin %r, end %r)' % (begin, end))
+    streams = dict((k, list(ev.streams[k])) for k in ('estimate', 'truth', 'waypoint'))
+    if not all(streams.values()):
+        raise ValueError('run_log: the run has no %s samples' % ', '.join(k for k, v in streams.items() if not v))
+    t = np.arange(begin, end + 0.5 / rate, 1.0 / rate)
+    rows = {}
+    ts = np.array([x for x, _ in streams['waypoint']], dtype=np.float64) * 1e-9   # the latest one received
+    values = np.array([r for _, r in streams['waypoint']], dtype=np.float64)
+    index = np.searchsorted(ts, t, side='right') - 1
+    rows['waypoint'] = np.where((index >= 0)[:, None], values[np.clip(index, 0, None)], np.nan)
+    rows['estimate'], rows['truth'] = logged_states(engine, t)
+    if stored:
+        rows = dict((k, as_logged(v)) for k, v in rows.items())
+    columns = collections.OrderedDict()
+    for j, state in enumerate(STATE_NAMES):
+        columns['%s_sphinx' % state] = rows['truth'][:, j]
+        columns['%s_anafi' % state] = rows['estimate'][:, j]
+    for j, column in enumerate(WAYPOINT_COLUMNS):
+        columns[column] = rows['waypoint'][:, j]
+    ordered = collections.OrderedDict((c, columns[c]) for c in COLUMNS[1:])
+    return ReferenceLog(ordered, np.round(t * 1e9).astype(np.int64), path=name + '.csv' if name else None)
 
 
 def horizontal_sources(log):
@@ -691,6 +785,115 @@ def scenario_runs(variants, scenarios=report.ALL_SCENARIOS, seed=None, workers=1
              if v is None or not v.controllers or c in v.controllers]
     records = runs.execute(tasks, workers=workers, progress=progress, label=label, function=_scenario_one)
     return scenario_records(records)
+
+
+SELF_BEFORE = 1.5      # s, recorded before the measured window: >= PERIOD_OVERLAP, so that a period recurs
+
+
+def _self_replay_one(args):
+    """Worker: (scenario, controller, variant, seed) -> plain record of a self-replay (picklable)."""
+    scenario, controller, variant, seed = args
+    name = variant.name if variant is not None else 'default'
+    rec = dict(scenario=scenario, controller=controller, variant=name,
+               name='%s_%s [%s]' % (scenario, controller, name), ok=False, error='', period=None)
+    try:
+        engine = Engine(scenario, controller, seed=seed,
+                        controller_params=_controller_params(variant, controller),
+                        schedule=variant.schedule if variant is not None else None,
+                        model_params=variant.model_params if variant is not None else None)
+        result = engine.run()
+        if not result.ok:
+            rec['error'] = 'run: %s' % result.error
+            return rec
+        end = engine.evaluator.t_end * 1e-9
+        log = run_log(engine, begin=engine.evaluator.t_begin * 1e-9 - SELF_BEFORE, end=end,
+                      name='%s_%s' % (scenario, controller))
+        latency = recorded_latency(engine, log)
+        plans = (replay_plan(log), replay_plan(log, latency=latency))
+    except (ValueError, RuntimeError, KeyError) as error:
+        rec['error'] = '%s: %s' % (type(error).__name__, error)
+        return rec
+    reference = reference_cells(log)
+    for key, plan in zip(('ratio', 'ratio_latency'), plans):
+        rep = run_replay(plan, variant, seed=seed)
+        if not rep.ok:
+            rec['error'] = rep.error
+            return rec
+        rec[key] = dict(('%s_%s' % k, _num(v[2])) for k, v in compare(reference, rep.cells).items())
+    rec.update(ok=True, period=plans[0].period, latency=_num(latency))
+    rec['reference'] = dict(('%s_%s' % k, _num(reference[k])) for k in CELLS)
+    return rec
+
+
+def recorded_latency(engine, log):
+    """How long [s] after its arrival the logger of ``run_log`` first showed each new waypoint of ``log``, on
+    average (what ``replay_plan``'s ``latency`` assumes for a log: half a sample for Sphinx's, whose logger's
+    phase is not recorded)."""
+    arrivals = [(t * 1e-9, row) for t, row in engine.evaluator.streams['waypoint']]
+    t_log = log.time_ns * 1e-9
+    delays, last = [], None
+    for t, row in arrivals:
+        if last is not None and row != last and t_log[0] <= t <= t_log[-1]:
+            shown = np.searchsorted(t_log, t - 1e-9)
+            if shown < len(t_log):
+                delays.append(t_log[shown] - t)
+        last = row
+    return float(np.mean(delays)) if delays else 0.0
+
+
+def self_replay_runs(variants, scenarios=report.ALL_SCENARIOS, seed=None, workers=1, progress=None):
+    """The replay method on the stand-in's own runs: each paper scenario run on the engine (PID and MPC, per
+    variant), recorded from ``SELF_BEFORE`` s before its measured window to its end as the paper's logger
+    recorded Sphinx (``run_log``), that log replayed with the same variant (``replay_plan``, ``run_replay``);
+    {(variant, controller, scenario): record with ok, error, the replay's period [ticks] (None: a straight
+    lead-in), the log's cells ('reference'), replay / log with the method's default waypoint latency ('ratio':
+    as for Sphinx's logs, whose logger phase is unknown) and with the recording's own (``recorded_latency``:
+    'ratio_latency', 'latency' [s])}. A faithful method gives ratio 1; what it gives instead is the method's own
+    error on such a log."""
+    from anafi_sim.experiments import runs
+    tasks = [(s, c, v, seed) for v in variants for c in report.CONTROLLERS for s in scenarios
+             if v is None or not v.controllers or c in v.controllers]
+    records = runs.execute(tasks, workers=workers, progress=progress, label='self-replay',
+                           function=_self_replay_one)
+    return collections.OrderedDict(((r['variant'], r['controller'], r['scenario']), r) for r in records)
+
+
+def self_replay_table(records, variant, scenarios=report.ALL_SCENARIOS, band=None):
+    """Markdown table of ``self_replay_runs`` records of ``variant``: per scenario and controller the lead-in
+    (period [s] or 'straight') and the four ratios replay / log with the default latency, then with the
+    recording's own (bold outside +-``band``, default BANDS[0])."""
+    band = BANDS[0] if band is None else band
+    names = ['%s %s' % cell for cell in CELLS]
+    lines = ['| scenario | controller | lead-in | ' + ' | '.join(names) + ' | latency [ms] | '
+             + ' | '.join(names) + ' |', '|---|---|---|' + '---|' * (2 * len(CELLS) + 1)]
+    for scenario in scenarios:
+        for controller in report.CONTROLLERS:
+            r = records.get((variant, controller, scenario))
+            if r is None:
+                continue
+            if not r.get('ok'):
+                lines.append('| %s | %s | failed: %s |%s' % (scenario, report.LABELS[controller], r.get('error'),
+                                                              ' - |' * (2 * len(CELLS) + 1)))
+                continue
+            lead = '%.1f s period' % (r['period'] / DEFAULT_RATE) if r.get('period') else 'straight'
+            parts = []
+            for key in ('ratio', 'ratio_latency'):
+                parts += [ratio_text(x if x is not None else float('nan'), band)
+                          for x in [(r.get(key) or {}).get(_key(cell)) for cell in CELLS]]
+            parts.insert(len(CELLS), '%.0f' % (1e3 * r['latency']) if r.get('latency') is not None else '-')
+            lines.append('| %s | %s | %s | %s |' % (scenario, report.LABELS[controller], lead, ' | '.join(parts)))
+    return '\n'.join(lines)
+
+
+def self_replay_score(records, variant, band=None, key='ratio', scenarios=None):
+    """(cells within +-``band`` (default BANDS[0]), cells with a ratio, max abs ln ratio) of a variant's
+    self-replays (``key`` 'ratio' or 'ratio_latency'; ``scenarios``: only those, default all)."""
+    band = BANDS[0] if band is None else band
+    ratios = [x for (v, _, s), r in records.items() if v == variant and r.get('ok')
+              and (scenarios is None or s in scenarios)
+              for x in (r.get(key) or {}).values() if x is not None and x > 0]
+    inside = sum(1 for x in ratios if within(x, band))
+    return inside, len(ratios), (max(abs(math.log(x)) for x in ratios) if ratios else float('nan'))
 
 
 def scenario_records(records):

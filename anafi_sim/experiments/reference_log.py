@@ -331,20 +331,20 @@ ErrorStats = collections.namedtuple('ErrorStats', ['mean', 'max', 'std', 'n_vali
 ErrorStats.__doc__ = 'mean, max, std [m] of an error series over its valid samples, and sample counts.'
 
 
-def line_value(t, values, ok, at):
+def line_value(t, values, ok, at, degree=1):
     """A logged quantity at time ``at`` [s] from a least-squares line through (t, values)[ok]: the columns
     are stored as float16 (x of x_straight_5 is on a 0.125-0.25 m grid), a line through a second of samples
-    recovers the value below that step. NaN with fewer than two samples."""
+    recovers the value below that step. ``degree`` 2: a parabola instead (a curved path, e.g. a second of a
+    circle, which a line cuts by up to r (1 - cos(w / 2))). NaN with fewer than ``degree + 1`` samples."""
     t = np.asarray(t, dtype=np.float64)
     values = np.asarray(values, dtype=np.float64)
     ok = np.asarray(ok, dtype=bool) & np.isfinite(values)
-    if np.count_nonzero(ok) < 2:
+    if np.count_nonzero(ok) < int(degree) + 1:
         return float('nan')
     tt, vv = t[ok], values[ok]
     if np.ptp(tt) <= 0.0:
         return float(np.mean(vv))
-    slope, intercept = np.polyfit(tt - tt[0], vv, 1)
-    return float(slope * (at - tt[0]) + intercept)
+    return float(np.polyval(np.polyfit(tt - tt[0], vv, int(degree)), at - tt[0]))
 
 
 INITIAL_WINDOW = 1.0
@@ -355,19 +355,44 @@ VELOCITY_ERROR_AXES = ('x', 'y')
 level: z shows none to fit)."""
 
 
-def velocity_error(log, axis):
+def velocity_error(log, axis, lag=0.0):
     """(b, ok): the velocity estimate's error v_anafi - v_sphinx [m/s] on ``axis`` ('x', 'y', 'z') per
-    sample, and where it is valid (finite, no garbage in either column)."""
-    b = np.asarray(log.columns['v%s_anafi' % axis], dtype=np.float64) - np.asarray(
-        log.columns['v%s_sphinx' % axis], dtype=np.float64)
+    sample, and where it is valid (finite, no garbage in either column). ``lag`` [s]: against the truth that
+    long before (the estimate's own lag: on a turning path the velocity changes direction within it, which
+    is no error of the estimate; NaN where the log does not reach back)."""
+    truth = np.asarray(log.columns['v%s_sphinx' % axis], dtype=np.float64)
+    if lag:
+        t = log.t
+        truth = np.where(t - lag >= t[0], np.interp(t - lag, t, truth), np.nan)
+    b = np.asarray(log.columns['v%s_anafi' % axis], dtype=np.float64) - truth
     return b, np.isfinite(b) & ~detect_garbage(log).mask('v%s_anafi' % axis, 'v%s_sphinx' % axis)
 
 
-def initial_velocity_error(log, axis, window=INITIAL_WINDOW, at=0.0):
-    """``velocity_error`` on ``axis`` at log time t0 + ``at`` [s]: ``line_value`` through its first ``window``
-    s of valid samples (NaN when fewer than two). The straight-line logs start with such an error, which
-    decays (docs/calibration.md)."""
-    b, ok = velocity_error(log, axis)
+VELOCITY_LAGS = tuple(np.round(np.arange(0.0, 0.2001, 0.005), 3))
+"""s, the lags ``velocity_lag`` tries."""
+
+
+def velocity_lag(log, axes=('x', 'y'), lags=VELOCITY_LAGS):
+    """The lag [s] of the velocity estimate behind the truth over the whole log: the one of ``lags`` with the
+    least mean square of ``velocity_error`` on ``axes`` (identified where the velocity turns: a circle; on a
+    straight line every lag fits alike and the smallest wins)."""
+    best = None
+    for lag in lags:
+        ms = []
+        for axis in axes:
+            b, ok = velocity_error(log, axis, lag)
+            if np.any(ok):
+                ms.append(float(np.mean(b[ok] ** 2)))
+        if ms and (best is None or np.mean(ms) < best[0] - 1e-12):
+            best = (float(np.mean(ms)), float(lag))
+    return best[1] if best else 0.0
+
+
+def initial_velocity_error(log, axis, window=INITIAL_WINDOW, at=0.0, lag=0.0):
+    """``velocity_error`` (against the truth ``lag`` s before) on ``axis`` at log time t0 + ``at`` [s]:
+    ``line_value`` through its first ``window`` s of valid samples (NaN when fewer than two). The
+    straight-line logs start with such an error, which decays (docs/calibration.md)."""
+    b, ok = velocity_error(log, axis, lag)
     t = log.t
     return line_value(t, b, ok & (t <= t[0] + float(window)), t[0] + float(at))
 

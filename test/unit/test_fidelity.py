@@ -445,6 +445,91 @@ def test_fusion_gain_rows_and_table_score_each_gain():
         F.fusion_gain_rows(records, scen, [('elsewhere', 'x', _profile_row(0.3), 'shipped')], ['log_a'])
 
 
+# ------------------------------------------------------------------- periodic streams, the method on its own runs
+def _circle_ticks(radius=2.0, speed=2.0, seconds=15.0, rate=10.0, centre=(40.0, -3.0, 5.0)):
+    w = speed / radius
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    return np.column_stack([centre[0] + radius * np.cos(w * t), centre[1] + radius * np.sin(w * t),
+                            np.full_like(t, centre[2]), -speed * np.sin(w * t), speed * np.cos(w * t),
+                            np.zeros_like(t), np.zeros_like(t)])
+
+
+def test_stream_period_finds_a_circle_and_nothing_in_a_line_or_a_hover():
+    circle = _circle_ticks()                         # period 2 pi 2 / 2 = 6.28 s: 63 ticks nearest
+    assert F.stream_period(circle) == 63
+    assert F.stream_period(_circle_ticks(radius=3.0, speed=1.0, seconds=20.0)) == 188     # 18.85 s
+    assert F.stream_period(_circle_ticks(seconds=6.5)) is None    # not a period and a second long
+    line = circle.copy()
+    line[:, 0] = 3.0 * np.arange(len(line)) / 10.0
+    line[:, 1] = 2.0
+    assert F.stream_period(line) is None
+    assert F.stream_period(np.tile([1.0, 2.0, 5.0, 0.0, 0.0, 0.0, 0.0], (150, 1))) is None
+
+
+def test_a_periodic_lead_in_repeats_the_first_period_backwards():
+    values = _circle_ticks()
+    trajectory = F.ReplayTrajectory(values, 20.0, period=63)
+    for j in (1, 5, 63, 70):                          # tick -j is tick 63 - j (mod 63)
+        sample = trajectory.sample(20.0 - j / 10.0)
+        assert (sample.x, sample.y) == pytest.approx(tuple(values[(-j) % 63, :2]))
+    straight = F.ReplayTrajectory(values, 20.0)        # without a period: extrapolated at the first velocity
+    assert straight.sample(19.0).y == pytest.approx(values[0, 1] + values[0, 4] * -1.0)
+    with pytest.raises(ValueError):
+        F.ReplayTrajectory(values, 20.0, period=len(values) + 1)
+
+
+def test_a_parabola_and_the_velocity_lag_for_a_turning_path():
+    from anafi_sim.experiments.reference_log import velocity_lag
+    t = np.arange(0.0, 1.0, 0.05)
+    y = 2.0 * np.cos(t)                                # a second of a circle: a line cuts it
+    parabola = abs(F.line_value(t, y, np.ones_like(t, bool), -0.1, 2) - 2.0 * np.cos(-0.1))
+    line = abs(F.line_value(t, y, np.ones_like(t, bool), -0.1) - 2.0 * np.cos(-0.1))
+    assert parabola < 0.02 and line > 0.2                # 0.012 m against 0.23 m off the circle
+    times = np.arange(0.0, 20.0, 0.05)
+    cols = dict((c, np.zeros_like(times)) for c in COLUMNS[1:])
+    cols['vx_sphinx'], cols['vy_sphinx'] = -2.0 * np.sin(times), 2.0 * np.cos(times)
+    cols['vx_anafi'], cols['vy_anafi'] = -2.0 * np.sin(times - 0.04), 2.0 * np.cos(times - 0.04)
+    cols['z_anafi'] = cols['z_sphinx'] = np.full_like(times, 5.0)
+    log = ReferenceLog(cols, (times * 1e9).astype(np.int64), path='circle_mpc.csv')
+    assert velocity_lag(log) == pytest.approx(0.04, abs=0.0051)
+
+
+def test_the_replay_method_reproduces_the_standins_own_periodic_runs():
+    """The stand-in's own circle and vertical runs, recorded as the paper's logger recorded Sphinx and
+    replayed like a Sphinx log, come back within a few per cent (a straight lead-in and a line through the
+    first second put the MPC's circle 29 % off in e_max before the periodic lead-in and the curved initial
+    state); with the recording's own waypoint latency the MPC's line too."""
+    out = F.self_replay_runs([None], scenarios=('circle_r2_v2', 'vertical_r2_v1'))
+    for (_, controller, scenario), r in out.items():
+        assert r['ok'], r['error']
+        assert r['period'] == (63 if scenario == 'circle_r2_v2' else 126)
+        for cell, ratio in r['ratio'].items():
+            assert abs(ratio - 1.0) < 0.06, (scenario, controller, cell, ratio)
+    line = F.self_replay_runs([F.Variant('v', 'v', None, controllers=('mpc',))], scenarios=('straight_3',))
+    r = line[('v', 'mpc', 'straight_3')]
+    assert r['ok'] and r['period'] is None and r['latency'] is not None
+    assert all(abs(x - 1.0) < 0.1 for x in r['ratio_latency'].values()), r['ratio_latency']
+    text = F.self_replay_table(line, 'v', scenarios=('straight_3',))
+    assert text.splitlines()[2].startswith('| straight_3 | MPC | straight | ')
+    assert F.self_replay_score(line, 'v', key='ratio_latency')[:2] == (4, 4)
+
+
+def test_run_log_records_a_run_as_the_logger_did():
+    from anafi_sim.experiments.engine import Engine
+    engine = Engine('vertical_r2_v1', 'pid')
+    assert engine.run().ok
+    ev = engine.evaluator
+    log = F.run_log(engine, name='vertical_r2_v1_pid')
+    assert log.name == 'vertical_r2_v1_pid' and F.parse_name(log.name) == ('vertical_r2_v1', 'pid')
+    dt = np.diff(log.time_ns) * 1e-9
+    assert np.allclose(dt, 0.05, atol=1e-6)
+    assert log.time_ns[0] == pytest.approx(ev.t_begin, abs=1) and len(log) == int((ev.t_end - ev.t_begin) * 20e-9) + 1
+    assert np.all(np.isfinite(log.waypoint())) and np.ptp(log.columns['wp_z']) > 3.0
+    assert np.all(log.columns['z_anafi'] == as_logged(log.columns['z_anafi']))     # half floats
+    with pytest.raises(ValueError):
+        F.run_log(engine, begin=5.0, end=5.0)
+
+
 def test_scenario_table_shows_a_run_or_the_range_over_several():
     rec = {('a', 'mpc', 's'): {'ok': True, 'e_mu': 1.0, 'e_mu_truth': 2.0},
            ('b', 'mpc', 's'): {'ok': True, 'e_mu': 1.5, 'e_mu_truth': 1.0},

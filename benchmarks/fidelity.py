@@ -549,9 +549,17 @@ def _self_replay_section(selfrep):
     computed from its records."""
     default = F.self_replay_score(selfrep, 'shipped')
     own = F.self_replay_score(selfrep, 'shipped', key='ratio_latency')
-    lines_mpc = F.self_replay_score(selfrep, 'shipped', scenarios=report.STRAIGHT)
+    lines_ = F.self_replay_score(selfrep, 'shipped', scenarios=report.STRAIGHT)
     periodic = report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS
     held = F.self_replay_score(selfrep, 'shipped', scenarios=periodic)
+    outside = collections.Counter()               # (controller, scenario kind) of the cells outside the band
+    for (v, controller, scenario), r in selfrep.items():
+        if v == 'shipped' and r.get('ok'):
+            kind = ('lines' if scenario in report.STRAIGHT else 'periodic motions' if scenario in periodic
+                    else 'static steps')
+            outside[(report.LABELS[controller], kind)] += sum(
+                1 for x in (r.get('ratio') or {}).values() if x is not None and not F.within(x, F.BANDS[0]))
+    where = ', '.join('%s %s %d' % (c, k, n) for (c, k), n in sorted(outside.items()) if n) or 'none'
     return ['## The replay method on the stand-in\'s own runs', '',
             'A replay is only as good as the method that makes it. Every paper scenario is run on the engine with '
             'the shipped defaults, recorded from %.1f s before its measured window to its end the way the paper\'s '
@@ -564,15 +572,16 @@ def _self_replay_section(selfrep):
             '(as for Sphinx\'s logs), the second the recording\'s own (`fidelity.recorded_latency`).' % F.SELF_BEFORE,
             '',
             F.self_replay_table(selfrep, 'shipped'), '',
-            'Cells within +-10 %%: %d / %d with the assumed latency (largest |ln ratio| %s; the straight lines\' '
-            '%d / %d: the MPC lines move with the latency, as the `phases` step shows on Sphinx\'s), %d / %d with '
-            'the recording\'s own (largest %s); the circles and vertical motions, whose Sphinx logs are held '
-            'out, %d / %d with the assumed one (largest %s). A log of those, if like these it starts in steady flight '
-            'and covers a period and a second, is replayed with that little error of the method\'s own: Sphinx\'s '
-            'held-out logs (named `<scenario>_<pid|mpc>.csv`, in the shared logs\' format) with `python '
-            'benchmarks/fidelity.py --logs DIR --steps replay --out OUT.md --figures OUTDIR`.'
-            % (default[0], default[1], F.fmt(default[2]), lines_mpc[0], lines_mpc[1], own[0], own[1], F.fmt(own[2]),
-               held[0], held[1], F.fmt(held[2])), '']
+            'Cells within +-10 %%: %d / %d with the assumed latency (largest |ln ratio| %s; the straight lines %d / '
+            '%d; outside the band, by controller and kind: %s), %d / %d with the recording\'s own (largest %s); '
+            'the circles and vertical motions, whose Sphinx logs are held out, %d / %d with the assumed one '
+            '(largest %s). That is the method\'s own error on logs of the same model, without noise or jitter, '
+            'that start in steady flight and cover a period and a second; a Sphinx log adds its unknown latency '
+            '(0-50 ms) and whatever the model misses. Sphinx\'s held-out logs (named `<scenario>_<pid|mpc>.csv`, '
+            'in the shared logs\' format) replay with `python benchmarks/fidelity.py --logs DIR --steps replay '
+            '--out OUT.md --figures OUTDIR` (its tables are theirs; its text is written for the shared logs).'
+            % (default[0], default[1], F.fmt(default[2]), lines_[0], lines_[1], where, own[0], own[1],
+               F.fmt(own[2]), held[0], held[1], F.fmt(held[2])), '']
 
 
 def render(records, t3, logs, variants, ablation, phases, fitted, meta, walls, args, scen=None, gains=None,

@@ -217,8 +217,8 @@ def stream_period(values, rate=DEFAULT_RATE, min_period=PERIOD_MIN, overlap=PERI
     """The period [ticks] of a waypoint tick stream ``values`` (K, 7) that repeats itself (a circle, a periodic
     vertical motion), or None: the smallest lag L >= ``min_period`` s, leaving at least ``overlap`` s seen
     twice, at which the rms of the position difference (values[i + L] - values[i], x y z) is below
-    ``tolerance`` [m] (or 1 % of the motion's extent, or the half-float step of the positions, if larger) and no
-    larger than at the lags beside it (the bottom of its dip: a circle's period is rarely a whole number of
+    ``tolerance`` [m] (or 1 % of the motion's extent, the half-float step of the positions or half the motion
+    of a tick, if larger) and no larger than at the lags beside it (the bottom of its dip: a circle's period is rarely a whole number of
     ticks). A straight line never repeats; a hover does at every lag (not moving:
     None)."""
     v = np.asarray(values, dtype=np.float64).reshape(-1, 7)[:, :3]
@@ -228,8 +228,10 @@ def stream_period(values, rate=DEFAULT_RATE, min_period=PERIOD_MIN, overlap=PERI
     spread = float(np.max(np.ptp(v, axis=0))) if k else 0.0
     if last <= first or spread <= tolerance:
         return None
-    # a large motion or a half-float log far from the origin repeats only to within its own resolution
-    tolerance = max(tolerance, 0.01 * spread, float(np.spacing(np.float16(np.max(np.abs(v))))))
+    # a large motion or a half-float log far from the origin repeats only to within its own resolution, and a
+    # period that is no whole number of ticks only to within half a tick of motion (plus the stream's jitter)
+    step = float(np.median(np.sqrt(np.sum(np.diff(v, axis=0) ** 2, axis=1))))
+    tolerance = max(tolerance, 0.01 * spread, float(np.spacing(np.float16(np.max(np.abs(v))))), 0.5 * step)
     rms = dict((lag, float(np.sqrt(np.mean(np.sum((v[lag:] - v[:-lag]) ** 2, axis=1)))))
                for lag in range(max(1, first - 1), min(k - 1, last + 1) + 1))
     for lag in range(first, last + 1):
@@ -535,11 +537,11 @@ def run_log(engine, begin=None, end=None, rate=20.0, stored=True, name=None):
     streams = dict((k, list(ev.streams[k])) for k in ('estimate', 'truth', 'waypoint'))
     if not all(streams.values()):
         raise ValueError('run_log: the run has no %s samples' % ', '.join(k for k, v in streams.items() if not v))
-    t = np.arange(begin, end + 0.5 / rate, 1.0 / rate)
+    t_ns = np.round(np.arange(begin, end + 1e-9, 1.0 / rate) * 1e9).astype(np.int64)
+    t = t_ns * 1e-9
     rows = {}
-    ts = np.array([x for x, _ in streams['waypoint']], dtype=np.float64) * 1e-9   # the latest one received
+    index = latest_waypoint(engine, t_ns)                       # the latest one received
     values = np.array([r for _, r in streams['waypoint']], dtype=np.float64)
-    index = np.searchsorted(ts, t, side='right') - 1
     rows['waypoint'] = np.where((index >= 0)[:, None], values[np.clip(index, 0, None)], np.nan)
     rows['estimate'], rows['truth'] = logged_states(engine, t)
     if stored:
@@ -551,7 +553,14 @@ def run_log(engine, begin=None, end=None, rate=20.0, stored=True, name=None):
     for j, column in enumerate(WAYPOINT_COLUMNS):
         columns[column] = rows['waypoint'][:, j]
     ordered = collections.OrderedDict((c, columns[c]) for c in COLUMNS[1:])
-    return ReferenceLog(ordered, np.round(t * 1e9).astype(np.int64), path=name + '.csv' if name else None)
+    return ReferenceLog(ordered, t_ns, path=name + '.csv' if name else None)
+
+
+def latest_waypoint(engine, t_ns):
+    """Index into the run's waypoint stream of the latest waypoint received at or before each time ``t_ns``
+    [int ns of sim time] (-1: none yet)."""
+    arrivals = np.array([x for x, _ in engine.evaluator.streams['waypoint']], dtype=np.int64)
+    return np.searchsorted(arrivals, np.asarray(t_ns, dtype=np.int64), side='right') - 1
 
 
 def horizontal_sources(log):
@@ -810,35 +819,32 @@ def _self_replay_one(args):
                       name='%s_%s' % (scenario, controller))
         latency = recorded_latency(engine, log)
         plans = (replay_plan(log), replay_plan(log, latency=latency))
+        reference = reference_cells(log)
+        for key, plan in zip(('ratio', 'ratio_latency'), plans):
+            rep = run_replay(plan, variant, seed=seed)
+            if not rep.ok:
+                rec['error'] = 'replay: %s' % rep.error
+                return rec
+            rec[key] = dict(('%s_%s' % k, _num(v[2])) for k, v in compare(reference, rep.cells).items())
     except (ValueError, RuntimeError, KeyError) as error:
         rec['error'] = '%s: %s' % (type(error).__name__, error)
         return rec
-    reference = reference_cells(log)
-    for key, plan in zip(('ratio', 'ratio_latency'), plans):
-        rep = run_replay(plan, variant, seed=seed)
-        if not rep.ok:
-            rec['error'] = rep.error
-            return rec
-        rec[key] = dict(('%s_%s' % k, _num(v[2])) for k, v in compare(reference, rep.cells).items())
-    rec.update(ok=True, period=plans[0].period, latency=_num(latency))
+    rec.update(ok=True, period=plans[0].period, moving=plans[0].moving, latency=_num(latency))
     rec['reference'] = dict(('%s_%s' % k, _num(reference[k])) for k in CELLS)
     return rec
 
 
 def recorded_latency(engine, log):
-    """How long [s] after its arrival the logger of ``run_log`` first showed each new waypoint of ``log``, on
-    average (what ``replay_plan``'s ``latency`` assumes for a log: half a sample for Sphinx's, whose logger's
-    phase is not recorded)."""
-    arrivals = [(t * 1e-9, row) for t, row in engine.evaluator.streams['waypoint']]
-    t_log = log.time_ns * 1e-9
-    delays, last = [], None
-    for t, row in arrivals:
-        if last is not None and row != last and t_log[0] <= t <= t_log[-1]:
-            shown = np.searchsorted(t_log, t - 1e-9)
-            if shown < len(t_log):
-                delays.append(t_log[shown] - t)
-        last = row
-    return float(np.mean(delays)) if delays else 0.0
+    """How long [s] after its arrival the log (``run_log`` of ``engine``'s run) first shows each new waypoint,
+    on average over the changes of its waypoint columns (what ``replay_plan``'s ``latency`` assumes for a log:
+    half a sample for Sphinx's, whose logger's phase is not recorded); 0 when the log shows no change."""
+    wp = log.waypoint()
+    changes = [i for i in range(1, len(wp)) if np.any(wp[i] != wp[i - 1])]
+    if not changes:
+        return 0.0
+    arrivals = np.array([x for x, _ in engine.evaluator.streams['waypoint']], dtype=np.int64)
+    index = latest_waypoint(engine, log.time_ns[changes])
+    return float(np.mean((log.time_ns[changes] - arrivals[index]) * 1e-9))
 
 
 def self_replay_runs(variants, scenarios=report.ALL_SCENARIOS, seed=None, workers=1, progress=None):
@@ -860,7 +866,7 @@ def self_replay_runs(variants, scenarios=report.ALL_SCENARIOS, seed=None, worker
 
 def self_replay_table(records, variant, scenarios=report.ALL_SCENARIOS, band=None):
     """Markdown table of ``self_replay_runs`` records of ``variant``: per scenario and controller the lead-in
-    (period [s] or 'straight') and the four ratios replay / log with the default latency, then with the
+    (period [s], 'straight' or none for a log that starts in a hover) and the four ratios replay / log with the default latency, then with the
     recording's own (bold outside +-``band``, default BANDS[0])."""
     band = BANDS[0] if band is None else band
     names = ['%s %s' % cell for cell in CELLS]
@@ -875,7 +881,8 @@ def self_replay_table(records, variant, scenarios=report.ALL_SCENARIOS, band=Non
                 lines.append('| %s | %s | failed: %s |%s' % (scenario, report.LABELS[controller], r.get('error'),
                                                               ' - |' * (2 * len(CELLS) + 1)))
                 continue
-            lead = '%.1f s period' % (r['period'] / DEFAULT_RATE) if r.get('period') else 'straight'
+            lead = ('%.1f s period' % (r['period'] / DEFAULT_RATE) if r.get('period') else
+                    'straight' if r.get('moving', True) else 'none (hover)')
             parts = []
             for key in ('ratio', 'ratio_latency'):
                 parts += [ratio_text(x if x is not None else float('nan'), band)

@@ -360,12 +360,15 @@ def velocity_error(log, axis, lag=0.0):
     sample, and where it is valid (finite, no garbage in either column). ``lag`` [s]: against the truth that
     long before (the estimate's own lag: on a turning path the velocity changes direction within it, which
     is no error of the estimate; NaN where the log does not reach back)."""
+    garbage = detect_garbage(log)
     truth = np.asarray(log.columns['v%s_sphinx' % axis], dtype=np.float64)
     if lag:
         t = log.t
-        truth = np.where(t - lag >= t[0], np.interp(t - lag, t, truth), np.nan)
+        # garbage of the truth as NaN first: the value between two samples is only as good as both
+        truth = np.where(garbage.mask('v%s_sphinx' % axis), np.nan, truth)
+        truth = np.where(t - lag >= t[0] - 1e-9, np.interp(t - lag, t, truth), np.nan)
     b = np.asarray(log.columns['v%s_anafi' % axis], dtype=np.float64) - truth
-    return b, np.isfinite(b) & ~detect_garbage(log).mask('v%s_anafi' % axis, 'v%s_sphinx' % axis)
+    return b, np.isfinite(b) & ~garbage.mask('v%s_anafi' % axis, 'v%s_sphinx' % axis)
 
 
 VELOCITY_LAGS = tuple(np.round(np.arange(0.0, 0.2001, 0.005), 3))

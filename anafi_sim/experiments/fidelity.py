@@ -12,8 +12,9 @@ shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenari
    yet") are replaced by the hover point (the logged estimate's first position and yaw). A log that starts
    in motion (the straight lines: a steady-state segment) gets a lead-in: the first waypoint extrapolated
    backwards at its own velocity for ``lead`` s, so the controller has settled on the moving target when
-   the log begins; a stream that repeats itself (a circle, a periodic vertical motion: ``stream_period``)
-   repeats its first period backwards instead. The ``Scenario`` (``anafi_sim.experiments.trajectory``): hover at the start for
+   the log begins (no further back than it stays between 1 and 40 m up: ``straight_lead_limit``); a stream
+   that repeats itself (a circle, a periodic vertical motion: ``stream_period``) repeats its first period
+   backwards instead. The ``Scenario`` (``anafi_sim.experiments.trajectory``): hover at the start for
    ``approach`` s, the lead-in, then the replay (zero-order hold of the ticks), measured.
 2. ``run_replay``: the scenario on the in-process engine (``anafi_sim.experiments.engine.Engine``) with the
    log's controller and the given model / controller parameters / schedule, and the stand-in's estimate
@@ -360,6 +361,22 @@ def initial_state_action(plan):
     return action
 
 
+LEAD_ALTITUDES = (1.0, 40.0)     # m, the band a straight lead-in stays in (inside the controllers' 0.5-50 m)
+
+
+def straight_lead_limit(first, band=LEAD_ALTITUDES):
+    """The longest straight lead-in [s] behind the waypoint ``first`` (x, y, z, vx, vy, vz, ...) that stays in
+    the altitude ``band`` [m] (inf when it does not climb or sink): a log that starts climbing (a vertical
+    motion shorter than a period and a second) would otherwise be led in from under the ground, and its
+    replay never start."""
+    z, vz = float(first[2]), float(first[5])
+    if vz > 0.0:
+        return max(0.0, (z - band[0]) / vz)
+    if vz < 0.0:
+        return max(0.0, (band[1] - z) / -vz)
+    return float('inf')
+
+
 def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latency=None, controller=None,
                 initial_state=True, stalls=True, stored=True):
     """The ``ReplayPlan`` of ``log`` (see the module doc).
@@ -419,6 +436,8 @@ def replay_plan(log, rate=DEFAULT_RATE, lead=DEFAULT_LEAD, approach=None, latenc
         approach = APPROACH_MOVING if moving else APPROACH_STATIC
     lead_in = float(lead) if moving else 0.0
     repeat = stream_period(np.array(values, dtype=np.float64), rate) if moving else None
+    if repeat is None and moving:
+        lead_in = min(lead_in, straight_lead_limit(values[0]))
     # trajectory time tau of log time 0 must be >= lead_in; ticks at multiples of the period of tau
     first_tick_tau = math.ceil((lead_in - tick_log_time) * rate - 1e-9) * period
     first_tick_tau = max(first_tick_tau, 0.0)

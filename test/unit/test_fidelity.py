@@ -478,6 +478,25 @@ def test_stream_period_finds_a_circle_and_nothing_in_a_line_or_a_hover():
     assert F.stream_period(slow) is None
 
 
+def test_a_straight_lead_in_stays_in_the_air():
+    assert F.straight_lead_limit((0, 0, 7.0, 5.0, 0, 0.0, 0)) == float('inf')          # a level line: any length
+    assert F.straight_lead_limit((0, 0, 5.0, 0, 0, 1.0, 0)) == pytest.approx(4.0)       # climbing: from 1 m up
+    assert F.straight_lead_limit((0, 0, 5.0, 0, 0, -0.5, 0)) == pytest.approx(70.0)     # sinking: from 40 m
+    # a vertical motion shorter than a period and a second: a straight lead-in that starts above the ground
+    t = np.arange(0.0, 5.0, 0.05)
+    cols = dict((c, np.zeros_like(t)) for c in COLUMNS[1:])
+    tick = np.floor(t * 10.0 + 1e-9) / 10.0               # the waypoint stream changes at 10 Hz
+    cols['wp_z'] = 5.0 + np.sin(tick)
+    cols['wp_vz'] = np.cos(tick)
+    for source in ('sphinx', 'anafi'):
+        cols['z_' + source] = 5.0 + np.sin(t - 0.3)
+        cols['vz_' + source] = np.cos(t - 0.3)
+    plan = F.replay_plan(ReferenceLog(cols, (t * 1e9).astype(np.int64), path='vertical_r1_v1_pid.csv'))
+    assert plan.period is None and plan.moving
+    lowest = min(plan.scenario.trajectory.sample(tau).z for tau in np.arange(0.0, 10.0, 0.1))
+    assert 0.5 < lowest == pytest.approx(1.0, abs=0.15)    # 1 m up, less the rounding to a whole tick (0.1 s)
+
+
 def test_a_periodic_lead_in_repeats_the_first_period_backwards():
     values = _circle_ticks()
     trajectory = F.ReplayTrajectory(values, 20.0, period=63)

@@ -219,8 +219,8 @@ def stream_period(values, rate=DEFAULT_RATE, min_period=PERIOD_MIN, overlap=PERI
     vertical motion), or None: the smallest lag L >= ``min_period`` s, leaving at least ``overlap`` s seen
     twice, at which the rms of the position difference (values[i + L] - values[i], x y z) is below
     ``tolerance`` [m] (or 1 % of the motion's extent, the half-float step of the positions or half the motion
-    of a tick, if larger) and no larger than at the lags beside it (the bottom of its dip: a circle's period is rarely a whole number of
-    ticks). A straight line never repeats; a hover does at every lag (not moving:
+    of a tick, if larger) and no larger than at the lags beside it (the bottom of its dip: a circle's period is
+    rarely a whole number of ticks). A straight line never repeats; a hover does at every lag (not moving:
     None)."""
     v = np.asarray(values, dtype=np.float64).reshape(-1, 7)[:, :3]
     k = len(v)
@@ -885,8 +885,8 @@ def self_replay_runs(variants, scenarios=report.ALL_SCENARIOS, seed=None, worker
 
 def self_replay_table(records, variant, scenarios=report.ALL_SCENARIOS, band=None):
     """Markdown table of ``self_replay_runs`` records of ``variant``: per scenario and controller the lead-in
-    (period [s], 'straight' or none for a log that starts in a hover) and the four ratios replay / log with the default latency, then with the
-    recording's own (bold outside +-``band``, default BANDS[0])."""
+    (period [s], 'straight' or none for a log that starts in a hover) and the four ratios replay / log with the
+    default latency, then with the recording's own (bold outside +-``band``, default BANDS[0])."""
     band = BANDS[0] if band is None else band
     names = ['%s %s' % cell for cell in CELLS]
     lines = ['| scenario | controller | lead-in | ' + ' | '.join(names) + ' | latency [ms] | '

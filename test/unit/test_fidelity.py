@@ -412,7 +412,8 @@ def test_fusion_gain_variants_set_the_gain_and_its_delay():
     assert [v.name for v in out] == ['shipped_k0184', 'shipped_k1000'] and F.gain_name('x', 0.38) == 'x_k0380'
     assert out[0].model_params == {'estimate_position_fix_gain': 0.1838, 'estimate_position_fix_delay': 0.209,
                                    'other': 1}
-    assert out[1].model_params['estimate_position_fix_gain'] == 1.0 and out[1].controller_params == base.controller_params
+    assert out[1].model_params['estimate_position_fix_gain'] == 1.0
+    assert out[1].controller_params == base.controller_params
     assert base.model_params['estimate_position_fix_gain'] == 0.26          # the variant given is not changed
     with pytest.raises(ValueError):                                          # two gains, one name: refused
         F.fusion_gain_variants(base, [_profile_row(0.4996), _profile_row(0.5)])
@@ -437,8 +438,8 @@ def test_fusion_gain_rows_and_table_score_each_gain():
     text = F.fusion_gain_table(rows)
     lines = text.splitlines()
     assert len(lines) == 2 + 3
-    assert lines[2] == ('| 0.260 | shipped | 0.200 | 0.0500 / 0.0400 / 0.0600 | 1 / 2, %s | 22 / 33, %s | 0.70 / 0.70 | '
-                        '0.65-0.65 |' % (F.fmt(shipped.shared[2]), F.fmt(shipped.held[2])))
+    assert lines[2] == ('| 0.260 | shipped | 0.200 | 0.0500 / 0.0400 / 0.0600 | 1 / 2, %s | 22 / 33, %s | '
+                        '0.70 / 0.70 | 0.65-0.65 |' % (F.fmt(shipped.shared[2]), F.fmt(shipped.held[2])))
     assert lines[4].endswith('| 0 / 0, - | - | - | - |')
     assert F.mids_text({'a': float('nan'), 'b': 0.5}) == '- / 0.50' and F.mids_range({'a': float('nan')}) == '-'
     with pytest.raises(ValueError):

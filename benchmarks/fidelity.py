@@ -315,8 +315,7 @@ def main(argv=None):
                 [v for v in variants if v.name == 'shipped'][0], rows), workers=args.workers)
             scen.update(F.scenario_runs(F.fusion_gain_variants([v for v in scen_variants if v.name == 'shipped'][0],
                                                                rows),
-                                        report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
-                                        workers=args.workers, label='fusion_gain'))
+                                        F.HELD_OUT_SCENARIOS, workers=args.workers, label='fusion_gain'))
         records.update((k, strip(r)) for k, r in new.items())
         walls[step] = round(time.perf_counter() - t, 1)
         save()
@@ -550,7 +549,7 @@ def _self_replay_section(selfrep):
     default = F.self_replay_score(selfrep, 'shipped')
     own = F.self_replay_score(selfrep, 'shipped', key='ratio_latency')
     lines_ = F.self_replay_score(selfrep, 'shipped', scenarios=report.STRAIGHT)
-    periodic = report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS
+    periodic = F.HELD_OUT_SCENARIOS
     held = F.self_replay_score(selfrep, 'shipped', scenarios=periodic)
     outside = collections.Counter()               # (controller, scenario kind) of the cells outside the band
     for (v, controller, scenario), r in selfrep.items():

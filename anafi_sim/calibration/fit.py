@@ -858,7 +858,6 @@ def fusion_profile(logs, gains, rate, effective_delays=None):
     effective delay D refitted (bounded scalar search over 0..0.6 s), or held at ``effective_delays[i]`` [s]
     where that is given (not None: e.g. a model's own delay); [``FusionProfileRow``]. ``rate``: the estimate's
     rate [Hz] (the hold adds half a period to the model's delay)."""
-    from scipy.optimize import minimize_scalar
     clean = [log for log in logs if is_clean(log)]
     if not clean:
         raise ValueError('fusion_profile: no clean log')

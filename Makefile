@@ -33,7 +33,7 @@ lint: setup
 	@$(IN_ENV) catkin_lint -W1 $(ROOT)
 
 calibrate: setup
-	@$(IN_ENV) python $(ROOT)/anafi_sim/scripts/calibrate_model.py
+	@$(IN_ENV) python $(ROOT)/anafi_lab/cli/calibrate_model.py
 
 clean:
 	rm -rf $(ROOT)/.ws $(ROOT)/env.bash $(ROOT)/test_results

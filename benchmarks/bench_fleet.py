@@ -6,7 +6,7 @@ For each N in ``--sizes`` (1 2 4 8): a private ROS master, ``roslaunch anafi_sim
 6 m apart; kinematic world, one mirror per drone at 100 Hz, no evaluators), wait until every drone flies its
 scenario, ``--settle`` s, then a measurement window of ``--duration`` s of wall time:
 
-- CPU (user + sys, psutil; anafi_sim.harness.TreeCpu / CpuWindow) of every process of the launch tree
+- CPU (user + sys, psutil; anafi_sim.processes.TreeCpu / CpuWindow) of every process of the launch tree
   (and of roscore: master + rosout) by role: simulator, telemetry CLI (tlm_data_logger.py), interface,
   mirror, controller, trajectory generator, world, roslaunch; in % of one core, and per drone;
 - per drone, from the nodes' own /diagnostics at the window's ends: the simulator's real-time factor
@@ -35,7 +35,7 @@ import time
 
 import psutil
 
-from anafi_sim import harness
+from anafi_sim import processes
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, 'benchmarks', 'results', 'fleet.md')
@@ -120,8 +120,8 @@ class Bench(object):
     def __init__(self, workdir):
         import rospy
         self.workdir = workdir
-        self.procs = harness.Processes(workdir, grace=30.0)
-        uri, self.env = harness.private_master(self.procs, os.path.join(workdir, 'ros_home'),
+        self.procs = processes.Processes(workdir, grace=30.0)
+        uri, self.env = processes.private_master(self.procs, os.path.join(workdir, 'ros_home'),
                                                os.path.join(workdir, 'log'), MASTER_PORTS, join=True)
         self.port = int(uri.rsplit(':', 1)[1])
         self.core = self.procs.started[0][1]
@@ -145,13 +145,13 @@ class Bench(object):
                 snap = diag.snapshot()
                 gens = [snap.get('trajectory_generator: /%s/trajectory_generator' % d) for d in names]
                 return all(g is not None and g[2] == 'running' for g in gens)
-            harness.require(lambda: launch.poll() is None and flying(), args.start_timeout,
+            processes.require(lambda: launch.poll() is None and flying(), args.start_timeout,
                             'all %d drones flying their scenario' % n, lambda: self.procs.log_tail(name, 30))
             startup = time.time() - t_start
             time.sleep(args.settle)
             before = diag.snapshot()
-            window = harness.CpuWindow({'launch': harness.TreeCpu(launch.pid, role_of),
-                                        'core': harness.TreeCpu(self.core.pid, role_of)}, args.duration).run()
+            window = processes.CpuWindow({'launch': processes.TreeCpu(launch.pid, role_of),
+                                        'core': processes.TreeCpu(self.core.pid, role_of)}, args.duration).run()
             time.sleep(1.5)   # the diagnostics after the window
             after = diag.snapshot()
         finally:
@@ -255,7 +255,7 @@ def markdown(results, args):
              '< 70 %% of a period after the previous one is dropped; the interface stamps at receipt on the wall '
              'clock, so bursts under load are decimated) [Hz, min over the drones].'
              % (datetime.date.today().isoformat(), platform.python_version(), os.cpu_count() or 0,
-                harness.cpu_model(), args.fleet, args.settle, args.duration, HOLD['rtf'], HOLD['truth_hz']), '',
+                processes.cpu_model(), args.fleet, args.settle, args.duration, HOLD['rtf'], HOLD['truth_hz']), '',
              'The machine is shared with other jobs: the machine\'s busy share, the CPU of processes outside '
              'the fleet (busy x cores - fleet - this script) and the load average (1 min, before -> after the '
              'window; the fleet\'s own processes count in it) are next to each row.', '',

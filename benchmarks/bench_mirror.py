@@ -37,7 +37,7 @@ import time
 import numpy as np
 import psutil
 
-from anafi_sim.harness import Processes, cpu_seconds, private_master, require
+from anafi_sim.processes import Processes, cpu_seconds, private_master, require
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCRIPTS = os.path.join(ROOT, 'anafi_sim', 'scripts')

@@ -28,7 +28,7 @@ import osqp
 import scipy
 
 from anafi_control.mpc import CumulativeErrorMpc
-from anafi_sim.harness import cpu_model
+from anafi_sim.processes import cpu_model
 
 #: the numerics before the robustness fix (wrong answers after waypoint jumps, see test_mpc.py)
 OLD_NUMERICS = {'polish': False, 'verify': False, 'cum_scale': 1.0, 'accept_inaccurate': False}

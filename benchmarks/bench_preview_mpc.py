@@ -6,7 +6,7 @@
     python benchmarks/bench_preview_mpc.py airship [--workers 2]                  # follow the airship (no preview)
     python benchmarks/bench_preview_mpc.py cycle                                  # cycle time p50/p99 [ms]
 
-Every figure comes from ``anafi_sim.experiments.engine.Engine`` runs (the same cores as the ROS nodes on
+Every figure comes from ``anafi_lab.engine.engine.Engine`` runs (the same cores as the ROS nodes on
 virtual time, deterministic). Columns: e_mu against the ground truth and the estimate as the evaluator
 computes it (the waypoint of a sample = the latest 10 Hz waypoint, zero-order hold), and e_mu_ref: the
 ground truth against the scenario's continuous reference at the sample time (where the target really is;
@@ -25,8 +25,8 @@ import time
 
 import numpy as np
 
-from anafi_sim.experiments.engine import Engine
-from anafi_sim.experiments.report import ALL_SCENARIOS
+from anafi_lab.engine.engine import Engine
+from anafi_lab.paper import ALL_SCENARIOS
 
 MOVING = [s for s in ALL_SCENARIOS if not s.startswith('static')]
 STATIC = [s for s in ALL_SCENARIOS if s.startswith('static')]

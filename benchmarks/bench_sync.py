@@ -6,7 +6,7 @@ Stage: benchmark (not a timed test). For each controller, the same scenario (def
 test/ros/experiment_short.yaml) runs through ROS in lockstep once on the machine as it is ("idle": no load
 added by this script) and once with ``--hogs`` busy-loop processes (one per core by default) started here and
 stopped by id afterwards ("busy"); then once in-process with the lockstep's schedule
-(``experiment.py run --sync-schedule``, ``anafi_sim.experiments.runs.SYNC_SCHEDULE``). Reported: e_mu vs
+(``experiment.py run --sync-schedule``, ``anafi_lab.engine.runs.SYNC_SCHEDULE``). Reported: e_mu vs
 estimate and vs truth, busy / idle and ROS / in-process ratios, wall time, the simulator's lockstep figures
 (periods waited, timeouts; read from the run's /diagnostics in its bag) and the load average.
 
@@ -62,22 +62,22 @@ def run_sync(controller, out_dir, scenario_file=SHORT_SCENARIO, rtf=0.5, timeout
     mirror, bag recorded) on a private master: a dict with
     summary (the evaluator's), info (the monitor's run.yaml), lockstep (the simulator's diagnostics values),
     wall_s, log (the launch log path), files base. Every process it starts is stopped by id."""
-    from anafi_sim import harness
+    from anafi_sim import processes
     name = 'sync_%s' % controller
     os.makedirs(out_dir, exist_ok=True)
-    port = harness.free_port()
+    port = processes.free_port()
     env = dict(os.environ, ROS_MASTER_URI='http://127.0.0.1:%d' % port, ROS_HOME=os.path.join(out_dir, 'ros_home'))
-    harness.add_module_paths(env, 'osqp')
+    processes.add_module_paths(env, 'osqp')
     scenario = os.path.splitext(os.path.basename(scenario_file))[0]
     cmd = ['roslaunch', '-p', str(port), 'anafi_sim', 'experiment.launch', 'controller:=' + controller,
            'scenario:=' + scenario, 'scenario_file:=' + scenario_file, 'rtf:=%g' % rtf,
            'sync:=%s' % ('true' if sync else 'false'),
            'mirror:=false', 'record:=true', 'out_dir:=' + out_dir, 'run_name:=' + name, 'plot:=false',
-           'progress_period:=0', 'telemetry_port:=%d' % harness.free_port()] + list(extra)
+           'progress_period:=0', 'telemetry_port:=%d' % processes.free_port()] + list(extra)
     log = os.path.join(out_dir, name + '.launch.log')
     base = os.path.join(out_dir, name)
     wall0 = time.monotonic()
-    proc = harness.start(cmd, env=env, log=log)
+    proc = processes.start(cmd, env=env, log=log)
     try:
         while time.monotonic() - wall0 < timeout and proc.poll() is None:
             if os.path.exists(base + '.run.yaml') and os.path.exists(base + '.bag'):
@@ -86,7 +86,7 @@ def run_sync(controller, out_dir, scenario_file=SHORT_SCENARIO, rtf=0.5, timeout
         wall = time.monotonic() - wall0
         time.sleep(1.5)                 # the bag's last /diagnostics (1 Hz)
     finally:
-        harness.stop(proc, grace=20.0)
+        processes.stop(proc, grace=20.0)
     lockstep = lockstep_figures(base + '.bag') if os.path.exists(base + '.bag') else {}
     return {'summary': read_yaml(base + '.yaml'), 'info': read_yaml(base + '.run.yaml'), 'lockstep': lockstep,
             'wall_s': round(wall, 2), 'log': log, 'base': base}
@@ -94,7 +94,7 @@ def run_sync(controller, out_dir, scenario_file=SHORT_SCENARIO, rtf=0.5, timeout
 
 def run_inprocess(controller, out_dir, scenario_file=SHORT_SCENARIO):
     """``experiment.py run --engine inprocess --sync-schedule``: the summary dict."""
-    script = os.path.join(ROOT, 'anafi_sim', 'scripts', 'experiment.py')
+    script = os.path.join(ROOT, 'anafi_lab', 'cli', 'experiment.py')
     name = 'inprocess_%s' % controller
     subprocess.check_call([sys.executable, script, 'run', '--controller', controller, '--scenario', scenario_file,
                            '--engine', 'inprocess', '--sync-schedule', '--no-plot', '--name', name,
@@ -110,21 +110,21 @@ def e_mu(summary, source='estimate'):
 
 
 def start_hogs(n):
-    from anafi_sim import harness
-    return [harness.start([sys.executable, '-c', HOG]) for _ in range(n)]
+    from anafi_sim import processes
+    return [processes.start([sys.executable, '-c', HOG]) for _ in range(n)]
 
 
 def stop_hogs(hogs):
     """Stop the busy loops; the CPU seconds they got [s] (None without psutil)."""
-    from anafi_sim import harness
+    from anafi_sim import processes
     cpu = 0.0
     for proc in hogs:
         try:
-            times = harness.psutil.Process(proc.pid).cpu_times()
+            times = processes.psutil.Process(proc.pid).cpu_times()
             cpu += times.user + times.system
-        except (AttributeError, harness.psutil.Error if harness.psutil else OSError):
+        except (AttributeError, processes.psutil.Error if processes.psutil else OSError):
             cpu = None
-        harness.stop(proc, grace=1.0)
+        processes.stop(proc, grace=1.0)
     return round(cpu, 1) if cpu is not None and hogs else None
 
 

@@ -5,7 +5,7 @@ The paper found its distributed PID framework used 2.59x the CPU time of the MPC
 straight-line run of benchmarks/straight_line_run.py (simulated Anafi + the controller's launch file on
 a private master; climb to (0, 0, 7), then a target along +x at ``--speed``) and measures, over
 ``--duration`` s of simulated time after ``--settle`` s of tracking, the user + system CPU time
-(psutil, anafi_sim.harness.cpu_snapshot) of every process started by the controller's launch file (the
+(psutil, anafi_sim.processes.cpu_snapshot) of every process started by the controller's launch file (the
 node list comes from ``roslaunch --nodes``; pids from each node's getPid). The simulator and interface
 are not counted.
 

@@ -6,7 +6,7 @@ import subprocess
 
 import numpy as np
 
-from anafi_sim.harness import cpu_model, psutil
+from anafi_sim.processes import cpu_model, psutil
 
 
 def versions():

@@ -3,7 +3,7 @@ on a private ROS master, fed by a TelemetryServer hosted here; latency and CPU p
 
 Window A: ``interface_node.py`` alone (its ``~telemetry_command`` is the stand-in CLI
 ``tlm_data_logger.py -r 0`` pointed at our server). Window B: ``paper_interface.py`` beside it on the
-same server. CPU = user+sys of each whole process tree (harness.TreeCpu, polled every second).
+same server. CPU = user+sys of each whole process tree (processes.TreeCpu, polled every second).
 """
 import os
 import shutil
@@ -11,7 +11,7 @@ import sys
 import tempfile
 import time
 
-from anafi_sim import harness
+from anafi_sim import processes
 from anafi_sim.telemetry.protocol import key_map
 from anafi_sim.telemetry.server import TelemetryServer
 from interface_samples import flight_samples
@@ -30,7 +30,7 @@ def role_of(p, is_root):
     try:
         name = p.name()
         cmd = ' '.join(p.cmdline())
-    except harness.psutil.Error:
+    except processes.psutil.Error:
         return 'other'
     if 'tlm_data_logger' in cmd and name not in ('sh', 'dash', 'bash'):
         return 'CLI'
@@ -53,12 +53,12 @@ def bench_ros(parts, duration, rate, tcp_nodelay, log):
         raise SystemExit('roscore not found on PATH: source env.bash first')
     results = {}
     tmp = tempfile.mkdtemp(prefix='bench_interface_')
-    procs = harness.Processes(tmp)
+    procs = processes.Processes(tmp)
     server = TelemetryServer(host='127.0.0.1', port=0)
     feeder = None
     ros_started = False
     try:
-        uri, env = harness.private_master(procs, tmp, join=True)
+        uri, env = processes.private_master(procs, tmp, join=True)
         log('roscore at %s (logs in %s)' % (uri, tmp))
         rospy.init_node('bench_interface', disable_signals=True)
         ros_started = True
@@ -76,14 +76,14 @@ def bench_ros(parts, duration, rate, tcp_nodelay, log):
         node_env = dict(env, ROS_NAMESPACE='/anafi')
         log('starting interface_node.py (telemetry command: %s inet:127.0.0.1:%d)' % (cli, port))
         node = procs.start('interface', [sys.executable, NODE_SCRIPT, '__name:=interface'], node_env)
-        harness.require(lambda: ours_rx.count_since(time.time() - 1.0) > 0.8 * rate, 30, 'interface messages',
+        processes.require(lambda: ours_rx.count_since(time.time() - 1.0) > 0.8 * rate, 30, 'interface messages',
                         lambda: procs.log_tail('interface'))
         time.sleep(3.0)  # warm-up
-        ours_tree = harness.TreeCpu(node.pid, role_of)
+        ours_tree = processes.TreeCpu(node.pid, role_of)
 
         if 'interface' in parts:
             log('window A: interface alone, %.0f s ...' % duration)
-            win = harness.CpuWindow({'ours': ours_tree}, duration).run()
+            win = processes.CpuWindow({'ours': ours_tree}, duration).run()
             results['A'] = dict(window=win, ours=analyse(ours_rx.rx, win.t0, win.t1, feeder),
                                 clients=server.client_count)
         if 'paper' in parts:
@@ -96,13 +96,13 @@ def bench_ros(parts, duration, rate, tcp_nodelay, log):
             paper = procs.start('paper', [sys.executable, PAPER_SCRIPT, '__name:=paper_interface'],
                                 dict(env, ROS_NAMESPACE='/paper'))
             n_keys = len(key_map())
-            harness.require(lambda: server.client_count >= 1 + n_keys and paper_rx.rx and
+            processes.require(lambda: server.client_count >= 1 + n_keys and paper_rx.rx and
                             paper_rx.rx[-1][1].timeStamp > 0 and
                             paper_rx.count_since(time.time() - 1.0) > 0.8 * rate, 60, 'paper pipelines',
                             lambda: procs.log_tail('paper'))
             time.sleep(3.0)
             log('window B: ours and the paper\'s side by side, %.0f s ...' % duration)
-            win = harness.CpuWindow({'ours': ours_tree, 'paper': harness.TreeCpu(paper.pid, role_of)},
+            win = processes.CpuWindow({'ours': ours_tree, 'paper': processes.TreeCpu(paper.pid, role_of)},
                                     duration).run()
             results['B'] = dict(window=win, ours=analyse(ours_rx.rx, win.t0, win.t1, feeder),
                                 paper=analyse(paper_rx.rx, win.t0, win.t1, feeder), clients=server.client_count)

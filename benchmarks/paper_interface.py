@@ -18,7 +18,7 @@ with the angular velocity (the reference's bug does not change the cost).
 Parameters: ~cli (command printing the telemetry, without its endpoint;
 default ``tlm_data_logger.py -r 0``), ~host (127.0.0.1), ~port (9060),
 ~prefix (omniscient_anafi.), ~rate (100 Hz). Every pipeline runs in its own
-process group, stopped on shutdown (anafi_sim.harness.stop).
+process group, stopped on shutdown (anafi_sim.processes.stop).
 """
 import shlex
 import subprocess
@@ -27,7 +27,7 @@ import threading
 
 import rospy
 
-from anafi_sim import harness
+from anafi_sim import processes
 from anafi_sim.msg import DroneData
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, key_map
 
@@ -95,7 +95,7 @@ class PaperInterface(object):
         if self.timer is not None:
             self.timer.shutdown()
         for proc in self.procs:
-            harness.stop(proc, grace=1.0)
+            processes.stop(proc, grace=1.0)
 
 
 def main():

@@ -28,7 +28,7 @@ import time
 
 import psutil
 
-from anafi_sim import harness
+from anafi_sim import processes
 
 BENCH = os.path.dirname(os.path.abspath(__file__))
 RESULTS = os.path.join(BENCH, 'results')
@@ -139,26 +139,26 @@ def main(argv=None):
     args = ap.parse_args(argv)
 
     workdir = tempfile.mkdtemp(prefix='anafi_soak_')
-    procs = harness.Processes(workdir, grace=20.0)
+    procs = processes.Processes(workdir, grace=20.0)
     bag = os.path.join(workdir, 'soak.bag')
     rows = []
     started = datetime.datetime.utcnow()
     watcher = None
     result = {}
     try:
-        uri, env = harness.private_master(procs, os.path.join(workdir, 'ros_home'), os.path.join(workdir, 'log'),
+        uri, env = processes.private_master(procs, os.path.join(workdir, 'ros_home'), os.path.join(workdir, 'log'),
                                           join=True)
         port = int(uri.rsplit(':', 1)[1])
         launch = os.path.join(workdir, 'soak.launch')
         with open(launch, 'w') as f:
-            f.write(LAUNCH.format(drone=DRONE, telemetry_port=harness.free_port(), scenario=args.scenario, bag=bag,
+            f.write(LAUNCH.format(drone=DRONE, telemetry_port=processes.free_port(), scenario=args.scenario, bag=bag,
                                   bag_topics=' '.join('/%s/%s' % (DRONE, t) for t in BAG_TOPICS)))
         procs.start('roslaunch', ['roslaunch', '--port', str(port), launch], env)
-        if not harness.wait_for(lambda: all(harness.node_pid(n, uri) for n in NODES), 120.0, 0.5):
-            missing = [n for n in NODES if not harness.node_pid(n, uri)]
+        if not processes.wait_for(lambda: all(processes.node_pid(n, uri) for n in NODES), 120.0, 0.5):
+            missing = [n for n in NODES if not processes.node_pid(n, uri)]
             raise SystemExit('nodes did not come up: %s\n%s' % (missing, procs.log_tail('roslaunch', 40)))
         watcher = Watcher()
-        pids = dict((n, harness.node_pid(n, uri)) for n in NODES)
+        pids = dict((n, processes.node_pid(n, uri)) for n in NODES)
         ps = dict((n, psutil.Process(p)) for n, p in pids.items())
         for p in ps.values():
             p.cpu_percent(None)
@@ -201,7 +201,7 @@ def main(argv=None):
             sys.stdout.flush()
         _, diag, _ = watcher.snapshot()
         published_end = value_of(find_diag(diag, '/%s/interface' % DRONE), 'samples published')
-        alive = dict((n, bool(harness.node_pid(n, uri))) for n in NODES)
+        alive = dict((n, bool(processes.node_pid(n, uri))) for n in NODES)
     finally:
         if watcher is not None:
             watcher.close()

@@ -20,7 +20,7 @@ Prints a Markdown table next to the paper's rows and writes benchmarks/results/s
 
 Run inside the workspace's environment (``source env.bash``):
     python benchmarks/straight_line.py --controller pid --speeds 1 2 3 4 5 [--rtf 2]
-One speed at a time; everything started is stopped at the end (anafi_sim.harness). A run is
+One speed at a time; everything started is stopped at the end (anafi_sim.processes). A run is
 straight_line_run.py (private master + launch files), the flying and measuring straight_line_worker.py;
 ``benchmarks/cpu_usage.py`` reuses both for the CPU comparison.
 """
@@ -33,7 +33,7 @@ import sys
 import tempfile
 import time
 
-from anafi_sim.experiments.report import PAPER_TABLE3
+from anafi_lab.paper import PAPER_TABLE3
 from straight_line_run import RESULTS, ROOT, controller_launch_path, run_speed
 
 PAPER_SPEEDS = (1.0, 2.0, 3.0, 4.0, 5.0)

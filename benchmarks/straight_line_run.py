@@ -10,7 +10,7 @@ import subprocess
 import sys
 import time
 
-from anafi_sim import harness
+from anafi_sim import processes
 
 BENCH = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(BENCH)
@@ -57,13 +57,13 @@ class RosRun(object):
     def __init__(self, args, workdir):
         self.args = args
         self.workdir = workdir
-        self.procs = harness.Processes(workdir, grace=20.0)   # roslaunch stops its nodes one by one
+        self.procs = processes.Processes(workdir, grace=20.0)   # roslaunch stops its nodes one by one
         self.env = None
         self.launch_file = None
 
     def __enter__(self):
         try:
-            uri, self.env = harness.private_master(self.procs, os.path.join(self.workdir, 'ros_home'),
+            uri, self.env = processes.private_master(self.procs, os.path.join(self.workdir, 'ros_home'),
                                                    os.path.join(self.workdir, 'ros_log'), MASTER_PORTS)
             self.port = int(uri.rsplit(':', 1)[1])
             self.launch_file = self._write_launch()
@@ -83,7 +83,7 @@ class RosRun(object):
         with open(path, 'w') as f:
             f.write(LAUNCH_TEMPLATE.format(
                 drone=args.drone, sim_time='true' if not args.wall_clock else 'false',
-                rtf=1.0 if args.wall_clock else args.rtf, telemetry_port=harness.free_port(),
+                rtf=1.0 if args.wall_clock else args.rtf, telemetry_port=processes.free_port(),
                 controller_launch=controller_launch_path(args), state_topic=args.state_topic,
                 extra_args=extra))
         return path

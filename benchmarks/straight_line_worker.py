@@ -16,7 +16,7 @@ import sys
 import threading
 import time
 
-from anafi_sim import harness
+from anafi_sim import processes
 
 ALTITUDE = 7.0
 GARBAGE_LIMIT = 1.0e4      # m: a coordinate beyond this is a logging artefact (cf. z_anafi = 65280)
@@ -90,7 +90,7 @@ def worker(opts):
             sent.append((t, wp[0], wp[1], wp[2]))
 
     def wait(pred, what, wall=120.0):
-        harness.require(pred, wall, what, step=0.05)
+        processes.require(pred, wall, what, step=0.05)
 
     def wait_sim(seconds):
         t_end = rospy.get_time() + seconds
@@ -131,13 +131,13 @@ def worker(opts):
     with lock:
         recording['on'] = True
     wait_sim(opts.settle)
-    cpu0 = harness.cpu_snapshot(node_pids(opts.cpu_nodes)) if opts.cpu_nodes else None
+    cpu0 = processes.cpu_snapshot(node_pids(opts.cpu_nodes)) if opts.cpu_nodes else None
     t_m0 = rospy.get_time()
     wall_m0 = time.time()
     wait_sim(opts.measure)
     t_m1 = rospy.get_time()
     wall_m1 = time.time()
-    cpu1 = harness.cpu_snapshot(node_pids(opts.cpu_nodes)) if opts.cpu_nodes else None
+    cpu1 = processes.cpu_snapshot(node_pids(opts.cpu_nodes)) if opts.cpu_nodes else None
     wait_sim(1.0)              # samples stamped inside the window that are still in flight
     with lock:
         recording['on'] = False
@@ -163,7 +163,7 @@ def worker(opts):
                        'ez': stats([wz - z for _, _, _, z, _, _, wz, _ in rows]),
                        'delivery_lag': stats([r[7] for r in rows])}
     if cpu0 is not None:
-        result['cpu'] = harness.cpu_delta(cpu0, cpu1)
+        result['cpu'] = processes.cpu_delta(cpu0, cpu1)
     rospy.signal_shutdown('done')
     with open(opts.out, 'w') as f:
         json.dump(result, f, indent=1)
@@ -197,7 +197,7 @@ def node_pids(node_names):
     """{node name: pid} through each node's XML-RPC getPid (works for any launch file's nodes)."""
     pids = {}
     for name in node_names:
-        pid = harness.node_pid(name, caller=CALLER)
+        pid = processes.node_pid(name, caller=CALLER)
         if pid is None:
             raise RuntimeError('node %s is not running' % name)
         pids[name] = pid

@@ -7,7 +7,7 @@
 # which it was: green "[demo] finished" for a clean end, a red line naming the REQUIRED node and how it
 # died otherwise (then the exit status is 1).
 set -euo pipefail
-port=$(python -c 'from anafi_sim.harness import free_port; print(free_port())')
+port=$(python -c 'from anafi_sim.processes import free_port; print(free_port())')
 export ROS_MASTER_URI="http://127.0.0.1:$port"
 export ROS_HOSTNAME=127.0.0.1
 echo "[demo] ROS master at $ROS_MASTER_URI"

@@ -2,7 +2,7 @@
 """Plot a recorded airship-formation run (airship_formation.launch): the three tracks and their errors.
 
 Reads, in RUN_DIR (the launch's out_dir): each drone's evaluator CSV ``<drone>.csv`` (reference-log columns:
-ground truth x/y/z_sphinx, the waypoint wp_x/y/z; anafi_sim.experiments.reference_log) and, when present,
+ground truth x/y/z_sphinx, the waypoint wp_x/y/z; anafi_sim.mission.reference_log) and, when present,
 ``airship.bag`` (/airship/odom). Figure: top, the xy tracks (the drones' estimates, the paper's metric, or
 with --source sphinx ground truth; solid) with their waypoints (dashed) and the airship's path; bottom,
 e = |waypoint - drone| [m] over time per drone, from the
@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
-from anafi_sim.experiments.reference_log import read_log  # noqa: E402
+from anafi_sim.mission.reference_log import read_log  # noqa: E402
 
 COLOURS = {'left': 'tab:blue', 'right': 'tab:orange', 'behind': 'tab:green'}
 

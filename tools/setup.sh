@@ -70,7 +70,7 @@ link_package "$WS/src/anafi_sim"
 # Re-run cmake when the set of files CMake globs changes, and always once more
 # after the very first configure: Debian's catkin caches PYTHONPATH at configure
 # time and the first configure of a fresh workspace misses devel/lib/python3.
-sig=$(cd "$ROOT" && { cat CMakeLists.txt package.xml setup.py; ls msg cfg anafi_sim/scripts test/ros 2>/dev/null; ls "$WS/src/anafi_sim"; echo "$VENV"; } | md5sum | cut -d' ' -f1)
+sig=$(cd "$ROOT" && { cat CMakeLists.txt package.xml setup.py; ls msg cfg anafi_sim/scripts anafi_lab/cli test/ros 2>/dev/null; ls "$WS/src/anafi_sim"; echo "$VENV"; } | md5sum | cut -d' ' -f1)
 old_sig=$(cat "$WS/.configure_signature" 2>/dev/null || true)
 # The venv's python (Debian's python3 + system site packages + osqp) runs the
 # nodes: catkin writes it into the devel-space relay scripts' shebangs.

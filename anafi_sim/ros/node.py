@@ -20,7 +20,7 @@ between nodes keep working.
 
 Also: ``log_lines`` (a core's (level, text) log lines), ``wait_for_clock`` (until /clock runs under
 /use_sim_time), ``run_until_interrupted`` (the run() of nodes that clean up through ROS on SIGINT /
-SIGTERM). Default topic names: ``anafi_sim.ros.topics``.
+SIGTERM). Default topic names: ``anafi_sim.names``.
 """
 import os
 import signal
@@ -35,7 +35,7 @@ import rospy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from anafi_sim.interface import ground_truth
-from anafi_sim.ros import topics
+from anafi_sim import names
 from anafi_sim.ros.params import ParamReader
 from anafi_sim.sim.clock import aligned_start
 
@@ -101,7 +101,7 @@ def health_status(name, health, hardware_id='', extra_values=()):
 
 def diagnostics_publisher(queue_size=10):
     """The /diagnostics publisher."""
-    return rospy.Publisher(topics.DIAGNOSTICS, DiagnosticArray, queue_size=queue_size)
+    return rospy.Publisher(names.DIAGNOSTICS, DiagnosticArray, queue_size=queue_size)
 
 
 def publish_diagnostics(pub, statuses, stamp=None):

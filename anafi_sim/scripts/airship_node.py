@@ -22,7 +22,8 @@ from anafi_control import frames
 from anafi_sim import paths
 from anafi_sim.gazebo.airship_path import SHAPES, AirshipPath
 from anafi_sim.gazebo.spawn import SpawnDriver, SpawnTracker
-from anafi_sim.ros import conversions, gazebo_types, topics
+from anafi_sim import names
+from anafi_sim.ros import conversions, gazebo_types
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, log_lines, private_params, run_node,
                                 run_until_interrupted, start_diagnostics_thread)
 
@@ -34,7 +35,7 @@ def read_params():
         'model_name': r.string('model_name', 'airship', allow_empty=False).strip('/'),
         'rate': r.positive('rate', 50.0),
         'retry_period': r.positive('retry_period', 1.0),
-        'gazebo_namespace': r.string('gazebo_namespace', topics.GAZEBO_NAMESPACE).rstrip('/'),
+        'gazebo_namespace': r.string('gazebo_namespace', names.GAZEBO_NAMESPACE).rstrip('/'),
     }
     path_args = dict((k, r.number(k, d)) for k, d in (
         ('size', 20.0), ('period', 120.0), ('altitude', 10.0), ('z_amplitude', 1.0), ('z_period', 60.0),
@@ -53,8 +54,8 @@ class AirshipNode(object):
     def __init__(self):
         self.p = p = read_params()
         ns = p['gazebo_namespace']
-        self.spawn_service = topics.gazebo(topics.SPAWN_URDF_MODEL, ns)
-        self.delete_service = topics.gazebo(topics.DELETE_MODEL, ns)
+        self.spawn_service = names.gazebo(names.SPAWN_URDF_MODEL, ns)
+        self.delete_service = names.gazebo(names.DELETE_MODEL, ns)
         self.ModelState = gazebo_types.model_state_class()
         master = rosgraph.Master(rospy.get_name())
         self.spawner = SpawnDriver(
@@ -62,10 +63,10 @@ class AirshipNode(object):
             contact=lambda timeout: rospy.wait_for_service(self.spawn_service, timeout=timeout),
             lookup=lambda: master.lookupService(self.spawn_service), spawn=self._spawn, delete=self._delete,
             service=self.spawn_service, label='airship', check_period=p['retry_period'], absent_log_period=10.0)
-        self.state_pub = rospy.Publisher(topics.gazebo(topics.SET_MODEL_STATE, ns), self.ModelState, queue_size=10,
+        self.state_pub = rospy.Publisher(names.gazebo(names.SET_MODEL_STATE, ns), self.ModelState, queue_size=10,
                                          tcp_nodelay=True)
         self.odom_pub = rospy.Publisher('/%s/odom' % p['model_name'], Odometry, queue_size=10)
-        rospy.Subscriber(topics.gazebo(topics.MODEL_STATES, ns), gazebo_types.model_states_class(),
+        rospy.Subscriber(names.gazebo(names.MODEL_STATES, ns), gazebo_types.model_states_class(),
                          lambda msg: self.spawner.on_model_states(msg.name, time.monotonic()), queue_size=1)
         self.t0 = None
         self.published = 0

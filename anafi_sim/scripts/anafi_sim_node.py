@@ -36,7 +36,8 @@ from std_msgs.msg import Empty, Float32, String
 
 from anafi_control.frames import euler_to_quaternion
 from anafi_sim import paths
-from anafi_sim.ros import conversions, topics
+from anafi_sim import names
+from anafi_sim.ros import conversions
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 start_diagnostics_thread)
 from anafi_sim.ros.wire_types import piloting_command_class
@@ -107,7 +108,7 @@ class AnafiSimNode(object):
         if use_sim_time and not publish_clock:
             rospy.loginfo('anafi_sim: /use_sim_time is set and ~publish_clock is false: waiting for /clock')
             try:
-                rospy.wait_for_message(topics.CLOCK, Clock, timeout=5.0)
+                rospy.wait_for_message(names.CLOCK, Clock, timeout=5.0)
             except (rospy.ROSException, rospy.ROSInterruptException):
                 raise ValueError('/use_sim_time is true but nobody publishes /clock: set ~publish_clock '
                                  'true (this node then provides the simulation clock) or unset /use_sim_time')
@@ -129,21 +130,21 @@ class AnafiSimNode(object):
             rospy.on_shutdown(lockstep.close)
 
         pub = rospy.Publisher
-        self.pub_clock = pub(topics.CLOCK, Clock, queue_size=10) if publish_clock else None
-        self.pub_odom = pub(base + topics.ESTIMATE, Odometry, queue_size=10)
-        self.pub_pose = pub(base + topics.POSE_ENU, PoseStamped, queue_size=10)
-        self.pub_attitude = pub(base + topics.ATTITUDE, QuaternionStamped, queue_size=10)
-        self.pub_speed = pub(base + topics.SPEED, Vector3Stamped, queue_size=10)
-        self.pub_altitude = pub(base + topics.ALTITUDE, Float32, queue_size=10)
-        self.pub_rpy = pub(base + topics.RPY, Vector3Stamped, queue_size=10)
-        self.pub_camera = pub(base + topics.CAMERA_ATTITUDE, QuaternionStamped, queue_size=10)
-        self.pub_state = pub(base + topics.DRONE_STATE, String, queue_size=1, latch=True)
-        self.pub_truth = pub(base + topics.SIM_TRUTH, Odometry, queue_size=20)
+        self.pub_clock = pub(names.CLOCK, Clock, queue_size=10) if publish_clock else None
+        self.pub_odom = pub(base + names.ESTIMATE, Odometry, queue_size=10)
+        self.pub_pose = pub(base + names.POSE_ENU, PoseStamped, queue_size=10)
+        self.pub_attitude = pub(base + names.ATTITUDE, QuaternionStamped, queue_size=10)
+        self.pub_speed = pub(base + names.SPEED, Vector3Stamped, queue_size=10)
+        self.pub_altitude = pub(base + names.ALTITUDE, Float32, queue_size=10)
+        self.pub_rpy = pub(base + names.RPY, Vector3Stamped, queue_size=10)
+        self.pub_camera = pub(base + names.CAMERA_ATTITUDE, QuaternionStamped, queue_size=10)
+        self.pub_state = pub(base + names.DRONE_STATE, String, queue_size=1, latch=True)
+        self.pub_truth = pub(base + names.SIM_TRUTH, Odometry, queue_size=20)
         self.pub_diag = diagnostics_publisher(queue_size=5)
 
-        rospy.Subscriber(base + topics.COMMAND, piloting_command_class(), self._on_rpyt, queue_size=20)
-        rospy.Subscriber(base + topics.TAKEOFF, Empty, lambda _: self.sim.on_event('takeoff'), queue_size=5)
-        rospy.Subscriber(base + topics.LAND, Empty, lambda _: self.sim.on_event('land'), queue_size=5)
+        rospy.Subscriber(base + names.COMMAND, piloting_command_class(), self._on_rpyt, queue_size=20)
+        rospy.Subscriber(base + names.TAKEOFF, Empty, lambda _: self.sim.on_event('takeoff'), queue_size=5)
+        rospy.Subscriber(base + names.LAND, Empty, lambda _: self.sim.on_event('land'), queue_size=5)
         rospy.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz)%s%s',
                       self.drone, rate, rtf, host, self.server.port, telemetry_rate,
                       ', publishing /clock' if publish_clock else '',

@@ -61,7 +61,7 @@ from anafi_sim.cfg import MpcConfig
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG
 from anafi_sim.sim.drone_model import DEFAULT_MODEL_FILE, load_model_params
 from anafi_sim.msg import MpcStats
-from anafi_sim.ros import topics
+from anafi_sim import names
 from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 sleep_until_aligned, start_diagnostics_thread)
@@ -136,7 +136,7 @@ class MpcAdapter(Adapter):
                           'solve per dt)', self.label, self.node.rate, core.mpc.dt)
         self.pub_pred = rospy.Publisher('mpc/predicted_path', Path, queue_size=2)
         self.pub_ref = rospy.Publisher('mpc/reference_path', Path, queue_size=2)
-        self.pub_stats = rospy.Publisher(topics.MPC_STATS, MpcStats, queue_size=10)
+        self.pub_stats = rospy.Publisher(names.MPC_STATS, MpcStats, queue_size=10)
         self.reconfigure_server = Server(MpcConfig, self._on_reconfigure)
         rospy.loginfo('%s: N=%d, dt=%.2f s', self.label, core.mpc.N, core.mpc.dt)
 
@@ -354,9 +354,9 @@ class ControllerNode(object):
         self.command_rate = None if self.core.COMMAND_RATE is None else \
             p.positive('command_rate', self.core.COMMAND_RATE)
         self.timer_phase = p.number('timer_phase', TIMER_PHASES['controller'])
-        state_topic = p.ros_name('state_topic', topics.ESTIMATE)
-        waypoint_topic = p.ros_name('waypoint_topic', topics.WAYPOINT)
-        command_topic = p.ros_name('command_topic', topics.COMMAND)
+        state_topic = p.ros_name('state_topic', names.ESTIMATE)
+        waypoint_topic = p.ros_name('waypoint_topic', names.WAYPOINT)
+        command_topic = p.ros_name('command_topic', names.COMMAND)
         self.lock = threading.Lock()
         self.last_key = None
         self.commands = self.hover_commands = self.silent_cycles = 0

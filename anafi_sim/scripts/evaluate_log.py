@@ -2,7 +2,7 @@
 """Evaluate recorded flights: e_max, e_mu, e_sigma of e = |waypoint - drone position| per file.
 
 Stage: (recorded waypoint, estimate, ground truth) -> tracking-error summary,
-offline. Same core as the live evaluator (anafi_sim.experiments.evaluation).
+offline. Same core as the live evaluator (anafi_sim.mission.evaluation).
 
     evaluate_log.py FILE... [--window T0 T1] [--drone NAME] [--yaml OUT] [--csv-dir DIR]
                     [--receive-time] [--min-altitude M] [--fail-on-garbage]
@@ -26,8 +26,8 @@ import sys
 
 import yaml
 
-from anafi_sim.experiments.evaluation import evaluate_bag, evaluate_csv
-from anafi_sim.experiments.reference_log import write_log
+from anafi_sim.mission.evaluation import evaluate_bag, evaluate_csv
+from anafi_sim.mission.reference_log import write_log
 
 
 def evaluate_file(path, args):

@@ -2,7 +2,7 @@
 """Live tracking-error evaluator node: e = |waypoint - drone position| over the measured segment.
 
 Stage: (waypoint, estimate, ground truth) -> tracking-error summary. Thin
-node over anafi_sim.experiments.evaluation.LiveEvaluator (same code as evaluate_log.py
+node over anafi_sim.mission.evaluation.LiveEvaluator (same code as evaluate_log.py
 for bags and CSV). Topics relative to the node's namespace (/<drone>/):
 
 - in ~waypoint_topic (position_control/waypoint, anafi_sim/Waypoint),
@@ -33,10 +33,10 @@ import yaml
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
-from anafi_sim.experiments.evaluation import LiveEvaluator, stamp_ns, summary_markdown
+from anafi_sim.mission.evaluation import LiveEvaluator, stamp_ns, summary_markdown
 from anafi_sim.msg import Waypoint
-from anafi_sim.experiments.reference_log import write_log
-from anafi_sim.ros import topics
+from anafi_sim.mission.reference_log import write_log
+from anafi_sim import names
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params,
                                 publish_diagnostics, run_node)
 
@@ -59,11 +59,11 @@ class EvaluatorNode(object):
         self.end_seen_at = None
         self.finished = False
         self.errors = 0
-        self.pub = rospy.Publisher(topics.EVALUATION_SUMMARY, String, queue_size=2, latch=True)
+        self.pub = rospy.Publisher(names.EVALUATION_SUMMARY, String, queue_size=2, latch=True)
         self.pub_diag = diagnostics_publisher(queue_size=5)
         inputs = dict((k, p.string('%s_topic' % k, d, allow_empty=(k == 'truth'))) for k, d in (
-            ('waypoint', topics.WAYPOINT), ('estimate', topics.ESTIMATE), ('truth', topics.GROUND_TRUTH),
-            ('begin', topics.TRAJECTORY_BEGIN), ('end', topics.TRAJECTORY_END)))
+            ('waypoint', names.WAYPOINT), ('estimate', names.ESTIMATE), ('truth', names.GROUND_TRUTH),
+            ('begin', names.TRAJECTORY_BEGIN), ('end', names.TRAJECTORY_END)))
         rospy.Subscriber(inputs['waypoint'], Waypoint, self._on_waypoint, queue_size=50)
         rospy.Subscriber(inputs['estimate'], Odometry, self._on_estimate, queue_size=100)
         if inputs['truth']:

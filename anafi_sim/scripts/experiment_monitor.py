@@ -2,7 +2,7 @@
 """Experiment monitor node: starts the scenario when everything is up, prints live progress, ends the run.
 
 Stage: experiment orchestration (experiment.launch, demo.launch). Thin node over
-anafi_sim.experiments.monitor.ExperimentMonitor. Topics relative to the node's namespace (/<drone>/):
+anafi_sim.mission.monitor.ExperimentMonitor. Topics relative to the node's namespace (/<drone>/):
 
 - in drone/state (std_msgs/String), drone/rpyt (olympe_bridge/PilotingCommand: non-zero commands
   counted, the controller is up and engaged; while the scenario runs, hover (all-zero) commands and
@@ -21,7 +21,7 @@ anafi_sim.experiments.monitor.ExperimentMonitor. Topics relative to the node's n
 Every ~progress_period s of wall time (1.0; 0 = quiet) one progress line on stdout. When the
 evaluator's summary is final, the node waits (<= ~evaluator_exit_timeout s wall, 15) for
 ~evaluator_node to exit (it writes ~csv_file and ~summary_file), draws ~plot_file from the CSV
-(anafi_sim.experiments.plots; '' = no plot), writes ~info_file (YAML: anafi_sim.experiments.monitor run_info:
+(anafi_sim.mission.plots; '' = no plot), writes ~info_file (YAML: anafi_sim.mission.monitor run_info:
 durations, achieved real-time factor, simulator overruns, MPC solve times, controller CPU time of the
 nodes matching ~controller_nodes, fnmatch patterns of absolute node names), prints the summary and
 shuts down (exit 0; 1 on failure: not ready within ~ready_timeout s wall (90), the scenario not ending
@@ -43,11 +43,11 @@ from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
-from anafi_sim import harness
-from anafi_sim.experiments.monitor import FAILED, FINAL, ExperimentMonitor, summary_lines
-from anafi_sim.experiments.trajectory import SCENARIO_DIR, load_scenario
+from anafi_sim import processes
+from anafi_sim.mission.monitor import FAILED, FINAL, ExperimentMonitor, summary_lines
+from anafi_sim.mission.trajectory import SCENARIO_DIR, load_scenario
 from anafi_sim.msg import MpcStats, Waypoint
-from anafi_sim.ros import topics
+from anafi_sim import names
 from anafi_sim.ros.node import private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
 
@@ -91,26 +91,26 @@ class ExperimentMonitorNode(object):
         self.evaluator_node = rospy.resolve_name(p.string('evaluator_node', 'evaluator'))
         self.files = dict((k, p.string('%s_file' % k, '')) for k in ('summary', 'csv', 'plot', 'info', 'bag'))
         self.hold = p.flag('hold', True)
-        self.waypoint_topic = rospy.resolve_name(topics.WAYPOINT)
+        self.waypoint_topic = rospy.resolve_name(names.WAYPOINT)
         self.lock = threading.Lock()
         self.master = rosgraph.Master(rospy.get_name())
         self.controller_pids = []
         self.evaluator_pid = None
-        self.pub_start = rospy.Publisher(p.string('start_topic', topics.TRAJECTORY_COMMAND), String, queue_size=1,
+        self.pub_start = rospy.Publisher(p.string('start_topic', names.TRAJECTORY_COMMAND), String, queue_size=1,
                                          latch=True)
-        rospy.Subscriber(topics.DRONE_STATE, String, self._on_state, queue_size=5)
+        rospy.Subscriber(names.DRONE_STATE, String, self._on_state, queue_size=5)
         self.hold_point = self.scenario.waypoint(0.0)
-        self.pub_waypoint = rospy.Publisher(topics.WAYPOINT, Waypoint, queue_size=5)
+        self.pub_waypoint = rospy.Publisher(names.WAYPOINT, Waypoint, queue_size=5)
         self.last_hold = None
-        rospy.Subscriber(topics.COMMAND, piloting_command_class(), self._on_command, queue_size=5)
-        rospy.Subscriber(topics.WAYPOINT, Waypoint, self._on_waypoint, queue_size=1)
-        rospy.Subscriber(topics.ESTIMATE, Odometry, self._on_estimate, queue_size=1)
-        rospy.Subscriber(topics.TRAJECTORY_STATUS, String, self._on_status, queue_size=5)
-        rospy.Subscriber(topics.TRAJECTORY_BEGIN, Header, self._on_begin, queue_size=5)
-        rospy.Subscriber(topics.TRAJECTORY_END, Header, self._on_end, queue_size=5)
-        rospy.Subscriber(topics.EVALUATION_SUMMARY, String, self._on_summary, queue_size=5)
-        rospy.Subscriber(topics.MPC_STATS, MpcStats, self._on_mpc_stats, queue_size=20)
-        rospy.Subscriber(topics.DIAGNOSTICS, DiagnosticArray, self._on_diagnostics, queue_size=20)
+        rospy.Subscriber(names.COMMAND, piloting_command_class(), self._on_command, queue_size=5)
+        rospy.Subscriber(names.WAYPOINT, Waypoint, self._on_waypoint, queue_size=1)
+        rospy.Subscriber(names.ESTIMATE, Odometry, self._on_estimate, queue_size=1)
+        rospy.Subscriber(names.TRAJECTORY_STATUS, String, self._on_status, queue_size=5)
+        rospy.Subscriber(names.TRAJECTORY_BEGIN, Header, self._on_begin, queue_size=5)
+        rospy.Subscriber(names.TRAJECTORY_END, Header, self._on_end, queue_size=5)
+        rospy.Subscriber(names.EVALUATION_SUMMARY, String, self._on_summary, queue_size=5)
+        rospy.Subscriber(names.MPC_STATS, MpcStats, self._on_mpc_stats, queue_size=20)
+        rospy.Subscriber(names.DIAGNOSTICS, DiagnosticArray, self._on_diagnostics, queue_size=20)
         self.sim_status_prefix = 'anafi_sim: simulated Anafi'
         self._say('%s: scenario %s (%.1f s of simulation time); waiting for the drone, the controller and %s'
                   % (self.label, self.scenario.name, self.scenario.duration,
@@ -177,14 +177,14 @@ class ExperimentMonitorNode(object):
         except Exception:       # master busy or gone: not ready yet
             return False
         nodes = set()
-        for topic, names in subs:
+        for topic, subscribers in subs:
             if topic == self.waypoint_topic:
-                nodes.update(names)
+                nodes.update(subscribers)
         return all(n in nodes for n in self.wait_subscribers)
 
     def _node_pid(self, name):
         """Process id of node ``name`` (its getPid XML-RPC call), None when unknown."""
-        return harness.node_pid(name, master_uri=rosgraph.get_master_uri(), caller=rospy.get_name())
+        return processes.node_pid(name, master_uri=rosgraph.get_master_uri(), caller=rospy.get_name())
 
     def _find_controller_pids(self):
         if not self.controller_patterns or psutil is None:
@@ -193,18 +193,18 @@ class ExperimentMonitorNode(object):
             pubs, subs, srvs = self.master.getSystemState()
         except Exception:
             return []
-        names = set()
+        found = set()
         for group in (pubs, subs, srvs):
             for _, nodes in group:
-                names.update(nodes)
-        pids = [self._node_pid(n) for n in sorted(names)
+                found.update(nodes)
+        pids = [self._node_pid(n) for n in sorted(found)
                 if any(fnmatch.fnmatch(n, p) for p in self.controller_patterns)]
         return sorted(set(p for p in pids if p is not None))
 
     def _controller_cpu(self):
         if not self.controller_pids or psutil is None:
             return None
-        seconds = [harness.cpu_seconds(pid) for pid in self.controller_pids]
+        seconds = [processes.cpu_seconds(pid) for pid in self.controller_pids]
         return sum(c for c in seconds if math.isfinite(c))
 
     def _wait_for_evaluator_exit(self):
@@ -240,7 +240,7 @@ class ExperimentMonitorNode(object):
         if self.files['plot'] and self.files['csv']:
             if os.path.isfile(self.files['csv']):
                 try:
-                    from anafi_sim.experiments.plots import plot_run
+                    from anafi_sim.mission.plots import plot_run
                     plot_run(self.files['csv'], self.files['plot'], summary=summary, title=self.label)
                     info['plot'] = self.files['plot']
                 except Exception as e:    # a plot problem must not hide the result

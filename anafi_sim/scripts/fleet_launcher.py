@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Fleet launcher node: a fleet file -> one launch file with every drone's includes -> roslaunch it (thin node).
 
-Stage: experiments (anafi_sim.experiments.fleet does the parsing, the checks and the XML). roslaunch cannot
+Stage: experiments (anafi_sim.mission.fleet does the parsing, the checks and the XML). roslaunch cannot
 loop, so fleet.launch starts this node (required): it reads the fleet file ~fleet (or builds ~drones N drones
 in a row from its defaults), picks a free telemetry port for each simulated drone that has none, writes each
 drone's scenario shifted by its offset and the generated launch file into ~out_dir, and runs ``roslaunch``
@@ -34,8 +34,8 @@ import time
 
 import yaml
 
-from anafi_sim.experiments.fleet import aggregator_analyzers, drone_scenario, fleet_path, launch_xml, load_fleet
-from anafi_sim.harness import free_port, stop
+from anafi_sim.mission.fleet import aggregator_analyzers, drone_scenario, fleet_path, launch_xml, load_fleet
+from anafi_sim.processes import free_port, stop
 
 DEFAULT_OUT_DIR = os.path.join(os.path.expanduser('~'), '.ros', 'anafi_fleet')
 OUTPUTS = ('log', 'screen')

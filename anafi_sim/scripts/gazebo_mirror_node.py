@@ -32,7 +32,8 @@ from anafi_sim import paths
 from anafi_sim.gazebo.mirror import Mirror, model_names, model_warnings, namespaced_model_xml
 from anafi_sim.gazebo.spawn import SpawnDriver
 from anafi_sim.msg import DroneData
-from anafi_sim.ros import conversions, gazebo_types, topics
+from anafi_sim import names
+from anafi_sim.ros import conversions, gazebo_types
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, log_lines, private_params, run_node,
                                 run_until_interrupted, start_diagnostics_thread)
 
@@ -70,11 +71,11 @@ def read_params():
         'camera_model_name': r.string('camera_model_name', ''),
         'spawn_camera': r.flag('spawn_camera', True),
         'reference_frame': r.string('reference_frame', 'world'),
-        'gazebo_namespace': r.string('gazebo_namespace', topics.GAZEBO_NAMESPACE).rstrip('/'),
+        'gazebo_namespace': r.string('gazebo_namespace', names.GAZEBO_NAMESPACE).rstrip('/'),
         'delete_on_shutdown': r.flag('delete_on_shutdown', True),
         'diagnostics_period': r.positive('diagnostics_period', 1.0),
-        'odom_topic': r.string('odom_topic', topics.GROUND_TRUTH),
-        'drone_data_topic': r.string('drone_data_topic', topics.DRONE_DATA),
+        'odom_topic': r.string('odom_topic', names.GROUND_TRUTH),
+        'drone_data_topic': r.string('drone_data_topic', names.DRONE_DATA),
         'camera_offset': r.vector('camera_offset', [0.1, 0.0, 0.0], 3),   # [m]
     }
     p['urdf_file'] = r.string('urdf_file', '') or paths.data_path('urdf', 'anafi.urdf')
@@ -103,9 +104,9 @@ class GazeboMirrorNode(object):
                            reference_frame=params['reference_frame'])   # validates the remaining parameters
         self.lock = threading.Lock()
         ns = params['gazebo_namespace']
-        self.spawn_service = topics.gazebo(topics.SPAWN_URDF_MODEL, ns)
-        self.delete_service = topics.gazebo(topics.DELETE_MODEL, ns)
-        self.state_service = topics.gazebo(topics.SET_MODEL_STATE, ns)
+        self.spawn_service = names.gazebo(names.SPAWN_URDF_MODEL, ns)
+        self.delete_service = names.gazebo(names.DELETE_MODEL, ns)
+        self.state_service = names.gazebo(names.SET_MODEL_STATE, ns)
         self.ModelState = gazebo_types.model_state_class()
         self.SpawnModel = gazebo_types.spawn_model_class()
         self.DeleteModel = gazebo_types.delete_model_class()
@@ -126,7 +127,7 @@ class GazeboMirrorNode(object):
                                          tcp_nodelay=True)
         self.data_sub = rospy.Subscriber(params['drone_data_topic'], DroneData, self.on_drone_data, queue_size=1,
                                          tcp_nodelay=True)
-        self.states_sub = rospy.Subscriber(topics.gazebo(topics.MODEL_STATES, ns), gazebo_types.model_states_class(),
+        self.states_sub = rospy.Subscriber(names.gazebo(names.MODEL_STATES, ns), gazebo_types.model_states_class(),
                                            self.on_model_states, queue_size=1)
         self._last_model_states = 0.0
         rospy.loginfo('mirror: %s -> models %s at up to %g Hz via the %s %s', params['odom_topic'],

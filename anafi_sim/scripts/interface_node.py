@@ -45,7 +45,8 @@ from anafi_sim.interface.supervisor import ProcessSupervisor
 #: [bytes] longest telemetry line taken (a Sphinx line is < 100 bytes); longer ones are dropped and counted
 MAX_LINE = 4096
 from anafi_sim.msg import DroneData
-from anafi_sim.ros import conversions, topics
+from anafi_sim import names
+from anafi_sim.ros import conversions
 from anafi_sim.ros.wire_types import SPHINX_FIELDS, sphinx_class
 from anafi_sim.ros.node import diagnostics_publisher, health_status, private_params, run_node, \
     start_diagnostics_thread
@@ -100,10 +101,10 @@ class InterfaceNode(object):
         self.publish_errors = 0
         self.last_publish_error = ''
         base = params['topic_base']
-        self.pub_data = rospy.Publisher(base + topics.DRONE_DATA, DroneData, queue_size=50)
+        self.pub_data = rospy.Publisher(base + names.DRONE_DATA, DroneData, queue_size=50)
         self.sphinx_class = sphinx_class()
-        self.pub_sphinx = rospy.Publisher(base + topics.SPHINX_DATA, self.sphinx_class, queue_size=50)
-        self.pub_odom = rospy.Publisher(base + topics.GROUND_TRUTH, Odometry, queue_size=50)
+        self.pub_sphinx = rospy.Publisher(base + names.SPHINX_DATA, self.sphinx_class, queue_size=50)
+        self.pub_odom = rospy.Publisher(base + names.GROUND_TRUTH, Odometry, queue_size=50)
         self.pub_diag = diagnostics_publisher()
         self.tf = tf2_ros.TransformBroadcaster()
         self.static_tf = tf2_ros.StaticTransformBroadcaster()
@@ -117,7 +118,7 @@ class InterfaceNode(object):
 
     def run(self):
         rospy.loginfo('interface: running %r, publishing %s at %.0f Hz', self.supervisor.argv,
-                      self.p['topic_base'] + topics.GROUND_TRUTH, self.p['rate'])
+                      self.p['topic_base'] + names.GROUND_TRUTH, self.p['rate'])
         rospy.on_shutdown(self.supervisor.stop)
         self.supervisor.start()
         start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)

@@ -27,7 +27,8 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from anafi_sim.gazebo.kinematic_world import KinematicWorld, Result, contact_record
-from anafi_sim.ros import conversions, gazebo_types, topics
+from anafi_sim import names
+from anafi_sim.ros import conversions, gazebo_types
 from anafi_sim.ros.node import diagnostics_publisher, health_status, private_params, run_node, \
     start_diagnostics_thread
 from anafi_sim.sim.clock import Pacer, ScaledSteps
@@ -46,8 +47,8 @@ def read_params():
         'publish_clock': r.flag('publish_clock', False),
         'gravity': r.number('gravity', 9.81, minimum=0.0),
         'ground_plane': r.flag('ground_plane', True),
-        'gazebo_namespace': r.ros_name('gazebo_namespace', topics.GAZEBO_NAMESPACE),
-        'contacts_topic': r.ros_name('contacts_topic', topics.gazebo(topics.CONTACTS)),
+        'gazebo_namespace': r.ros_name('gazebo_namespace', names.GAZEBO_NAMESPACE),
+        'contacts_topic': r.ros_name('contacts_topic', names.gazebo(names.CONTACTS)),
         'diagnostics_rate': r.positive('diagnostics_rate', 1.0),
     }
     if p['max_cycle'] < p['max_step']:
@@ -77,23 +78,23 @@ class KinematicWorldNode(object):
         self.topic_rejected = 0
         self.ModelStates = gazebo_types.model_states_class()
         ns = params['gazebo_namespace']
-        self.state_pub = rospy.Publisher(topics.gazebo(topics.MODEL_STATES, ns), self.ModelStates, queue_size=1)
+        self.state_pub = rospy.Publisher(names.gazebo(names.MODEL_STATES, ns), self.ModelStates, queue_size=1)
         self.contact_pub = rospy.Publisher(params['contacts_topic'], String, queue_size=100)
         self.diag_pub = diagnostics_publisher()
-        self.clock_pub = rospy.Publisher(topics.CLOCK, Clock, queue_size=1) if params['publish_clock'] else None
+        self.clock_pub = rospy.Publisher(names.CLOCK, Clock, queue_size=1) if params['publish_clock'] else None
         spawn = gazebo_types.spawn_model_class()
         self.services = [
-            rospy.Service(topics.gazebo(topics.SPAWN_URDF_MODEL, ns), spawn, self.on_spawn),
-            rospy.Service(topics.gazebo(topics.SPAWN_SDF_MODEL, ns), spawn, self.on_spawn),
-            rospy.Service(topics.gazebo(topics.DELETE_MODEL, ns), gazebo_types.delete_model_class(), self.on_delete),
-            rospy.Service(topics.gazebo(topics.SET_MODEL_STATE, ns), gazebo_types.set_model_state_class(),
+            rospy.Service(names.gazebo(names.SPAWN_URDF_MODEL, ns), spawn, self.on_spawn),
+            rospy.Service(names.gazebo(names.SPAWN_SDF_MODEL, ns), spawn, self.on_spawn),
+            rospy.Service(names.gazebo(names.DELETE_MODEL, ns), gazebo_types.delete_model_class(), self.on_delete),
+            rospy.Service(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.set_model_state_class(),
                           self.on_set_state),
-            rospy.Service(topics.gazebo(topics.GET_MODEL_STATE, ns), gazebo_types.get_model_state_class(),
+            rospy.Service(names.gazebo(names.GET_MODEL_STATE, ns), gazebo_types.get_model_state_class(),
                           self.on_get_state),
-            rospy.Service(topics.gazebo(topics.GET_MODEL_PROPERTIES, ns), gazebo_types.get_model_properties_class(),
+            rospy.Service(names.gazebo(names.GET_MODEL_PROPERTIES, ns), gazebo_types.get_model_properties_class(),
                           self.on_properties),
         ]
-        self.state_sub = rospy.Subscriber(topics.gazebo(topics.SET_MODEL_STATE, ns), gazebo_types.model_state_class(),
+        self.state_sub = rospy.Subscriber(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.model_state_class(),
                                           self.on_state_topic, queue_size=100)
         rospy.loginfo('kinematic_world: serving %s/* at %g Hz (rtf %g, clock %s, ground_plane %s)',
                       ns, params['rate'], params['rtf'], 'on' if params['publish_clock'] else 'off',

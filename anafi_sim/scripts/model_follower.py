@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Model follower node: a Gazebo model's pose (e.g. the airship) -> the drone's waypoint with velocity.
 
-Stage: target -> waypoint (-> PID / MPC controller). Thin node over anafi_sim.experiments.model_follower.ModelFollower.
+Stage: target -> waypoint (-> PID / MPC controller). Thin node over anafi_sim.mission.model_following.ModelFollower.
 
 - in ~model_states_topic (default /gazebo/model_states, gazebo_msgs/ModelStates: works with Gazebo and
   with anafi_sim's kinematic world); the entry named ~model_name (airship);
@@ -18,9 +18,10 @@ import threading
 
 import rospy
 
-from anafi_sim.experiments.model_follower import OFFSET_FRAMES, VELOCITY_SOURCES, YAW_MODES, ModelFollower
+from anafi_sim.mission.model_following import OFFSET_FRAMES, VELOCITY_SOURCES, YAW_MODES, ModelFollower
 from anafi_sim.msg import Waypoint
-from anafi_sim.ros import gazebo_types, topics
+from anafi_sim import names
+from anafi_sim.ros import gazebo_types
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 start_diagnostics_thread, wait_for_clock)
 
@@ -45,9 +46,9 @@ class ModelFollowerNode(object):
         self.missing = 0
         self.published = 0
         self.state_msgs = 0
-        self.pub = rospy.Publisher(p.string('waypoint_topic', topics.WAYPOINT), Waypoint, queue_size=10)
+        self.pub = rospy.Publisher(p.string('waypoint_topic', names.WAYPOINT), Waypoint, queue_size=10)
         self.pub_diag = diagnostics_publisher(queue_size=5)
-        topic = p.string('model_states_topic', topics.gazebo(topics.MODEL_STATES))
+        topic = p.string('model_states_topic', names.gazebo(names.MODEL_STATES))
         rospy.Subscriber(topic, gazebo_types.model_states_class(), self._on_model_states, queue_size=1)
         rospy.loginfo('%s: following model %s from %s -> %s at %g Hz, offset %s (%s frame), yaw %s',
                       rospy.get_name(), self.model_name, rospy.resolve_name(topic),

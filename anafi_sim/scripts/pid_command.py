@@ -22,7 +22,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler
-from anafi_sim.ros import topics
+from anafi_sim import names
 from anafi_sim.ros.node import (diagnostic_status, diagnostics_publisher, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
 from anafi_sim.ros.wire_types import piloting_command_class
@@ -34,7 +34,7 @@ class PidCommandNode(object):
         self.rate = p.positive('rate', 10.0)
         self.assembler = CommandAssembler(p.positive('effort_timeout', 0.5))
         pid_ns = p.ros_name('pid_namespace', 'pid')
-        command_topic = p.ros_name('command_topic', topics.COMMAND)
+        command_topic = p.ros_name('command_topic', names.COMMAND)
         self.frame_id = p.string('frame_id', '')
         self.lock = threading.Lock()
         self.last_hovers = 0       # hover commands at the previous diagnostic

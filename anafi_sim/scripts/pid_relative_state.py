@@ -35,7 +35,7 @@ from std_msgs.msg import Bool, Float64
 from anafi_control.contract import MESSAGES, NO_STATE, NO_WAYPOINT, OK, InputGate, health
 from anafi_control.pid_framework import DEFAULTS, relative_state
 from anafi_control.pid_wiring import input_topics, loop_inputs
-from anafi_sim.ros import topics
+from anafi_sim import names
 from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
@@ -45,8 +45,8 @@ class RelativeStateNode(object):
     def __init__(self):
         p = private_params()
         self.rate = p.positive('rate', DEFAULTS['rate'])
-        state_topic = p.ros_name('state_topic', topics.ESTIMATE)
-        waypoint_topic = p.ros_name('waypoint_topic', topics.WAYPOINT)
+        state_topic = p.ros_name('state_topic', names.ESTIMATE)
+        waypoint_topic = p.ros_name('waypoint_topic', names.WAYPOINT)
         pid_ns = p.ros_name('pid_namespace', 'pid')
         self.gate = InputGate(p.positive('state_timeout', DEFAULTS['state_timeout']),
                               p.number('waypoint_timeout', DEFAULTS['waypoint_timeout'], minimum=0.0),  # 0: never

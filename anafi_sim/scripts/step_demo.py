@@ -15,7 +15,7 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import String
 
 from anafi_control.frames import quaternion_to_euler
-from anafi_sim.ros import topics
+from anafi_sim import names
 from anafi_sim.ros.node import private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
 from anafi_sim.sim.step_schedule import StepSchedule
@@ -35,14 +35,14 @@ class StepDemo(object):
         self.timeout = p.positive('start_timeout', 30.0)
         self.schedule = StepSchedule()
         self.cmd_cls = piloting_command_class()
-        self.pub = rospy.Publisher(topics.COMMAND, self.cmd_cls, queue_size=1)
+        self.pub = rospy.Publisher(names.COMMAND, self.cmd_cls, queue_size=1)
         self.truth = self.estimate = None
         self.truth_count = self.estimate_count = 0
         self.state = ''
         self.max_error_estimate = 0.0
-        rospy.Subscriber(topics.GROUND_TRUTH, Odometry, self._on_truth, queue_size=10)
-        rospy.Subscriber(topics.ESTIMATE, Odometry, self._on_estimate, queue_size=10)
-        rospy.Subscriber(topics.DRONE_STATE, String, self._on_state, queue_size=1)
+        rospy.Subscriber(names.GROUND_TRUTH, Odometry, self._on_truth, queue_size=10)
+        rospy.Subscriber(names.ESTIMATE, Odometry, self._on_estimate, queue_size=10)
+        rospy.Subscriber(names.DRONE_STATE, String, self._on_state, queue_size=1)
 
     def _on_truth(self, msg):
         self.truth = msg

@@ -2,7 +2,7 @@
 """Trajectory generator node: a scenario (anafi_sim/config/scenarios/*.yaml) -> the paper's waypoint.
 
 Stage: trajectory -> waypoint (-> PID / MPC). Thin node over
-anafi_sim.experiments.trajectory (Scenario, TrajectoryGenerator). Topics relative to the
+anafi_sim.mission.trajectory (Scenario, TrajectoryGenerator). Topics relative to the
 node's namespace (/<drone>/):
 
 - out ~waypoint_topic (default position_control/waypoint, anafi_sim/Waypoint:
@@ -41,10 +41,10 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectory
 
 from anafi_control.frames import euler_to_quaternion
 
-from anafi_sim.experiments.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
+from anafi_sim.mission.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
                                               load_scenario)
 from anafi_sim.msg import Waypoint
-from anafi_sim.ros import topics
+from anafi_sim import names
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, namespace_id, private_params,
                                 run_node, sleep_until_aligned, start_diagnostics_thread, wait_for_clock)
 from anafi_sim.sim.clock import TIMER_PHASES
@@ -82,15 +82,15 @@ class TrajectoryGeneratorNode(object):
         self.done_time = None
         self.failed = False
         self.published = 0
-        self.pub = rospy.Publisher(p.string('waypoint_topic', topics.WAYPOINT), Waypoint, queue_size=10)
-        self.pub_begin = rospy.Publisher(topics.TRAJECTORY_BEGIN, Header, queue_size=2, latch=True)
-        self.pub_end = rospy.Publisher(topics.TRAJECTORY_END, Header, queue_size=2, latch=True)
-        self.pub_status = rospy.Publisher(topics.TRAJECTORY_STATUS, String, queue_size=5, latch=True)
+        self.pub = rospy.Publisher(p.string('waypoint_topic', names.WAYPOINT), Waypoint, queue_size=10)
+        self.pub_begin = rospy.Publisher(names.TRAJECTORY_BEGIN, Header, queue_size=2, latch=True)
+        self.pub_end = rospy.Publisher(names.TRAJECTORY_END, Header, queue_size=2, latch=True)
+        self.pub_status = rospy.Publisher(names.TRAJECTORY_STATUS, String, queue_size=5, latch=True)
         self.preview_horizon = p.number('preview_horizon', 3.0, minimum=0.0)
         self.preview_step = p.positive('preview_step', 0.05)
         self.pub_preview = rospy.Publisher(p.string('preview_topic', 'command/trajectory'), MultiDOFJointTrajectory,
                                            queue_size=2)
-        rospy.Subscriber(topics.DRONE_STATE, String, self._on_state, queue_size=5)
+        rospy.Subscriber(names.DRONE_STATE, String, self._on_state, queue_size=5)
         rospy.Subscriber('~command', String, self._on_command, queue_size=10)
         if Trigger is not None:
             rospy.Service('~start', Trigger, lambda _: self._service('start'))

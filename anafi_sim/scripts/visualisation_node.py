@@ -2,7 +2,7 @@
 """Visualisation node: a drone's flown trail, reference, predicted path and waypoint for rviz.
 
 Stage: (ground truth, waypoint, controller's predicted path) -> rviz markers. Thin node over
-anafi_sim.experiments.visualisation (Trail, markers, COLOURS). Run one per drone, in its namespace
+anafi_sim.mission.visualisation (Trail, markers, COLOURS). Run one per drone, in its namespace
 (/<drone>/; the drone name = the namespace); anafi_sim/launch/rviz.launch starts it with
 anafi_sim/config/visualisation.yaml.
 
@@ -27,9 +27,9 @@ from nav_msgs.msg import Odometry, Path
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from anafi_sim.experiments.visualisation import DEFAULTS, Trail, markers
+from anafi_sim.mission.visualisation import DEFAULTS, Trail, markers
 from anafi_sim.msg import Waypoint
-from anafi_sim.ros import topics
+from anafi_sim import names
 from anafi_sim.ros.node import namespace_id, private_params, run_node, wait_for_clock
 
 PREDICTION_TIMEOUT = 2.0   # s of ROS time
@@ -56,8 +56,8 @@ class VisualisationNode(object):
                                            queue_size=2)
         self.pub_trail = rospy.Publisher('visualisation/trail', Path, queue_size=2)
         self.pub_reference = rospy.Publisher('visualisation/reference_path', Path, queue_size=2)
-        rospy.Subscriber(p.string('trail_topic', topics.GROUND_TRUTH), Odometry, self._on_odom, queue_size=20)
-        rospy.Subscriber(p.string('waypoint_topic', topics.WAYPOINT), Waypoint, self._on_waypoint, queue_size=10)
+        rospy.Subscriber(p.string('trail_topic', names.GROUND_TRUTH), Odometry, self._on_odom, queue_size=20)
+        rospy.Subscriber(p.string('waypoint_topic', names.WAYPOINT), Waypoint, self._on_waypoint, queue_size=10)
         for topic in p.names('predicted_path_topics', ['mpc/predicted_path', 'preview_mpc/predicted_path']):
             rospy.Subscriber(topic, Path, self._on_predicted, queue_size=2)
 

@@ -204,7 +204,7 @@ for max_missed periods), longest and mean wait [s wall]."""
 #: run. controller 30 ms: the MPC cycled at 30/35 ms past every 100 ms in a recorded ROS run of circle_r1_v1;
 #: generator 80 ms: with it the 10 Hz waypoint is 50 ms old at the controller's cycle, the mean over a random
 #: phase (before the alignment each ROS start-up drew one: 15 and 95 ms were recorded); the in-process engine's
-#: schedule (anafi_sim/experiments/engine.py) uses the same two.
+#: schedule (anafi_lab/engine/engine.py) uses the same two.
 TIMER_PHASES = {'controller': 0.030, 'generator': 0.080}
 
 

@@ -17,7 +17,7 @@ turns them into firmware setpoints) and integrates:
   firmware's hover brake when no command came for ``command_timeout`` s.
 
 Firmware effects switched by keys that are OFF by default (``EFFECTS_OFF``;
-fitted by ``anafi_sim/calibration/fit.py``, see docs/calibration.md):
+fitted by ``anafi_lab/calibration/fit.py``, see docs/calibration.md):
 
 - ``tilt_attenuation`` a: the firmware delivers (1 - a) of the roll/pitch a
   PCMD commands (before the max-tilt clamp); its own hover brake is not

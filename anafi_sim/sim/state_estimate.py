@@ -16,7 +16,7 @@ reproduces that from the truth history, in this order:
 4. optional quantisation to numpy.float16 (``estimate_float16``).
 
 Effects switched by keys that are OFF by default (``EFFECTS_OFF``; fitted by
-``anafi_sim/calibration/fit.py``, see docs/calibration.md):
+``anafi_lab/calibration/fit.py``, see docs/calibration.md):
 
 - ``estimate_position_fusion`` (bool): the position is not the delayed truth
   but a fusion: the estimated velocity (steps 1-2) integrated, corrected

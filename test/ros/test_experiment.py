@@ -25,7 +25,7 @@ import rospy
 import rostest
 import yaml
 
-from anafi_sim import harness
+from anafi_sim import processes
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCENARIO = os.path.join(HERE, 'experiment_short.yaml')
@@ -37,15 +37,15 @@ class TestExperiment(unittest.TestCase):
         controller = rospy.get_param('~controller', 'mpc')
         out = tempfile.mkdtemp(prefix='anafi_experiment_%s_' % controller)
         name = 'short_%s' % controller
-        port = harness.free_port()
+        port = processes.free_port()
         env = dict(os.environ, ROS_MASTER_URI='http://127.0.0.1:%d' % port, ROS_HOME=os.path.join(out, 'ros_home'))
-        harness.add_module_paths(env, 'osqp')  # nodes started through /usr/bin/python3 relay scripts need it too
+        processes.add_module_paths(env, 'osqp')  # nodes started through /usr/bin/python3 relay scripts need it too
         cmd = ['roslaunch', '-p', str(port), 'anafi_sim', 'experiment.launch', 'controller:=' + controller,
                'scenario:=experiment_short', 'scenario_file:=' + SCENARIO, 'rtf:=2.0', 'mirror:=true',
                'record:=true', 'out_dir:=' + out, 'run_name:=' + name, 'plot:=false', 'progress_period:=0',
-               'telemetry_port:=%d' % harness.free_port()]
+               'telemetry_port:=%d' % processes.free_port()]
         log_path = os.path.join(out, 'launch.log')
-        proc = harness.start(cmd, env=env, log=log_path)
+        proc = processes.start(cmd, env=env, log=log_path)
         base = os.path.join(out, name)
         deadline = time.monotonic() + RUN_TIMEOUT
         try:
@@ -55,7 +55,7 @@ class TestExperiment(unittest.TestCase):
                 time.sleep(0.5)
             time.sleep(0.5)
         finally:
-            harness.stop(proc, grace=20.0)
+            processes.stop(proc, grace=20.0)
         try:
             self.check(base)
         except AssertionError:
@@ -91,7 +91,7 @@ class TestExperiment(unittest.TestCase):
         w = summary['window']
         self.assertAlmostEqual(w[1] - w[0], 4.0, delta=0.2)
 
-        from anafi_sim.experiments.reference_log import COLUMNS, read_log
+        from anafi_sim.mission.reference_log import COLUMNS, read_log
         with open(base + '.csv') as f:
             self.assertEqual(f.readline().strip().split(','), list(COLUMNS))
         log = read_log(base + '.csv')

@@ -34,7 +34,7 @@ from dynamic_reconfigure.client import Client
 from nav_msgs.msg import Odometry
 from std_msgs.msg import String
 
-from anafi_sim import harness, paths
+from anafi_sim import paths, processes
 from anafi_sim.msg import Waypoint
 from anafi_sim.ros import gazebo_types
 from anafi_sim.ros.wire_types import piloting_command_class
@@ -215,19 +215,19 @@ class TestFaultMatrix(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.workdir = tempfile.mkdtemp(prefix='fault_matrix_')
-        cls.procs = harness.Processes(cls.workdir, grace=10.0)
-        cls.uri, cls.env = harness.private_master(cls.procs, os.path.join(cls.workdir, 'ros_home'),
+        cls.procs = processes.Processes(cls.workdir, grace=10.0)
+        cls.uri, cls.env = processes.private_master(cls.procs, os.path.join(cls.workdir, 'ros_home'),
                                                   os.path.join(cls.workdir, 'log'), join=True)
         cls.port = int(cls.uri.rsplit(':', 1)[1])
         launch = os.path.join(cls.workdir, 'faults.launch')
         with open(launch, 'w') as f:
-            f.write(LAUNCH.format(drone=DRONE, port=harness.free_port()))
+            f.write(LAUNCH.format(drone=DRONE, port=processes.free_port()))
         cls.procs.start('roslaunch', ['roslaunch', '--port', str(cls.port), launch], cls.env)
         # the controller's state comes through this relay, a process of its own (this one is busy measuring)
         cls.procs.start('relay', [sys.executable, '-c', RELAY.format(drone=DRONE)], cls.env)
         rospy.init_node('fault_matrix', anonymous=True)
         cls.g = Graph()
-        ok = harness.wait_for(lambda: cls.g.status('/%s/mpc_controller' % DRONE) is not None
+        ok = processes.wait_for(lambda: cls.g.status('/%s/mpc_controller' % DRONE) is not None
                               and cls.g.position() is not None, 90.0, 0.2)
         if not ok:
             raise RuntimeError('graph did not come up:\n' + cls.procs.log_tail('roslaunch', 40))
@@ -250,7 +250,7 @@ class TestFaultMatrix(unittest.TestCase):
         g = self.g
         g.state_mode = 'relay'
         pos = None
-        harness.require(lambda: g.position() is not None, 10.0, 'truth')
+        processes.require(lambda: g.position() is not None, 10.0, 'truth')
         pos = g.position()
         TestFaultMatrix.direction = -self.direction
         g.track = (time.time(), pos[0], pos[1], self.direction)
@@ -264,7 +264,7 @@ class TestFaultMatrix(unittest.TestCase):
             elif steady[0] is None:
                 steady[0] = now
             return steady[0] is not None and now - steady[0] >= STEADY
-        harness.require(flying, timeout, 'the drone flying steadily at %.1f m/s' % SPEED,
+        processes.require(flying, timeout, 'the drone flying steadily at %.1f m/s' % SPEED,
                         lambda: 'speed %s, controller %s' % (g.speed(), g.status('/%s/mpc_controller' % DRONE)))
         return g.speed()
 
@@ -277,7 +277,7 @@ class TestFaultMatrix(unittest.TestCase):
             p = g.position()
             far[0] = max(far[0], math.hypot(p[0] - pos0[0], p[1] - pos0[1]))
             return time.time() - t_fault > 1.0 and (g.speed() or 9.0) < STOP_SPEED
-        harness.require(stopped, STOP_TIME, 'the drone stopped', lambda: 'speed %s' % g.speed())
+        processes.require(stopped, STOP_TIME, 'the drone stopped', lambda: 'speed %s' % g.speed())
         return time.time() - t_fault, far[0]
 
     def record(self, name, observed, stop=None, recovery=None, ok=True):
@@ -293,7 +293,7 @@ class TestFaultMatrix(unittest.TestCase):
         def check():
             entry[0] = self.controller(since)
             return entry[0] is not None and predicate(entry[0])
-        harness.require(check, timeout, what, lambda: 'last diagnostic %s' % (entry[0],))
+        processes.require(check, timeout, what, lambda: 'last diagnostic %s' % (entry[0],))
         return entry[0]
 
     def recover(self, t_fixed):
@@ -357,7 +357,7 @@ class TestFaultMatrix(unittest.TestCase):
     def test_01_controller_killed(self):
         g = self.g
         v = self.fly()
-        old = harness.node_pid('/%s/mpc_controller' % DRONE, self.uri)
+        old = processes.node_pid('/%s/mpc_controller' % DRONE, self.uri)
         pos0, t0 = g.position(), time.time()
         os.kill(old, signal.SIGKILL)
         # the waypoints stop with it, so that the respawned controller (after respawn_delay 1 s) stays silent
@@ -367,7 +367,7 @@ class TestFaultMatrix(unittest.TestCase):
         self.assertEqual(g.command_rate(), 0.0)
         TestFaultMatrix.brake = (v, dist)
         new = [None]
-        harness.require(lambda: new.__setitem__(0, harness.node_pid('/%s/mpc_controller' % DRONE, self.uri))
+        processes.require(lambda: new.__setitem__(0, processes.node_pid('/%s/mpc_controller' % DRONE, self.uri))
                         or (new[0] not in (None, old)), 20.0, 'the controller respawned')
         rec = self.recover(t0)
         self.record('controller_killed', 'no command (0 Hz); respawned (pid %d -> %d)' % (old, new[0]),
@@ -420,7 +420,7 @@ class TestFaultMatrix(unittest.TestCase):
     def test_07_cli_killed(self):
         g = self.g
         self.fly()
-        iface = psutil.Process(harness.node_pid('/%s/interface' % DRONE, self.uri))
+        iface = psutil.Process(processes.node_pid('/%s/interface' % DRONE, self.uri))
         cli = iface.children()[0]
         before = self._interface()
         t0 = time.time()
@@ -431,7 +431,7 @@ class TestFaultMatrix(unittest.TestCase):
             ok[0] = self._interface(t0)
             return ok[0] is not None and ok[0][1] == 0 and ok[0][3]['process pid'] != str(cli.pid) and \
                 counter(ok[0], 'samples published') > counter(before, 'samples published')
-        harness.require(back, RECOVERY_TIME, 'interface publishing again with a new process', lambda: str(ok[0]))
+        processes.require(back, RECOVERY_TIME, 'interface publishing again with a new process', lambda: str(ok[0]))
         self.assertEqual(counter(ok[0], 'process restarts'), counter(before, 'process restarts') + 1, ok[0])
         self.assertEqual(ok[0][3]['process last exit code'], '-9', ok[0])
         self.assertEqual(self.controller(t0)[2], 'tracking', 'the controller flies on the estimate')
@@ -443,7 +443,7 @@ class TestFaultMatrix(unittest.TestCase):
     def test_07b_cli_hung(self):
         g = self.g
         self.fly()
-        iface = psutil.Process(harness.node_pid('/%s/interface' % DRONE, self.uri))
+        iface = psutil.Process(processes.node_pid('/%s/interface' % DRONE, self.uri))
         cli = iface.children()[0]
         before = self._interface()
         t0 = time.time()
@@ -453,13 +453,13 @@ class TestFaultMatrix(unittest.TestCase):
         def error_seen():
             err[0] = self._interface(t0)
             return err[0] is not None and err[0][1] == 2
-        harness.require(error_seen, 5.0, 'interface ERROR while the CLI hangs', lambda: str(err[0]))
+        processes.require(error_seen, 5.0, 'interface ERROR while the CLI hangs', lambda: str(err[0]))
         ok = [None]
 
         def back():
             ok[0] = self._interface(err[0][0])
             return ok[0] is not None and ok[0][1] == 0
-        harness.require(back, RECOVERY_TIME, 'interface OK after the hang', lambda: str(ok[0]))
+        processes.require(back, RECOVERY_TIME, 'interface OK after the hang', lambda: str(ok[0]))
         self.assertEqual(counter(ok[0], 'process hangs'), counter(before, 'process hangs') + 1, ok[0])
         self.assertNotEqual(ok[0][3]['process pid'], str(cli.pid))
         self.assertEqual(self.controller(t0)[2], 'tracking', 'the controller flies on the estimate')
@@ -474,7 +474,7 @@ class TestFaultMatrix(unittest.TestCase):
         def flowing():
             e[0] = g.status('/garbage/interface')
             return e[0] is not None and e[0][1] == 0 and (counter(e[0], 'process oversize lines') or 0) >= 1
-        harness.require(flowing, 20.0, 'the garbage interface OK with counted lines', lambda: str(e[0]))
+        processes.require(flowing, 20.0, 'the garbage interface OK with counted lines', lambda: str(e[0]))
         malformed = counter(e[0], 'parse malformed')
         oversize = counter(e[0], 'process oversize lines')
         starts = counter(e[0], 'process starts')     # each start of the command prints the garbage once
@@ -488,7 +488,7 @@ class TestFaultMatrix(unittest.TestCase):
     def test_08b_simulator_restart(self):
         g = self.g
         self.fly()
-        old = harness.node_pid('/%s/anafi_sim' % DRONE, self.uri)
+        old = processes.node_pid('/%s/anafi_sim' % DRONE, self.uri)
         before = self._interface()
         ctl_before = self.controller(0.0)
         t0 = time.time()
@@ -498,7 +498,7 @@ class TestFaultMatrix(unittest.TestCase):
         def interface_error():
             err[0] = self._interface(t0)
             return err[0] is not None and err[0][1] == 2
-        harness.require(interface_error, 8.0, 'interface ERROR without telemetry', lambda: str(err[0]))
+        processes.require(interface_error, 8.0, 'interface ERROR without telemetry', lambda: str(err[0]))
         def stale_cycles(e):
             return (counter(e, 'stale_state') or 0) + (counter(e, 'no_state') or 0)
 
@@ -508,11 +508,11 @@ class TestFaultMatrix(unittest.TestCase):
                                       or stale_cycles(e) > stale_cycles(ctl_before), 8.0,
                                       'controller silent on the stale state')
         new = [None]
-        harness.require(lambda: new.__setitem__(0, harness.node_pid('/%s/anafi_sim' % DRONE, self.uri))
+        processes.require(lambda: new.__setitem__(0, processes.node_pid('/%s/anafi_sim' % DRONE, self.uri))
                         or (new[0] not in (None, old)), 20.0, 'the simulator respawned')
         with g.lock:
             g.truth = []                  # the old flight's positions are not the new flight's
-        harness.require(lambda: g.position() is not None, 20.0, 'the new simulator flying (sim/truth)')
+        processes.require(lambda: g.position() is not None, 20.0, 'the new simulator flying (sim/truth)')
         t_back = g.truth[0][0]
         ok = [None]
 
@@ -520,7 +520,7 @@ class TestFaultMatrix(unittest.TestCase):
             ok[0] = self._interface(t_back)
             return ok[0] is not None and ok[0][1] == 0 and \
                 counter(ok[0], 'samples published') > counter(before, 'samples published')
-        harness.require(interface_ok, 8.0, 'interface OK after the new simulator', lambda: str(ok[0]))
+        processes.require(interface_ok, 8.0, 'interface OK after the new simulator', lambda: str(ok[0]))
         iface_rec = ok[0][0] - t_back
         self.assertLess(iface_rec, 5.0 + 1.0, ok[0])     # + the 1 Hz diagnostics
         t_fixed = time.time()
@@ -540,11 +540,11 @@ class TestFaultMatrix(unittest.TestCase):
         g = self.g
         self.fly()
         models = ('anafi', 'anafi_camera')
-        harness.require(lambda: set(models) <= set(g.models[1]), 20.0, 'both models in the world',
+        processes.require(lambda: set(models) <= set(g.models[1]), 20.0, 'both models in the world',
                         lambda: str(g.models))
-        mirror = harness.node_pid('/%s/gazebo_mirror' % DRONE, self.uri)
-        world = harness.node_pid('/gazebo', self.uri)
-        harness.require(lambda: self._mirror() is not None, 10.0, 'mirror diagnostics')
+        mirror = processes.node_pid('/%s/gazebo_mirror' % DRONE, self.uri)
+        world = processes.node_pid('/gazebo', self.uri)
+        processes.require(lambda: self._mirror() is not None, 10.0, 'mirror diagnostics')
         before = self._mirror()
         commands0 = g.command_rate()
         t0 = time.time()
@@ -558,10 +558,10 @@ class TestFaultMatrix(unittest.TestCase):
                 bad[0] = e
             ok[0] = e
             return bad[0] is not None and e is not None and e[1] == 0 and set(models) <= set(g.models[1]) \
-                and g.models[0] > t0 and harness.node_pid('/gazebo', self.uri) not in (None, world)
-        harness.require(back, 20.0, 'mirror reporting the lost world, then OK with both models back',
+                and g.models[0] > t0 and processes.node_pid('/gazebo', self.uri) not in (None, world)
+        processes.require(back, 20.0, 'mirror reporting the lost world, then OK with both models back',
                         lambda: 'first non-OK %s, last %s, models %s' % (bad[0], ok[0], g.models))
-        self.assertEqual(harness.node_pid('/%s/gazebo_mirror' % DRONE, self.uri), mirror, 'the mirror died')
+        self.assertEqual(processes.node_pid('/%s/gazebo_mirror' % DRONE, self.uri), mirror, 'the mirror died')
         lost = counter(ok[0], 'world restarts') + counter(ok[0], 'world losses')
         self.assertGreater(lost, counter(before, 'world restarts') + counter(before, 'world losses'), ok[0])
         self.assertGreaterEqual(counter(ok[0], 'respawns'), counter(before, 'respawns') + 2, ok[0])
@@ -579,30 +579,30 @@ class TestFaultMatrix(unittest.TestCase):
     def test_09_master_restart(self):
         g = self.g
         self.fly()
-        pids = dict((n, harness.node_pid(n, self.uri)) for n in ('/%s/mpc_controller' % DRONE,
+        pids = dict((n, processes.node_pid(n, self.uri)) for n in ('/%s/mpc_controller' % DRONE,
                                                                   '/%s/interface' % DRONE, '/%s/anafi_sim' % DRONE))
         t0 = time.time()
         self.procs.stop('roscore')
         time.sleep(2.0)
         core = self.procs.start('roscore', ['roscore', '-p', str(self.port)], self.env)
-        harness.require(lambda: harness.master_pid(self.uri) is not None, 30.0, 'the new master')
+        processes.require(lambda: processes.master_pid(self.uri) is not None, 30.0, 'the new master')
         del core
         new = {}
 
         def respawned():
             for n, old in pids.items():
-                p = harness.node_pid(n, self.uri)
+                p = processes.node_pid(n, self.uri)
                 if p is None or p == old:
                     return False
                 new[n] = p
             return True
-        harness.require(respawned, 60.0, 'every node respawned on the new master',
+        processes.require(respawned, 60.0, 'every node respawned on the new master',
                         lambda: '%s\n%s' % (new, self.procs.log_tail('roslaunch', 30)))
         t_back = time.time()
         # this process cannot register again either: a fresh probe process publishes waypoints and reads
         # the controller's diagnostics on the new master
         probe = PROBE.format(drone=DRONE)
-        out = harness.start([sys.executable, '-c', probe], env=self.env)
+        out = processes.start([sys.executable, '-c', probe], env=self.env)
         rc = out.wait(90.0)
         self.assertEqual(rc, 0, 'probe: the controller did not track a new waypoint publisher on the new master')
         recovery = time.time() - t0

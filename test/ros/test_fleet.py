@@ -21,8 +21,8 @@ import rostest
 from nav_msgs.msg import Odometry
 
 from anafi_control.frames import yaw_from_quaternion
-from anafi_sim.experiments.fleet import drone_scenario, load_fleet
-from anafi_sim.harness import wait_for
+from anafi_sim.mission.fleet import drone_scenario, load_fleet
+from anafi_sim.processes import wait_for
 from anafi_sim.ros import gazebo_types
 
 SHARED = ('/diagnostics', '/rosout', '/rosout_agg', '/tf', '/tf_static', '/clock')

@@ -39,7 +39,7 @@ import unittest
 import rostest
 from setuptools import find_packages
 
-from anafi_sim import harness
+from anafi_sim import processes
 
 PKG = 'anafi_sim'
 ROOT = os.path.realpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..'))
@@ -324,10 +324,10 @@ class InstallSpaceTest(unittest.TestCase):
     def test_4_sim_and_mpc_run_from_the_install_space(self):
         t0 = time.time()
         env = dict(self.envs['install'])
-        procs = harness.Processes(self.logs)
+        procs = processes.Processes(self.logs)
         try:
-            harness.start_master(procs, env)
-            procs.start('sim', ['roslaunch', PKG, 'sim.launch', 'telemetry_port:=%d' % harness.free_port()], env)
+            processes.start_master(procs, env)
+            procs.start('sim', ['roslaunch', PKG, 'sim.launch', 'telemetry_port:=%d' % processes.free_port()], env)
             procs.start('mpc', ['roslaunch', PKG, 'mpc.launch'], env)
             probe = os.path.join(self.tmp, 'probe.py')
             with open(probe, 'w') as f:

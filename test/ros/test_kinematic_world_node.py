@@ -13,7 +13,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Twist
 from std_msgs.msg import String
 
-from anafi_sim.harness import wait_for
+from anafi_sim.processes import wait_for
 from anafi_sim.ros import conversions, gazebo_types
 
 NS = '/gazebo'

@@ -33,7 +33,7 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 
 from anafi_control import frames
-from anafi_sim.harness import node_pid, stop, wait_for
+from anafi_sim.processes import node_pid, stop, wait_for
 from anafi_sim.ros import conversions, gazebo_types
 from anafi_sim.gazebo import urdf_model
 from anafi_sim.interface.ground_truth import camera_pose

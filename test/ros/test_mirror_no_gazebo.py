@@ -20,7 +20,7 @@ import rostest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rosgraph_msgs.msg import Log
 
-from anafi_sim.harness import node_pid, stop, wait_for
+from anafi_sim.processes import node_pid, stop, wait_for
 from anafi_sim.ros import gazebo_types
 
 MIRROR = '/anafi/gazebo_mirror'

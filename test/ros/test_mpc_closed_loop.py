@@ -27,8 +27,8 @@ from dynamic_reconfigure.client import Client
 from nav_msgs.msg import Odometry
 
 from anafi_control.frames import wrap_angle, yaw_from_quaternion
-from anafi_sim import harness, paths
-from anafi_sim.experiments.reference_log import read_log
+from anafi_sim import paths, processes
+from anafi_sim.mission.reference_log import read_log
 from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim.ros.wire_types import piloting_command_class
 
@@ -66,10 +66,10 @@ class Controller(object):
 
     def __init__(self, launch, args=()):
         cmd = ['roslaunch', 'anafi_sim', launch, 'drone_name:=anafi', 'output:=log'] + list(args)
-        self.proc = harness.start(cmd)
+        self.proc = processes.start(cmd)
 
     def stop(self):
-        harness.stop(self.proc, grace=15.0)
+        processes.stop(self.proc, grace=15.0)
 
 
 class TestMpcClosedLoop(unittest.TestCase):

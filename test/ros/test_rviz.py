@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """rviz under Xvfb on a short scenario (rviz.test): the screenshot is not blank and shows the drone and the
-paths in their colours (anafi_sim.experiments.visualisation.COLOURS, anafi_sim/config/anafi.rviz).
+paths in their colours (anafi_sim.mission.visualisation.COLOURS, anafi_sim/config/anafi.rviz).
 
 The test starts Xvfb (-displayfd picks a free display; -fbdir keeps the screen in an XWD file, read here: no
 screenshot tool needed) and rviz -d anafi.rviz with software GL while the drone takes off for the circle
@@ -27,8 +27,8 @@ from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from anafi_sim import paths
-from anafi_sim.experiments.visualisation import COLOURS
-from anafi_sim.harness import stop, wait_for
+from anafi_sim.mission.visualisation import COLOURS
+from anafi_sim.processes import stop, wait_for
 
 DRONE = 'anafi'
 SCREEN = (1200, 800)

@@ -24,8 +24,9 @@ import yaml
 from nav_msgs.msg import Odometry
 from std_msgs.msg import String
 
-from anafi_sim.harness import wait_for
-from anafi_sim.ros import gazebo_types, topics
+from anafi_sim.processes import wait_for
+from anafi_sim import names
+from anafi_sim.ros import gazebo_types
 from anafi_sim.ros.wire_types import piloting_command_class
 
 
@@ -51,14 +52,14 @@ class Probe(object):
         self.state = ''
         self.summary = None
         ns = '/' + drone + '/'
-        rospy.Subscriber(ns + topics.GROUND_TRUTH, Odometry, self.on_gt, queue_size=500, tcp_nodelay=True)
-        rospy.Subscriber(topics.gazebo(topics.SET_MODEL_STATE), gazebo_types.model_state_class(), self.on_set,
+        rospy.Subscriber(ns + names.GROUND_TRUTH, Odometry, self.on_gt, queue_size=500, tcp_nodelay=True)
+        rospy.Subscriber(names.gazebo(names.SET_MODEL_STATE), gazebo_types.model_state_class(), self.on_set,
                          queue_size=500, tcp_nodelay=True)
-        rospy.Subscriber(topics.gazebo(topics.MODEL_STATES), gazebo_types.model_states_class(), self.on_states,
+        rospy.Subscriber(names.gazebo(names.MODEL_STATES), gazebo_types.model_states_class(), self.on_states,
                          queue_size=50, tcp_nodelay=True)
-        rospy.Subscriber(ns + topics.COMMAND, piloting_command_class(), self.on_command, queue_size=50)
-        rospy.Subscriber(ns + topics.DRONE_STATE, String, self.on_state, queue_size=5)
-        rospy.Subscriber(ns + topics.EVALUATION_SUMMARY, String, self.on_summary, queue_size=5)
+        rospy.Subscriber(ns + names.COMMAND, piloting_command_class(), self.on_command, queue_size=50)
+        rospy.Subscriber(ns + names.DRONE_STATE, String, self.on_state, queue_size=5)
+        rospy.Subscriber(ns + names.EVALUATION_SUMMARY, String, self.on_summary, queue_size=5)
 
     def on_gt(self, msg):
         now = time.time()
@@ -78,15 +79,15 @@ class Probe(object):
 
     def on_states(self, msg):
         now = time.time()
-        names = set(msg.name)
+        models = set(msg.name)
         drone = None
-        if self.drone in names:
+        if self.drone in models:
             p = msg.pose[list(msg.name).index(self.drone)].position
             drone = (p.x, p.y, p.z)
         with self.lock:
-            self.names = names
+            self.names = models
             if self.recording:
-                self.world.append((now, drone, self.drone + '_camera' in names))
+                self.world.append((now, drone, self.drone + '_camera' in models))
 
     def on_command(self, _msg):
         with self.lock:

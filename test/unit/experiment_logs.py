@@ -8,7 +8,7 @@ import collections
 
 import numpy as np
 
-from anafi_sim.experiments.reference_log import COLUMNS, ReferenceLog
+from anafi_sim.mission.reference_log import COLUMNS, ReferenceLog
 
 
 def make_log(t, est, wp, truth=None, yaw=None, wp_yaw=None):

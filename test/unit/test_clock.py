@@ -3,7 +3,7 @@ import threading
 
 import pytest
 
-from anafi_sim.experiments import monitor
+from anafi_sim.mission import monitor
 from anafi_sim.sim.clock import (MAX_LAG, TIMER_PHASES, Lockstep, Pacer, Periodic, ScaledSteps, SimClock, StartHold, aligned_start, lockstep_values,
                                  report_values)
 
@@ -281,7 +281,7 @@ def test_aligned_start_is_the_next_instant_of_the_phase_grid():
 def test_timer_phases_put_the_waypoint_half_a_period_old_at_the_controllers_cycle():
     """The generator ticks 50 ms before each controller cycle (10 Hz both): the mean age over a random phase;
     the engine's schedule uses the same two (one source)."""
-    from anafi_sim.experiments.engine import DEFAULT_SCHEDULE
+    from anafi_lab.engine.engine import DEFAULT_SCHEDULE
     age = (TIMER_PHASES['controller'] - TIMER_PHASES['generator']) % 0.1
     assert age == pytest.approx(0.05)
     assert DEFAULT_SCHEDULE['controller_phase'] == TIMER_PHASES['controller']

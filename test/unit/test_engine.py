@@ -1,4 +1,4 @@
-"""The in-process engine (anafi_sim.experiments.engine): determinism, the graph's schedule as the controller
+"""The in-process engine (anafi_lab.engine.engine): determinism, the graph's schedule as the controller
 sees it, the distributed PID's message hops, a run against a hand computation, the run files."""
 import math
 import os
@@ -7,8 +7,8 @@ import pytest
 import yaml
 
 from anafi_control.contract import OK, Controller, CycleOutput
-from anafi_sim.experiments.engine import DEFAULT_SCHEDULE, Engine, make_schedule, run
-from anafi_sim.experiments.runs import make_task, result_line, run_task
+from anafi_lab.engine.engine import DEFAULT_SCHEDULE, Engine, make_schedule, run
+from anafi_lab.engine.runs import make_task, result_line, run_task
 from anafi_sim.sim.drone_model import load_model_params
 
 SHORT = """
@@ -202,7 +202,7 @@ def test_run_task_writes_the_summary_and_the_csv(short, tmp_path):
 
 
 def test_actions_run_once_at_their_time_after_the_start(short):
-    from anafi_sim.experiments.schedule import to_ns
+    from anafi_lab.engine.event_loop import to_ns
     seen = []
     engine = Engine(short, 'mpc', actions=[(0.5, lambda e: seen.append((e.world.loop.now, e.started_at,
                                                                        e.sim.model.position())))])

@@ -1,4 +1,4 @@
-"""anafi_sim.experiments.evaluation: tracking-error statistics, alignment, garbage handling, the paper's Table 3
+"""anafi_sim.mission.evaluation: tracking-error statistics, alignment, garbage handling, the paper's Table 3
 from the shared reference logs, CSV and rosbag round trips, the live core and the command line.
 
 Expected numbers are worked out by hand in the tests (3-4-5 triangles, sums written out) or come
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from anafi_sim import paths
-from anafi_sim.experiments import evaluation as ev
-from anafi_sim.experiments.reference_log import read_log, write_log
+from anafi_sim.mission import evaluation as ev
+from anafi_sim.mission.reference_log import read_log, write_log
 
 REPO = paths.checkout()
 REFERENCE_LOGS = paths.reference_logs_dir()

@@ -1,7 +1,7 @@
-"""anafi_sim.experiments.monitor: start gate, failures, end and run figures of one experiment (pure core)."""
+"""anafi_sim.mission.monitor: start gate, failures, end and run figures of one experiment (pure core)."""
 import pytest
 
-from anafi_sim.experiments import monitor as em
+from anafi_sim.mission import monitor as em
 
 SIM = {em.SIM_RTF_KEY: '2.50', em.SIM_OVERRUNS_KEY: '10', 'schedule re-anchors (> 0.25 s behind)': '1',
        em.SIM_RATE_KEY: '500.0', em.SIM_WANTED_KEY: '600.0', 'flight state': 'flying'}

@@ -1,10 +1,9 @@
-"""anafi_sim.experiments.report (the batch's Markdown tables) and benchmarks/run_experiments.py options."""
-import importlib.util
+"""anafi_lab.reports.paper_tables (the batch's Markdown tables) and anafi_lab/engine/ros_batch.py options."""
 import os
 
 import pytest
 
-from anafi_sim.experiments import report as rep
+from anafi_lab.reports import paper_tables as rep
 
 REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 
@@ -84,11 +83,8 @@ def test_fmt():
 
 
 def _runner():
-    spec = importlib.util.spec_from_file_location('run_experiments',
-                                                  os.path.join(REPO, 'benchmarks', 'run_experiments.py'))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    from anafi_lab.engine import ros_batch
+    return ros_batch
 
 
 def test_runner_options_expand_groups_and_refuse_unknown_names():

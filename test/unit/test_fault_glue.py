@@ -9,7 +9,8 @@ import pytest
 
 from anafi_sim import paths
 from anafi_sim.gazebo.kinematic_world import KinematicWorld
-from anafi_sim.ros import node, topics, wire_types
+from anafi_sim import names
+from anafi_sim.ros import node, wire_types
 
 sys.path.insert(0, os.path.join(paths.package_dir(), 'tools'))
 import fault_table  # noqa: E402
@@ -117,7 +118,7 @@ def test_sphinx_type_is_the_reference_implementations():
     assert cls._md5sum == '85390efb41e38eee13815912075e2a5a'
     assert list(cls.__slots__) == list(wire_types.SPHINX_FIELDS)
     assert not cls._has_header
-    assert topics.SPHINX_DATA == 'sphinx/drone_data' and topics.DRONE_DATA != topics.SPHINX_DATA
+    assert names.SPHINX_DATA == 'sphinx/drone_data' and names.DRONE_DATA != names.SPHINX_DATA
 
 
 def test_drone_data_has_every_field_of_the_sphinx_type():

@@ -7,7 +7,7 @@ Cells that are more than 15 % off with today's defaults are marked xfail(strict=
 so the list is updated rather than silently outgrown. The replay's own pieces (the waypoint stream, the lead-in,
 the frame shift, the estimate resampling, the cells) are tested on synthetic logs first.
 
-The replays run in-process (anafi_sim/experiments/engine.py, virtual time): about 20-30 s for the 14 logs on
+The replays run in-process (anafi_lab/engine/engine.py, virtual time): about 20-30 s for the 14 logs on
 an idle machine. Skipped when ../shared/reference_logs (beside the checkout) is missing.
 """
 import collections
@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from anafi_sim import paths
-from anafi_sim.experiments import fidelity as F
-from anafi_sim.experiments.reference_log import COLUMNS, ReferenceLog, as_logged, read_log
+from anafi_lab.fidelity import replay as F
+from anafi_sim.mission.reference_log import COLUMNS, ReferenceLog, as_logged, read_log
 from anafi_sim.sim.drone_model import load_model_params
 
 BAND = 0.15
@@ -32,7 +32,7 @@ LOGS = tuple('static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('m
 # velocity error's decay on, descent limit off, yaw bias and quantisation on, speed-gated tilt attenuation on; MPC
 # paper_timing false; the timing of mpc.yaml; the replay starts from the log's initial state and holds the estimate
 # where the log's stalled; the stand-in's columns stored as half floats like the logs') where it is outside
-# +-15 % (benchmarks/fidelity.py, docs/fidelity.md). Do not widen the band: update this list when a model change
+# +-15 % (anafi_lab/cli/measure_fidelity.py, docs/fidelity.md). Do not widen the band: update this list when a model change
 # moves a cell, and say so in the change.
 KNOWN_OFF = {
     ('x_straight_3_pid', 'truth', 'e_mu'): 0.80,        # horizontal (the log's z estimate is garbage, no normal flight)
@@ -310,7 +310,7 @@ def test_compare_and_band():
 
 # ------------------------------------------------------------------------ the paper's scenarios, held-out bounds
 def test_age_variants_set_the_waypoint_age_at_the_mpc_cycle():
-    from anafi_sim.experiments.engine import DEFAULT_SCHEDULE
+    from anafi_lab.engine.engine import DEFAULT_SCHEDULE
     base = F.Variant('shipped', 'shipped defaults', {'k': 1}, {'mpc': {'paper_timing': True}}, {'x': 1})
     out = F.age_variants(base, (0.005, 0.08))
     assert [v.name for v in out] == ['shipped_age05', 'shipped_age80']
@@ -400,7 +400,7 @@ def test_held_out_score_and_table_count_the_middles():
 
 
 def _profile_row(k, d=0.2, rms=(0.05, 0.04, 0.06)):
-    from anafi_sim.calibration.fit import FusionProfileRow
+    from anafi_lab.calibration.fit import FusionProfileRow
     return FusionProfileRow(k, d + 0.025, d, *rms)
 
 
@@ -511,7 +511,7 @@ def test_a_periodic_lead_in_repeats_the_first_period_backwards():
 
 
 def test_a_parabola_and_the_velocity_lag_for_a_turning_path():
-    from anafi_sim.experiments.reference_log import velocity_lag
+    from anafi_sim.mission.reference_log import velocity_lag
     t = np.arange(0.0, 1.0, 0.05)
     y = 2.0 * np.cos(t)                                # a second of a circle: a line cuts it
     parabola = abs(F.line_value(t, y, np.ones_like(t, bool), -0.1, 2) - 2.0 * np.cos(-0.1))
@@ -556,7 +556,7 @@ def test_the_replay_method_reproduces_the_standins_own_periodic_runs():
 
 
 def test_run_log_records_a_run_as_the_logger_did():
-    from anafi_sim.experiments.engine import Engine
+    from anafi_lab.engine.engine import Engine
     engine = Engine('vertical_r2_v1', 'pid')
     assert engine.run().ok
     ev = engine.evaluator
@@ -639,19 +639,16 @@ def test_replayed_metric_within_15_percent_of_sphinx(replays, name, cell):
 
 # ----------------------------------------------------------------------------------- the report (benchmark)
 def test_report_rerender_keeps_the_measuring_run_and_ranks_the_shipped_defaults(tmp_path):
-    """benchmarks/fidelity.py --steps , re-renders the committed figures: it measures nothing, so the report and
+    """anafi_lab/cli/measure_fidelity.py --steps , re-renders the committed figures: it measures nothing, so the report and
     fidelity.yaml keep the command and date of the run that measured them; the ranking and the recommendation
     include the shipped defaults (they were left out once, and the report recommended a configuration that
     scores fewer cells than the shipped one)."""
-    import importlib.util
     import shutil
     import yaml
+    from anafi_lab.cli import measure_fidelity as bench
     if not os.path.isdir(LOG_DIR):
         pytest.skip('reference logs not found at %s' % LOG_DIR)
     repo = paths.checkout()
-    spec = importlib.util.spec_from_file_location('fidelity_bench', os.path.join(repo, 'benchmarks', 'fidelity.py'))
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
     store = tmp_path / 'fidelity.yaml'
     shutil.copy(os.path.join(repo, 'docs', 'fidelity', 'fidelity.yaml'), str(store))
     measured = yaml.safe_load(store.read_text())['meta']

@@ -1,4 +1,4 @@
-"""anafi_sim.experiments.fleet: fleet files -> drones, shifted scenarios, the generated launch XML, aggregator."""
+"""anafi_sim.mission.fleet: fleet files -> drones, shifted scenarios, the generated launch XML, aggregator."""
 import os
 import re
 import shutil
@@ -9,8 +9,8 @@ import xml.etree.ElementTree as ET
 import pytest
 import yaml
 
-from anafi_sim.experiments import fleet as fl
-from anafi_sim.experiments.trajectory import list_scenarios, load_scenario, scenario_from_dict
+from anafi_sim.mission import fleet as fl
+from anafi_sim.mission.trajectory import list_scenarios, load_scenario, scenario_from_dict
 
 
 def drones_of(d, drones=0):

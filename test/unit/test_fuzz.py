@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E
 from anafi_control import contract  # noqa: E402
 from anafi_control.mpc_tracking import MpcTracking  # noqa: E402
 from anafi_control.pid_framework import PidTracking  # noqa: E402
-from anafi_sim.experiments import reference_log  # noqa: E402
+from anafi_sim.mission import reference_log  # noqa: E402
 from anafi_sim.interface import ground_truth as gt  # noqa: E402
 from anafi_sim.interface.supervisor import ProcessSupervisor  # noqa: E402
 from anafi_sim.telemetry import protocol  # noqa: E402

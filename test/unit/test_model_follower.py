@@ -1,9 +1,9 @@
-"""anafi_sim.experiments.model_follower: a target's pose -> waypoint with consistent velocity (pure core)."""
+"""anafi_sim.mission.model_following: a target's pose -> waypoint with consistent velocity (pure core)."""
 import math
 
 import pytest
 
-from anafi_sim.experiments.model_follower import ModelFollower, yaw_of_quaternion
+from anafi_sim.mission.model_following import ModelFollower, yaw_of_quaternion
 
 
 def quat(yaw):

@@ -1,4 +1,4 @@
-"""anafi_sim.experiments.plots: run and comparison figures from reference-log CSV files (Agg, no display)."""
+"""anafi_sim.mission.plots: run and comparison figures from reference-log CSV files (Agg, no display)."""
 import math
 import os
 import sys
@@ -9,8 +9,8 @@ import pytest
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from experiment_logs import make_log  # noqa: E402
 
-from anafi_sim.experiments import plots  # noqa: E402
-from anafi_sim.experiments.reference_log import write_log  # noqa: E402
+from anafi_sim.mission import plots  # noqa: E402
+from anafi_sim.mission.reference_log import write_log  # noqa: E402
 
 REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 REFERENCE_LOGS = os.path.join(REPO, '..', 'shared', 'reference_logs')

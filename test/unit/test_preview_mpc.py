@@ -15,7 +15,7 @@ from anafi_control.preview_mpc import (DEFAULTS, RECONFIGURABLE, PredictionModel
                                        check_params, discretise, reference_samples, tilt_acceleration)
 from anafi_control.target_estimator import TargetEstimator
 from anafi_sim import paths
-from anafi_sim.experiments.trajectory import Circle, StraightLine, TrajectoryGenerator, VerticalPeriodic, \
+from anafi_sim.mission.trajectory import Circle, StraightLine, TrajectoryGenerator, VerticalPeriodic, \
     load_scenario
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.sim.drone_model import AnafiModel, load_model_params
@@ -277,8 +277,8 @@ def test_the_yaw_governor_keeps_the_180_deg_step_from_overshooting_in_the_engine
     (YAW_GOVERNOR_DEMAND never reached) the fast turn during the translation makes it overshoot by more than
     0.5 m (benchmarks/results/preview_mpc.md: 0.003 against 1.25 m)."""
     from anafi_control import preview_mpc
-    from anafi_sim.experiments import step_response
-    from anafi_sim.experiments.engine import Engine
+    from anafi_sim.mission import step_response
+    from anafi_lab.engine.engine import Engine
 
     def overshoot():
         engine = Engine('static_wp1', 'preview_mpc')

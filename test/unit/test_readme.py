@@ -532,7 +532,7 @@ def _summary_row(text, title):
 
 def test_the_readme_fidelity_figures_are_the_reports():
     """The counts the README quotes (shipped defaults within +-10 % and +-25 %, effects off, settled start, without
-    the stalls) are those of the summary of docs/fidelity.md, which benchmarks/fidelity.py regenerates."""
+    the stalls) are those of the summary of docs/fidelity.md, which anafi_lab/cli/measure_fidelity.py regenerates."""
     with open(README) as stream:
         readme = ' '.join(stream.read().split())
     with open(FIDELITY_DOC) as stream:

@@ -1,11 +1,11 @@
-"""anafi_sim.experiments.reference_log: reading/writing reference-log CSVs, garbage detection, the paper's tracking error."""
+"""anafi_sim.mission.reference_log: reading/writing reference-log CSVs, garbage detection, the paper's tracking error."""
 import math
 import os
 
 import numpy as np
 import pytest
 
-from anafi_sim.experiments.reference_log import (COLUMNS, ReferenceLog, as_logged, detect_garbage,
+from anafi_sim.mission.reference_log import (COLUMNS, ReferenceLog, as_logged, detect_garbage,
                                                  horizontal_tracking_error, read_log, tracking_error, write_log)
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

@@ -1,4 +1,4 @@
-"""The rviz pieces that need no display: anafi_sim.experiments.visualisation (trail, marker specs), its
+"""The rviz pieces that need no display: anafi_sim.mission.visualisation (trail, marker specs), its
 parameter file, anafi_sim/config/anafi.rviz and rviz.launch agreeing with them. The screenshot itself:
 test/ros/test_rviz.py."""
 import math
@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from anafi_sim import paths
-from anafi_sim.experiments.visualisation import COLOURS, DEFAULTS, Trail, markers
+from anafi_sim.mission.visualisation import COLOURS, DEFAULTS, Trail, markers
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 

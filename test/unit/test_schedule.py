@@ -1,8 +1,8 @@
-"""The in-process engine's clockwork (anafi_sim.experiments.schedule) on its own: event order, node clocks on
+"""The in-process engine's clockwork (anafi_lab.engine.event_loop) on its own: event order, node clocks on
 /clock ticks, ROS timers, topics with transport delays."""
 import pytest
 
-from anafi_sim.experiments.schedule import (DELIVERY, PHYSICS, TIMER, EventLoop, NodeClock, Timer, Topic, to_ns,
+from anafi_lab.engine.event_loop import (DELIVERY, PHYSICS, TIMER, EventLoop, NodeClock, Timer, Topic, to_ns,
                                             to_s)
 
 MS = 1000000

@@ -4,7 +4,7 @@ import math
 import pytest
 
 from anafi_control import frames
-from anafi_sim.experiments import monitor
+from anafi_sim.mission import monitor
 from anafi_sim.sim.bridge import BridgeEstimate, PilotingMapping, bridge_estimate
 from anafi_sim.sim.clock import SimClock
 from anafi_sim.sim.drone_model import FLYING, LANDED, TAKING_OFF, AnafiModel, load_model_params

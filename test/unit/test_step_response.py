@@ -1,4 +1,4 @@
-"""anafi_sim.experiments.step_response: overshoot and settling of a static-waypoint step, on hand-made logs."""
+"""anafi_sim.mission.step_response: overshoot and settling of a static-waypoint step, on hand-made logs."""
 import math
 import os
 import sys
@@ -9,7 +9,7 @@ import pytest
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from experiment_logs import make_log  # noqa: E402
 
-from anafi_sim.experiments import step_response as sr  # noqa: E402
+from anafi_sim.mission import step_response as sr  # noqa: E402
 
 
 def test_settling_time_is_the_last_exit_from_the_band():

@@ -1,4 +1,4 @@
-"""Sweeps and batches of in-process runs (anafi_sim.experiments.sweep, .runs): spec expansion, a small sweep
+"""Sweeps and batches of in-process runs (anafi_lab.engine.sweep, .runs): spec expansion, a small sweep
 on 2 worker processes and on a Dask LocalCluster, the batch's records and report, the command line."""
 import csv
 import glob
@@ -10,7 +10,8 @@ import pytest
 import yaml
 
 from anafi_sim import paths
-from anafi_sim.experiments import runs, sweep
+from anafi_lab.engine import runs
+from anafi_lab.engine import sweep
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'experiment.py')

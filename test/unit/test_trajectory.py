@@ -1,4 +1,4 @@
-"""anafi_sim.experiments.trajectory: trajectory formulas, periods, per-axis combinations, scenarios and the generator.
+"""anafi_sim.mission.trajectory: trajectory formulas, periods, per-axis combinations, scenarios and the generator.
 
 Velocities are checked against central finite differences of the positions
 (independent of the closed forms in the code); periods by p(t + T) = p(t);
@@ -9,8 +9,8 @@ import math
 import pytest
 import yaml
 
-from anafi_sim.experiments import trajectory as tr
-from anafi_sim.experiments.trajectory import (Circle, Constant, PerAxis, Ramp, Sine, StaticWaypoint, StraightLine,
+from anafi_sim.mission import trajectory as tr
+from anafi_sim.mission.trajectory import (Circle, Constant, PerAxis, Ramp, Sine, StaticWaypoint, StraightLine,
                                   TrajectoryGenerator, VerticalPeriodic, load_scenario, list_scenarios,
                                   scenario_from_dict, trajectory_from_dict)
 
@@ -301,8 +301,8 @@ def test_airship_target_is_the_followers_waypoint_of_the_scripted_airship():
     """The in-process airship scenario: the waypoint model_follower.py makes from the airship's pose and twist
     (airship.yaml's path), a pure function of time whose velocity is the derivative of its position."""
     import math as _m
-    from anafi_sim.experiments.model_follower import ModelFollower
-    from anafi_sim.experiments.trajectory import FollowedTarget, airship_defaults, load_scenario
+    from anafi_sim.mission.model_following import ModelFollower
+    from anafi_sim.mission.trajectory import FollowedTarget, airship_defaults, load_scenario
     from anafi_sim.gazebo.airship_path import AirshipPath
     scenario = load_scenario('airship_follow')
     target = scenario.trajectory
@@ -326,5 +326,5 @@ def test_airship_target_is_the_followers_waypoint_of_the_scripted_airship():
             pytest.approx((got.vx, got.vy, got.vz), abs=1e-4)
     assert target.sample(12.0) == target.sample(12.0)         # no history: the same answer every time
     with pytest.raises(ValueError):
-        load_scenario_from = __import__('anafi_sim.experiments.trajectory', fromlist=['trajectory_from_dict'])
+        load_scenario_from = __import__('anafi_sim.mission.trajectory', fromlist=['trajectory_from_dict'])
         load_scenario_from.trajectory_from_dict({'type': 'airship', 'path': {'wingspan': 3}})

@@ -14,9 +14,9 @@
     experiment.py sweep SPEC.yaml [--workers N] [--scheduler ADDRESS] [--no-plot] --out DIR
         -> DIR/runs.csv (every run's metrics), DIR/summary.md, DIR/e_mu.png (anafi_sim/config/sweeps/).
 
-The in-process engine (anafi_sim.experiments.engine) needs no ROS master: the same cores as the nodes on
+The in-process engine (anafi_lab.engine.engine) needs no ROS master: the same cores as the nodes on
 virtual time, bit-for-bit deterministic for a seed. ``--engine ros`` runs the real graph instead
-(experiment.launch through benchmarks/run_experiments.py: needs a ROS environment, takes the seed and wind of
+(experiment.launch through anafi_lab/engine/ros_batch.py: needs a ROS environment, takes the seed and wind of
 sim.yaml; ``--sync``: in lockstep, experiment.launch sync:=true, so that its results do not depend on the
 machine's load). Workers: processes on this machine (concurrent.futures); ``--scheduler`` sends the same tasks to a
 Dask distributed scheduler (python3-distributed; the workers need this package importable). Progress: a
@@ -31,11 +31,11 @@ import sys
 import yaml
 
 from anafi_sim import paths
-from anafi_sim.experiments import report
-from anafi_sim.experiments.engine import CONTROLLERS, make_schedule, wind_settings
-from anafi_sim.experiments.runs import SYNC_SCHEDULE, batch, make_task, result_line, run_task, task_name
-from anafi_sim.experiments.sweep import GROUPS, load_spec, run_sweep, unflatten
-from anafi_sim.experiments.trajectory import list_scenarios
+from anafi_lab.reports import paper_tables as report
+from anafi_lab.engine.engine import CONTROLLERS, make_schedule, wind_settings
+from anafi_lab.engine.runs import SYNC_SCHEDULE, batch, make_task, result_line, run_task, task_name
+from anafi_lab.engine.sweep import GROUPS, load_spec, run_sweep, unflatten
+from anafi_sim.mission.trajectory import list_scenarios
 
 
 def _key_values(items, what):
@@ -64,17 +64,8 @@ def _wind(args):
     return wind or None
 
 
-def _benchmark_script():
-    for root in (os.environ.get('ANAFI_SIM_ROOT'), paths.package_dir()):
-        if root:
-            path = os.path.join(root, 'benchmarks', 'run_experiments.py')
-            if os.path.isfile(path):
-                return path
-    raise RuntimeError('--engine ros needs benchmarks/run_experiments.py (a source checkout; source env.bash)')
-
-
 def _ros_batch(out_dir, scenarios, controllers, runs_dir, extra=()):
-    cmd = [sys.executable, _benchmark_script(), '--controllers', ','.join(controllers), '--scenarios',
+    cmd = [sys.executable, '-m', 'anafi_lab.engine.ros_batch', '--controllers', ','.join(controllers), '--scenarios',
            ','.join(scenarios), '--runs-dir', runs_dir, '--report', os.path.join(out_dir, 'experiments.md')]
     cmd += list(extra)
     return subprocess.call(cmd)
@@ -118,7 +109,7 @@ def cmd_run(args):
                                                'achieved_rtf': monitor.get('achieved_rtf')}}
         csv_path = os.path.join(args.out, name + '.csv')
         if not args.no_plot and os.path.isfile(csv_path):
-            from anafi_sim.experiments.plots import plot_run
+            from anafi_sim.mission.plots import plot_run
             plot_run(csv_path, os.path.join(args.out, name + '.png'), summary=summary, title=name)
     else:
         _in_process_only(args)
@@ -146,7 +137,7 @@ def cmd_batch(args):
     controllers = _selection(args.controllers or default, {}, set(report.KNOWN_CONTROLLERS), 'controller')
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
-    command = 'anafi_sim/scripts/experiment.py ' + ' '.join(sys.argv[1:])
+    command = 'anafi_lab/cli/experiment.py ' + ' '.join(sys.argv[1:])
     if args.engine == 'ros':
         runs_dir = os.path.abspath(args.runs_dir or os.path.join(out, 'runs'))
         extra = ['--rtf', str(args.rtf)] + (['--no-plots'] if args.no_plots else []) + (
@@ -170,7 +161,7 @@ def cmd_batch(args):
 
 def cmd_sweep(args):
     spec = load_spec(args.spec)
-    command = 'anafi_sim/scripts/experiment.py ' + ' '.join(sys.argv[1:])
+    command = 'anafi_lab/cli/experiment.py ' + ' '.join(sys.argv[1:])
     table, out_paths, meta = run_sweep(spec, args.out, workers=args.workers, scheduler=args.scheduler,
                                        command=command, plot=not args.no_plot)
     ok = sum(1 for r in table if r['ok'])
@@ -196,7 +187,7 @@ def parser():
     run.add_argument('--param', action='append', metavar='KEY=VALUE',
                      help='controller parameter (mpc: mpc.yaml keys, e.g. r=0.1; pid: LOOP.PARAM, e.g. x_outer.Kp=1)')
     run.add_argument('--schedule', action='append', metavar='KEY=VALUE',
-                     help='engine schedule override (anafi_sim.experiments.engine.DEFAULT_SCHEDULE)')
+                     help='engine schedule override (anafi_lab.engine.engine.DEFAULT_SCHEDULE)')
     run.add_argument('--sync-schedule', action='store_true',
                      help='the schedule of a ROS run with experiment.launch sync:=true (runs.SYNC_SCHEDULE; '
                           '--schedule wins)')

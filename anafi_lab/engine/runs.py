@@ -1,8 +1,8 @@
 """Many in-process runs: one run's files, the paper's batch and its report, and the executors that spread
 runs over processes or a Dask cluster (pure, no ROS).
 
-Stage: experiments (on top of ``anafi_sim.experiments.engine``; used by anafi_sim/scripts/experiment.py
-and ``anafi_sim.experiments.sweep``).
+Stage: experiments (on top of ``anafi_lab.engine.engine``; used by anafi_lab/cli/experiment.py
+and ``anafi_lab.engine.sweep``).
 
 - A *task* is a plain dict (``make_task``: scenario, controller, seed, wind, params, schedule, state_source,
   name, and where to write files), so it pickles to any worker; ``run_task(task)`` runs it and returns its
@@ -16,8 +16,8 @@ and ``anafi_sim.experiments.sweep``).
   tqdm bar on a terminal, else one line per finished run.
 - ``batch(out_dir, ...)``: every scenario of the paper with both controllers -> ``out_dir/experiments.yaml``
   (``{'meta', 'records'}``, the schema of the ROS batch), ``out_dir/report.md``
-  (``anafi_sim.experiments.report``: the paper's tables) and the plots (one per run and the static
-  waypoints' comparison, ``anafi_sim.experiments.plots``).
+  (``anafi_lab.reports.paper_tables``: the paper's tables) and the plots (one per run and the static
+  waypoints' comparison, ``anafi_sim.mission.plots``).
 """
 import collections
 import datetime
@@ -29,14 +29,14 @@ import time
 
 import yaml
 
-from anafi_sim.experiments import report
-from anafi_sim.experiments import step_response
-from anafi_sim.experiments.engine import Engine
-from anafi_sim.experiments.reference_log import write_log
-from anafi_sim.experiments.trajectory import load_scenario
+from anafi_lab.reports import paper_tables as report
+from anafi_sim.mission import step_response
+from anafi_lab.engine.engine import Engine
+from anafi_sim.mission.reference_log import write_log
+from anafi_sim.mission.trajectory import load_scenario
 
 SYNC_SCHEDULE = collections.OrderedDict([('controller_phase', 0.0), ('generator_phase', 0.005), ('mpc_latency', 0.0)])
-"""Engine schedule overrides (``anafi_sim.experiments.engine.DEFAULT_SCHEDULE``) of a ROS run in lockstep
+"""Engine schedule overrides (``anafi_lab.engine.engine.DEFAULT_SCHEDULE``) of a ROS run in lockstep
 (experiment.launch sync:=true): simulation time is held at 0 while the nodes start, so the controllers'
 timers run at 0.1 s multiples (controller_phase 0; the distributed PID's timers are at phase 0 by default);
 the trajectory generator starts its loop on the first /clock tick, held for a second (one physics step,
@@ -113,7 +113,7 @@ def run_task(task):
             files['csv'] = os.path.join(out_dir, name + '.csv')
             write_log(files['csv'], result.evaluation.full_log)
     if result.ok and scenario.name.startswith('static') and result.evaluation is not None:
-        from anafi_sim.experiments.plots import summary_window
+        from anafi_sim.mission.plots import summary_window
         try:
             record['step'] = step_response.as_dict(step_response.step_metrics(result.evaluation.full_log,
                                                                                summary_window(result.summary)))
@@ -124,7 +124,7 @@ def run_task(task):
         plot_dir = task['plot'] if isinstance(task['plot'], str) else out_dir
         path = os.path.join(plot_dir, name + '.png')
         try:
-            from anafi_sim.experiments.plots import plot_run
+            from anafi_sim.mission.plots import plot_run
             plot_run(files['csv'], path, summary=result.summary,
                      title='%s, %s' % (scenario.name, report.LABELS.get(task['controller'], task['controller'])))
             files['plot'] = path
@@ -266,7 +266,7 @@ def cost(task):
 
 def static_comparison(records, plots_dir, report_dir):
     """The static waypoints' comparison plot (Fig. 6 style) from the runs' CSVs: [(title, relative path)]."""
-    from anafi_sim.experiments import plots
+    from anafi_sim.mission import plots
     static = [r for r in records if r['scenario'] in report.STATIC and r.get('ok')
               and os.path.exists((r.get('files') or {}).get('csv') or '')]
     if not static:
@@ -309,7 +309,7 @@ def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLER
             sys.stderr.write('static comparison plot failed: %s\n' % error)
     sim = sum((r.get('info') or {}).get('sim_s') or 0.0 for r in records)
     meta = collections.OrderedDict([
-        ('command', command or 'anafi_sim/scripts/experiment.py batch'),
+        ('command', command or 'anafi_lab/cli/experiment.py batch'),
         ('date', datetime.datetime.now().strftime('%Y-%m-%d %H:%M')),
         ('machine', '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0, platform.python_version())),
         ('engine', 'inprocess'),
@@ -317,7 +317,7 @@ def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLER
         ('pid_mode', 'distributed'),
         ('workers', 'the Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)' % workers),
         ('sim_s', round(sim, 1)), ('batch_rtf', round(sim / wall, 1) if wall > 0 else None),
-        ('notes', ['- In-process engine (anafi_sim/experiments/engine.py): one process per run, virtual time, the '
+        ('notes', ['- In-process engine (anafi_lab/engine/engine.py): one process per run, virtual time, the '
                    'cores of the ROS graph on its schedule (rates, phases, transport delays: the engine\'s '
                    'DEFAULT_SCHEDULE); "achieved RTF" is simulated seconds per wall second of the run; the '
                    'simulator cannot fall behind, so there are no overruns, re-anchors or start-up wall times.',
@@ -341,7 +341,7 @@ def inprocess_report(records, meta, plots=(), comparisons=()):
     text = report.render(records, meta, plots=plots, comparison_plots=comparisons)
     text = re.sub(r'one at a time, each on its own ROS master; simulation time at a requested real-time factor of '
                   r'[^;]*; kinematic world \+ Gazebo mirror: [^;]*;',
-                  'in-process (anafi_sim/experiments/engine.py) on %s: virtual time, no ROS master, no Gazebo '
+                  'in-process (anafi_lab/engine/engine.py) on %s: virtual time, no ROS master, no Gazebo '
                   'mirror;' % meta.get('workers'), text, count=1)
     rtfs = [(r.get('info') or {}).get('achieved_rtf') for r in records]
     rtfs = sorted(v for v in rtfs if v)

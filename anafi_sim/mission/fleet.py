@@ -36,8 +36,8 @@ from xml.sax.saxutils import quoteattr
 import yaml
 
 from anafi_sim import paths
-from anafi_sim.experiments.model_follower import OFFSET_FRAMES, YAW_MODES
-from anafi_sim.experiments.trajectory import SCENARIO_DIR, airship_defaults, scenario_from_dict, scenario_path
+from anafi_sim.mission.model_following import OFFSET_FRAMES, YAW_MODES
+from anafi_sim.mission.trajectory import SCENARIO_DIR, airship_defaults, scenario_from_dict, scenario_path
 from anafi_sim.gazebo.mirror import model_names
 
 FLEET_DIR = paths.config_path('fleets')

@@ -7,7 +7,7 @@ its own ROS_HOME, and cleans every process of the run up afterwards (by process 
 evaluator's summaries (e_max, e_mu, e_sigma [m] vs estimate and ground truth), the monitor's run
 figures (achieved real-time factor, simulator overruns, MPC solve times, controller CPU), computes
 the static waypoints' overshoot and settling from the exported CSV, draws one PNG per run
-(anafi_sim.experiments.plots) and Fig. 6-style comparisons, and writes ONE Markdown report
+(anafi_sim.mission.plots) and Fig. 6-style comparisons, and writes ONE Markdown report
 (default benchmarks/results/experiments.md, plots under benchmarks/results/plots/) plus the raw
 records (experiments.yaml beside the report; ``--from-records`` re-renders a report from it).
 
@@ -27,12 +27,11 @@ import time
 
 import yaml
 
-from anafi_sim import harness
-from anafi_sim.experiments import report
-from anafi_sim.experiments import step_response
-from anafi_sim.experiments.trajectory import list_scenarios, load_scenario
+from anafi_sim import paths, processes
+from anafi_lab.reports import paper_tables as report
+from anafi_sim.mission import step_response
+from anafi_sim.mission.trajectory import list_scenarios, load_scenario
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def child_env(ros_home, port):
@@ -40,7 +39,7 @@ def child_env(ros_home, port):
     PYTHONPATH so nodes started through /usr/bin/python3 relay scripts find it too."""
     env = dict(os.environ, ROS_MASTER_URI='http://127.0.0.1:%d' % port, ROS_HOME=ros_home, ROS_HOSTNAME='127.0.0.1')
     env.pop('ROS_IP', None)
-    return harness.add_module_paths(env, 'osqp')
+    return processes.add_module_paths(env, 'osqp')
 
 
 def read_yaml(path):
@@ -65,18 +64,18 @@ class Run(object):
                 os.remove(path)
         self.duration = load_scenario(scenario).duration
         self.args = args
-        self.port = harness.free_port()
+        self.port = processes.free_port()
         self.timeout = args.ready_timeout + 60.0 + 3.0 * self.duration / max(args.rtf, 0.1)
         ros_home = os.path.join(runs_dir, 'ros_home', self.name)
         cmd = ['roslaunch', '-p', str(self.port), 'anafi_sim', 'experiment.launch',
                'controller:=' + controller, 'scenario:=' + scenario, 'rtf:=%g' % args.rtf,
                'mirror:=' + args.mirror, 'record:=' + args.record, 'out_dir:=' + runs_dir,
                'run_name:=' + self.name, 'plot:=false', 'progress_period:=0',
-               'telemetry_port:=%d' % harness.free_port(), 'pid_mode:=' + args.pid_mode,
+               'telemetry_port:=%d' % processes.free_port(), 'pid_mode:=' + args.pid_mode,
                'ready_timeout:=%g' % args.ready_timeout] + (['sync:=true'] if args.sync else [])
         self.t0 = time.monotonic()
         self.epoch0 = time.time()
-        self.proc = harness.start(cmd, env=child_env(ros_home, self.port), log=self.files['log'])
+        self.proc = processes.start(cmd, env=child_env(ros_home, self.port), log=self.files['log'])
         self.done_at = None
         self.leftovers = []
         self.wall_s = None
@@ -97,7 +96,7 @@ class Run(object):
             finished = True
         if not finished:
             return False
-        self.leftovers = harness.stop(self.proc, grace=0.5 if self.done_at is not None else 5.0, kill_wait=0.5)
+        self.leftovers = processes.stop(self.proc, grace=0.5 if self.done_at is not None else 5.0, kill_wait=0.5)
         self.wall_s = time.monotonic() - self.t0
         return True
 
@@ -128,7 +127,7 @@ class Run(object):
                 'final_to_cleaned_up': round(self.epoch0 + self.wall_s - clock['final'], 2)}
         if ok and self.scenario.startswith('static'):
             try:
-                from anafi_sim.experiments.plots import load, summary_window
+                from anafi_sim.mission.plots import load, summary_window
                 window = summary_window(summary)
                 rec['step'] = step_response.as_dict(step_response.step_metrics(load(self.files['csv']), window))
             except (IOError, OSError, ValueError, TypeError) as e:
@@ -158,7 +157,7 @@ def parse_args(argv):
                          'up to this many times (default 1)')
     ap.add_argument('--runs-dir', default=None,
                     help='run files (bags, CSV, logs); default ~/.ros/anafi_runs/batch-<date>')
-    ap.add_argument('--report', default=os.path.join(ROOT, 'benchmarks', 'results', 'experiments.md'))
+    ap.add_argument('--report', default=os.path.join(paths.checkout(), 'benchmarks', 'results', 'experiments.md'))
     ap.add_argument('--plots-dir', default=None, help='default: plots/ beside the report')
     ap.add_argument('--no-plots', action='store_true')
     ap.add_argument('--from-records', default=None, metavar='YAML',
@@ -193,7 +192,7 @@ def parse_args(argv):
 
 def make_plots(records, plots_dir, report_dir):
     """Per-run PNGs and Fig. 6-style comparisons; returns (plots, comparisons) as (label, relative path)."""
-    from anafi_sim.experiments import plots
+    from anafi_sim.mission import plots
     out, comparisons = [], []
     for rec in records:
         name = '%s_%s' % (rec['scenario'], rec['controller'])
@@ -313,10 +312,10 @@ def main(argv=None):
     except KeyboardInterrupt:
         print('interrupted: stopping the active runs')
         for run in active:
-            harness.stop(run.proc)
+            processes.stop(run.proc)
         raise
     wall = time.monotonic() - t_start
-    cmd = 'benchmarks/run_experiments.py' + (' ' + ' '.join(argv if argv is not None else sys.argv[1:])).rstrip()
+    cmd = 'anafi_lab/engine/ros_batch.py' + (' ' + ' '.join(argv if argv is not None else sys.argv[1:])).rstrip()
     meta = {'command': cmd.strip(), 'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M'),
             'machine': '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0,
                                                    platform.python_version()),

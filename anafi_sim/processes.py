@@ -1,7 +1,7 @@
-"""Process harness (pure Python, no rospy): ports, process groups, private masters, node pids, CPU time.
+"""Processes (pure Python, no rospy): ports, process groups, private masters, node pids, CPU time.
 
-Used by benchmarks/*.py, test/ros/*.py, tools/demo.sh and the experiment monitor node (controller CPU);
-no core module imports it.
+Used by nodes (the fleet launcher's ports and shutdown, the experiment monitor's controller CPU), the lab's
+ROS batch, tools/demo.sh, the rostests and the benchmarks; no core module imports it.
 
 - ports: ``free_port`` (the OS's pick, or a free one in a range);
 - processes: ``start`` runs a command in a session (process group) of its own, ``stop`` ends it and

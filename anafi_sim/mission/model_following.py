@@ -25,7 +25,7 @@ difference estimate.
 import math
 
 from anafi_control.frames import normalize_quaternion, yaw_from_quaternion
-from anafi_sim.experiments.trajectory import WaypointSample
+from anafi_sim.mission.waypoint import WaypointSample
 
 VELOCITY_SOURCES = ('auto', 'twist', 'difference')
 OFFSET_FRAMES = ('heading', 'world')

@@ -5,7 +5,7 @@ Usage: calibrate_model.py [--logs DIR] [--out YAML] [--fitted YAML] [--report MD
 Defaults (paths of the package's checkout, found through the ROS package path): logs
 <checkout>/../shared/reference_logs, out anafi_sim/config/anafi_model.yaml (the fidelity effects as
 fit.SHIPPED_EFFECTS says), fitted anafi_sim/config/anafi_model_fitted.yaml (every fitted effect on), report
-docs/calibration.md, plot docs/calibration_replay.png. The fits are anafi_sim/calibration/fit.py, the texts
+docs/calibration.md, plot docs/calibration_replay.png. The fits are anafi_lab/calibration/fit.py, the texts
 report.py, the figure plot.py; this script only wires them to files.
 """
 import argparse
@@ -14,8 +14,9 @@ import os
 import sys
 
 from anafi_sim import paths
-from anafi_sim.calibration import fit, plot, report
-from anafi_sim.experiments.reference_log import read_log
+from anafi_lab.calibration import fit, plot
+from anafi_lab.reports import calibration_report as report
+from anafi_sim.mission.reference_log import read_log
 
 
 def parse_args(argv):

@@ -57,10 +57,9 @@ import os
 import yaml
 
 from anafi_sim import paths
-
-WaypointSample = collections.namedtuple('WaypointSample', 'x y z vx vy vz yaw')
-WaypointSample.__doc__ = ('The paper\'s waypoint: position [m], velocity [m/s] (ENU world frame), '
-                          'yaw [deg].')
+from anafi_sim.gazebo.airship_path import AirshipPath
+from anafi_sim.mission.model_following import ModelFollower
+from anafi_sim.mission.waypoint import WaypointSample
 
 SCENARIO_DIR = paths.config_path('scenarios')
 """Directory of the shipped scenario files (anafi_sim/config/scenarios)."""
@@ -337,8 +336,6 @@ class FollowedTarget(object):
 
     def __init__(self, path=None, offset=(-6.0, 0.0, -2.0), offset_frame='heading', yaw_mode='heading',
                  yaw_offset=0.0):
-        from anafi_sim.experiments.model_follower import ModelFollower   # (imports this module)
-        from anafi_sim.gazebo.airship_path import AirshipPath
         params = airship_defaults()
         if path is not None:
             _check_keys(path, self.PATH_KEYS, 'airship path')

@@ -1,7 +1,7 @@
 """Virtual time for the in-process engine: one event queue and the ROS mechanics a graph's timing rests on
 (pure, no ROS).
 
-Stage: experiments (the clockwork under ``anafi_sim.experiments.engine``). Times are integer nanoseconds of
+Stage: experiments (the clockwork under ``anafi_lab.engine.engine``). Times are integer nanoseconds of
 simulation time (as rospy.Time / rospy.Duration hold them), so periods such as 1/30 s add up exactly as in
 the nodes and two runs order their events identically.
 

@@ -9,7 +9,7 @@ matplotlib is imported when a figure is drawn (Agg backend).
 """
 import numpy as np
 
-from anafi_sim.calibration import fit
+from anafi_lab.calibration import fit
 
 REPLAY_LOG = 'static_waypoint_yaw_0_pid'
 STEADY_LOG = 'x_straight_5_mpc'

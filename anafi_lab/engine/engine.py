@@ -5,12 +5,12 @@ Stage: experiments. Reproduces experiment.launch without a ROS master, without a
 second implementation of anything: the simulated Anafi (``anafi_sim.sim.simulator.SimulatedAnafi`` on a
 ``SimClock``: model, estimate, bridge mapping), the ground-truth interface's decimation
 (``anafi_sim.interface.ground_truth.GroundTruthInterface``), the trajectory generator
-(``anafi_sim.experiments.trajectory.TrajectoryGenerator``), the experiment monitor's hold-at-start and start
-rule (``anafi_sim.experiments.monitor.ExperimentMonitor``), the controller (any ``anafi_control.contract``
+(``anafi_sim.mission.trajectory.TrajectoryGenerator``), the experiment monitor's hold-at-start and start
+rule (``anafi_sim.mission.monitor.ExperimentMonitor``), the controller (any ``anafi_control.contract``
 Controller as controller_node.py runs it; the paper's PID framework as its distributed graph: relative
 state, six ``anafi_control.pid.PidController`` nodes, ``anafi_control.pid_wiring.CommandAssembler``) and the
-evaluator (``anafi_sim.experiments.evaluation.LiveEvaluator``: the summary schema evaluator.py writes).
-The clockwork is ``anafi_sim.experiments.schedule``: integer nanoseconds, ROS timers on /clock ticks,
+evaluator (``anafi_sim.mission.evaluation.LiveEvaluator``: the summary schema evaluator.py writes).
+The clockwork is ``anafi_lab.engine.event_loop``: integer nanoseconds, ROS timers on /clock ticks,
 messages with transport delays.
 
 ``Engine(scenario, controller, seed=..., wind=..., ...).run()`` -> ``RunResult`` (summary dict as the
@@ -95,10 +95,10 @@ from anafi_control.pid_framework import DEFAULTS as PID_DEFAULTS, LOOP_NAMES, Pi
 from anafi_control.preview_mpc import DEFAULTS as PREVIEW_DEFAULTS, PredictionModel, PreviewMpc
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler, input_topics, loop_inputs, loop_topics
 from anafi_sim import paths
-from anafi_sim.experiments.evaluation import LiveEvaluator
-from anafi_sim.experiments.monitor import ExperimentMonitor
-from anafi_sim.experiments.schedule import ACTION, PHYSICS, TIMER, EventLoop, NodeClock, Timer, Topic, to_ns, to_s
-from anafi_sim.experiments.trajectory import DONE, Scenario, TrajectoryGenerator, load_scenario
+from anafi_sim.mission.evaluation import LiveEvaluator
+from anafi_sim.mission.monitor import ExperimentMonitor
+from anafi_lab.engine.event_loop import ACTION, PHYSICS, TIMER, EventLoop, NodeClock, Timer, Topic, to_ns, to_s
+from anafi_sim.mission.trajectory import DONE, Scenario, TrajectoryGenerator, load_scenario
 from anafi_sim.interface.ground_truth import GroundTruthInterface, odometry
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.sim.clock import TIMER_PHASES, SimClock
@@ -507,7 +507,7 @@ class Engine(object):
     SCENARIO_CONTROLLER); max_sim_time: give up after this many simulated seconds (default: the scenario's
     duration + 120 s); actions: [(s > 0 after the scenario's start, fn(engine))], called at those simulated
     times before the physics step of that instant, whose state then shows the action (e.g. the fidelity
-    replay's initial state, ``anafi_sim.experiments.fidelity``).
+    replay's initial state, ``anafi_lab.fidelity.replay``).
     """
 
     def __init__(self, scenario, controller='mpc', seed=None, wind=None, settings=None, controller_params=None,

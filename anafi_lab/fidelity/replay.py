@@ -1,7 +1,7 @@
 """Fidelity of the stand-in: closed-loop replay of the shared Sphinx reference logs (pure, no ROS).
 
-Stage: experiments (on top of ``anafi_sim.experiments.engine``). For one reference log (format of
-shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenario>_<pid|mpc>``:
+Stage: experiments (on top of ``anafi_lab.engine.engine``). For one reference log (format of
+shared/reference_logs, ``anafi_sim.mission.reference_log``) named ``<scenario>_<pid|mpc>``:
 
 1. ``replay_plan``: the log's waypoint stream as the 10 Hz stream the controller saw. The waypoint columns
    change at 10 Hz (every other 20 Hz sample); each change becomes one generator tick (consecutive changes
@@ -14,9 +14,9 @@ shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenari
    backwards at its own velocity for ``lead`` s, so the controller has settled on the moving target when
    the log begins (no further back than it stays between 1 and 40 m up: ``straight_lead_limit``); a stream
    that repeats itself (a circle, a periodic vertical motion: ``stream_period``) repeats its first period
-   backwards instead. The ``Scenario`` (``anafi_sim.experiments.trajectory``): hover at the start for
+   backwards instead. The ``Scenario`` (``anafi_sim.mission.trajectory``): hover at the start for
    ``approach`` s, the lead-in, then the replay (zero-order hold of the ticks), measured.
-2. ``run_replay``: the scenario on the in-process engine (``anafi_sim.experiments.engine.Engine``) with the
+2. ``run_replay``: the scenario on the in-process engine (``anafi_lab.engine.engine.Engine``) with the
    log's controller and the given model / controller parameters / schedule, and the stand-in's estimate
    (as a 20 Hz logger sees it on average, ``standin_log``) and ground truth (interpolated, 100 Hz)
    resampled at the log's own sample times:
@@ -43,7 +43,7 @@ shared/reference_logs, ``anafi_sim.experiments.reference_log``) named ``<scenari
 Variants (``Variant``): a model dict (``anafi_sim/config/anafi_model.yaml`` = effects off, the fitted one =
 effects on, or one effect at a time: ``effect_variants``), MPC parameters (e.g. ``paper_timing``), engine
 schedule overrides (timer phases). ``run_log_variants`` / ``replay_all`` run them side by side;
-``render_markdown`` writes docs/fidelity.md (benchmarks/fidelity.py is the command line);
+``render_markdown`` writes docs/fidelity.md (anafi_lab/cli/measure_fidelity.py is the command line);
 ``plot_replay`` one figure per log (matplotlib Agg). ``scenario_runs``: the paper's scenarios (static waypoints,
 Tables 3-5) on the engine per variant (``table3_runs``: the straight lines, keyed by speed; ``age_variants``: a
 variant at other timer phases); ``held_out_bounds``: what the issue's comparison with Sphinx's held-out runs
@@ -61,14 +61,15 @@ import re
 
 import numpy as np
 
-from anafi_sim.experiments import report
-from anafi_sim.experiments.engine import DEFAULT_SCHEDULE, Engine
-from anafi_sim.experiments.evaluation import interpolate
-from anafi_sim.experiments.reference_log import (COLUMNS, INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES,
+from anafi_lab.reports import paper_tables as report
+from anafi_lab.engine.engine import DEFAULT_SCHEDULE, Engine
+from anafi_sim.mission.evaluation import interpolate
+from anafi_sim.mission.reference_log import (COLUMNS, INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES,
                                                  WAYPOINT_COLUMNS, ReferenceLog, as_logged, detect_garbage,
                                                  initial_velocity_error, line_value, read_log, tracking_error,
                                                  velocity_lag)
-from anafi_sim.experiments.trajectory import Phase, Scenario, WaypointSample
+from anafi_sim.mission.trajectory import Phase, Scenario
+from anafi_sim.mission.waypoint import WaypointSample
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, load_model_params
 
 CONTROLLERS = ('pid', 'mpc')
@@ -761,8 +762,8 @@ def applies(variant, path_or_name):
 
 def replay_all(paths, variants, seed=None, workers=1, progress=None):
     """Replay every log (paths) with every variant that applies to its controller; {(log name, variant
-    name): record}. Runs through ``anafi_sim.experiments.runs.execute`` (``workers`` processes)."""
-    from anafi_sim.experiments import runs
+    name): record}. Runs through ``anafi_lab.engine.runs.execute`` (``workers`` processes)."""
+    from anafi_lab.engine import runs
     tasks = [(p, v, seed) for v in variants for p in paths if applies(v, p)]
     records = runs.execute(tasks, workers=workers, progress=progress, label='fidelity', function=_run_one)
     return collections.OrderedDict(((r['log'], r['variant']), r) for r in records)
@@ -804,7 +805,7 @@ def _scenario_engine(scenario, controller, variant, seed):
 def _per_scenario(variants, scenarios, seed, workers, progress, label, function):
     """``function`` (a worker taking (scenario, controller, variant, seed)) for every variant, controller (a
     variant's ``controllers`` only) and scenario; ``scenario_records`` of its records."""
-    from anafi_sim.experiments import runs
+    from anafi_lab.engine import runs
     tasks = [(s, c, v, seed) for v in variants for c in report.CONTROLLERS for s in scenarios
              if v is None or not v.controllers or c in v.controllers]
     return scenario_records(runs.execute(tasks, workers=workers, progress=progress, label=label, function=function))

@@ -45,8 +45,8 @@ import math
 import numpy as np
 
 from anafi_control.frames import odometry_to_world, odometry_twist_frame
-from anafi_sim.experiments import reference_log
-from anafi_sim.experiments.reference_log import (COLUMNS, STATE_NAMES, WAYPOINT_COLUMNS, GarbageReport, ReferenceLog,
+from anafi_sim.mission import reference_log
+from anafi_sim.mission.reference_log import (COLUMNS, STATE_NAMES, WAYPOINT_COLUMNS, GarbageReport, ReferenceLog,
                                      detect_garbage, error_stats, read_log)
 
 DEFAULT_MIN_ALTITUDE = -1.0   # m: a position below this is not a flight sample (excluded, reported)

@@ -1,0 +1,1 @@
+"""The in-process engine: one experiment on virtual time, many runs, sweeps and the ROS batch."""

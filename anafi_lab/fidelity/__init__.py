@@ -1,0 +1,1 @@
+"""Fidelity of the stand-in: closed-loop replays of reference logs and the held-out bounds."""

@@ -1,0 +1,16 @@
+"""The paper's experiments as data: its controllers, scenario groups and published simulation figures."""
+
+CONTROLLERS = ('mpc', 'pid')                  # the paper's two: every batch runs them
+BEYOND = ('preview_mpc',)                     # beyond the paper: a column where the batch has it
+KNOWN_CONTROLLERS = CONTROLLERS + BEYOND
+STATIC = ('static_wp0', 'static_wp1')
+STRAIGHT_SPEEDS = (1, 2, 3, 4, 5)
+STRAIGHT = tuple('straight_%d' % v for v in STRAIGHT_SPEEDS)
+CIRCLES = ((1, 1), (2, 1), (2, 2), (3, 1), (3, 2), (3, 3))          # (r [m], v [m/s]), Table 4
+VERTICAL = ((1, 1), (2, 1), (2, 2))                                  # Table 5
+CIRCLE_SCENARIOS = tuple('circle_r%d_v%d' % rv for rv in CIRCLES)
+VERTICAL_SCENARIOS = tuple('vertical_r%d_v%d' % rv for rv in VERTICAL)
+ALL_SCENARIOS = STATIC + STRAIGHT + CIRCLE_SCENARIOS + VERTICAL_SCENARIOS
+
+PAPER_TABLE3 = {'mpc': (0.16, 0.36, 0.59, 0.82, 1.41), 'pid': (1.32, 2.67, 4.07, 5.32, 7.00)}
+"""The paper's Table 3: mean tracking error [m] on the straight line at 1..5 m/s (simulation)."""

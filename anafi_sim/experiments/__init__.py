@@ -1,1 +1,0 @@
-"""Experiments: scenarios and waypoints, tracking-error evaluation, reference logs, run monitor, batch report, plots."""

@@ -222,12 +222,12 @@ def make_plots(records, plots_dir, report_dir):
         try:
             plots.plot_comparison(runs, path, title='Static waypoints WP0 / WP1 from hover (cf. Fig. 6); '
                                                     't = 0 at the step')
-            comparisons.append(('Static waypoints WP0 / WP1, PID and MPC (cf. the paper\'s Fig. 6)',
+            comparisons.append((report.STATIC_COMPARISON,
                                 os.path.relpath(path, report_dir)))
         except (IOError, OSError, ValueError) as e:
             print('comparison plot failed: %s' % e)
     elif os.path.exists(os.path.join(plots_dir, 'static_waypoints.png')):
-        comparisons.append(('Static waypoints WP0 / WP1, PID and MPC (cf. the paper\'s Fig. 6)',
+        comparisons.append((report.STATIC_COMPARISON,
                             os.path.relpath(os.path.join(plots_dir, 'static_waypoints.png'), report_dir)))
     return out, comparisons
 

@@ -23,7 +23,6 @@ import collections
 import datetime
 import os
 import platform
-import re
 import sys
 import time
 
@@ -279,7 +278,7 @@ def static_comparison(records, plots_dir, report_dir):
                      rec['files']['csv'], window[0] if window else 0.0))
     path = os.path.join(plots_dir, 'static_waypoints.png')
     plots.plot_comparison(runs, path, title='Static waypoints WP0 / WP1 from hover (cf. Fig. 6); t = 0 at the step')
-    return [('Static waypoints WP0 / WP1, PID and MPC (cf. the paper\'s Fig. 6)', os.path.relpath(path, report_dir))]
+    return [(report.STATIC_COMPARISON, os.path.relpath(path, report_dir))]
 
 
 def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLERS, workers=None, scheduler=None,
@@ -317,38 +316,9 @@ def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLER
         ('pid_mode', 'distributed'),
         ('workers', 'the Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)' % workers),
         ('sim_s', round(sim, 1)), ('batch_rtf', round(sim / wall, 1) if wall > 0 else None),
-        ('notes', ['- In-process engine (anafi_lab/engine/engine.py): one process per run, virtual time, the '
-                   'cores of the ROS graph on its schedule (rates, phases, transport delays: the engine\'s '
-                   'DEFAULT_SCHEDULE); "achieved RTF" is simulated seconds per wall second of the run; the '
-                   'simulator cannot fall behind, so there are no overruns, re-anchors or start-up wall times.',
-                   '- %d runs on %s: %.1f s wall for %.0f s of simulated time.' % (
-                       len(records), 'Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)'
-                       % workers, wall, sim),
-                   '- Controller CPU: the time spent in the controller\'s callbacks within one process; the ROS '
-                   'batch counts whole node processes (the distributed PID\'s 8 nodes pay ROS\'s per-message cost), '
-                   'so the PID / MPC ratio here is not the paper\'s measure.']),
     ])
     report_path = os.path.join(out_dir, 'report.md')
     with open(report_path, 'w') as stream:
-        stream.write(inprocess_report(records, meta, plot_list, comparisons))
+        stream.write(report.render(records, meta, plot_list, comparisons))
     _write_yaml(os.path.join(out_dir, 'experiments.yaml'), {'meta': dict(meta), 'records': records})
     return records, meta, report_path
-
-
-def inprocess_report(records, meta, plots=(), comparisons=()):
-    """``report.render`` of an in-process batch, with its first lines and the "keeping up" section saying
-    what the engine is (no ROS master, virtual time) instead of what the ROS batch was."""
-    text = report.render(records, meta, plots=plots, comparison_plots=comparisons)
-    text = re.sub(r'one at a time, each on its own ROS master; simulation time at a requested real-time factor of '
-                  r'[^;]*; kinematic world \+ Gazebo mirror: [^;]*;',
-                  'in-process (anafi_lab/engine/engine.py) on %s: virtual time, no ROS master, no Gazebo '
-                  'mirror;' % meta.get('workers'), text, count=1)
-    rtfs = [(r.get('info') or {}).get('achieved_rtf') for r in records]
-    rtfs = sorted(v for v in rtfs if v)
-    text = re.sub(r'(## Did the simulator keep up\?\n\n)[^\n]*\n',
-                  lambda m: m.group(1) + 'In-process the simulation runs on virtual time: the simulator cannot fall '
-                  'behind and no controller can be starved, so there are no overruns, re-anchors, hover commands '
-                  'from starvation or repeats. Achieved real-time factor (simulated seconds per wall second of a '
-                  'run): min %s, max %s.\n' % (report.fmt(rtfs[0] if rtfs else None, 0),
-                                               report.fmt(rtfs[-1] if rtfs else None, 0)), text, count=1)
-    return text

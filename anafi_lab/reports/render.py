@@ -3,7 +3,7 @@
 A report is a template plus a context of figures: no figure is typed into the prose and no prose is built by
 string concatenation in Python. ``render(name, **context)`` fills ``templates/<name>``; the filters every template
 has are ``fmt`` (``anafi_sim.numeric.fmt``: digits, '-' when missing), ``pct`` (a ratio as a signed percent) and
-``join`` (Jinja2's own).
+Jinja2's own; ``table(header, rows)`` draws a Markdown table.
 """
 import functools
 
@@ -20,6 +20,17 @@ def pct(ratio, digits=0):
     return ('%s %%' % text) if text.startswith('-') else ('+%s %%' % text)
 
 
+def markdown_table(header, rows):
+    """Markdown lines of a table: header, separator, one line per row (cells as they are, ``str`` of each)."""
+    return ['| ' + ' | '.join(str(c) for c in header) + ' |', '|' + '---|' * len(header)] + \
+        ['| ' + ' | '.join(str(c) for c in row) + ' |' for row in rows]
+
+
+def table(header, rows):
+    """A Markdown table as one text (no trailing newline): the templates' ``table(header, rows)``."""
+    return '\n'.join(markdown_table(header, rows))
+
+
 @functools.lru_cache(maxsize=None)
 def environment():
     """The Jinja2 environment of the report templates (found through the package: devel and install spaces)."""
@@ -28,6 +39,7 @@ def environment():
                              keep_trailing_newline=True, autoescape=False)
     env.filters['fmt'] = fmt
     env.filters['pct'] = pct
+    env.globals['table'] = table
     return env
 
 

@@ -60,7 +60,11 @@ def overshoot(positions, start, goal, min_move=0.05):
     return per_axis, float(np.linalg.norm(per_axis))
 
 
-def step_metrics(log, window, source='anafi', band=0.2, yaw_band=5.0, min_move=0.05):
+BAND = 0.2          # m, the settling band of the position error
+YAW_BAND = 5.0      # deg, the settling band of the yaw error
+
+
+def step_metrics(log, window, source='anafi', band=BAND, yaw_band=YAW_BAND, min_move=0.05):
     """``StepMetrics`` of ``log`` over ``window`` (t0, t1) s since its first sample; ``source`` 'anafi'
     (the drone's estimate) or 'sphinx' (ground truth). ValueError when the window holds < 2 samples."""
     t = log.t

@@ -21,7 +21,7 @@ import yaml
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'experiment.py')
+SCRIPT = os.path.join(ROOT, 'anafi_lab', 'cli', 'experiment.py')
 sys.path.insert(0, os.path.join(ROOT, 'benchmarks'))
 import bench_sync  # noqa: E402  (benchmarks/ is not a package)
 

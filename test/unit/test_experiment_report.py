@@ -1,12 +1,7 @@
 """anafi_lab.reports.paper_tables (the batch's Markdown tables) and anafi_lab/engine/ros_batch.py options."""
-import os
-
 import pytest
 
 from anafi_lab.reports import paper_tables as rep
-
-REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-
 
 def rec(scenario, controller, e_mu, e_max=None, e_sigma=0.05, truth=None, ok=True, **info):
     est = {'e_mu': e_mu, 'e_max': e_max if e_max is not None else 2 * e_mu, 'e_sigma': e_sigma}
@@ -19,7 +14,7 @@ def rec(scenario, controller, e_mu, e_max=None, e_sigma=0.05, truth=None, ok=Tru
 def test_table3_has_ours_paper_and_ratio_in_the_speed_columns():
     records = [rec('straight_%d' % v, 'mpc', 0.1 * v, truth=0.1 * v + 0.01) for v in (1, 2, 3, 4, 5)]
     records += [rec('straight_2', 'pid', 2.5)]
-    lines = rep.table3(records)
+    lines = rep.markdown_table(['Controller / speed', '1', '2', '3', '4', '5'], rep.table3(records))
     mpc_ours = [l for l in lines if l.startswith('| MPC ours, vs estimate')][0]
     assert mpc_ours.split('|')[2].strip() == '**0.10**' and mpc_ours.split('|')[6].strip() == '**0.50**'
     assert [l for l in lines if l.startswith('| MPC paper')][0].split('|')[2].strip() == '0.16'
@@ -36,7 +31,7 @@ def test_stats_table_and_mpc_beats_pid():
     records = [rec('circle_r1_v1', 'mpc', 0.2, e_max=0.3, e_sigma=0.04), rec('circle_r1_v1', 'pid', 0.9),
                rec('circle_r2_v1', 'mpc', 1.0), rec('circle_r2_v1', 'pid', 0.8),
                rec('circle_r2_v2', 'mpc', 0.5), rec('circle_r2_v2', 'pid', 0.4, ok=False)]
-    lines = rep.stats_table(records, rep.CIRCLE_SCENARIOS, rep.CIRCLES, 'estimate')
+    lines = rep.markdown_table(*rep.stats_table(records, rep.CIRCLE_SCENARIOS, rep.CIRCLES, 'estimate'))
     row = [l for l in lines if l.startswith('| 1 | 1 |')][0].split('|')
     assert [c.strip() for c in row[3:6]] == ['0.30', '0.20', '0.04']
     assert row[-2].strip() == 'yes'
@@ -57,7 +52,7 @@ def test_cpu_ratio_and_keeping_up():
     per, ratio = rep.cpu_ratio(records)
     assert per['mpc'] == pytest.approx(0.05) and per['pid'] == pytest.approx(0.25)
     assert ratio == pytest.approx(5.0)
-    assert rep.keeping_up(records, 3.0) == (2.1, 8, 2, 2)
+    assert rep.keeping_up(records) == (2.1, 8, 2, 2, [2.1, 2.8])
 
 
 def test_render_has_every_section_and_the_wall_time():
@@ -109,7 +104,7 @@ def test_disturbed_runs_are_marked_and_counted():
     assert rep.cell(bad, 'estimate', 'e_mu') == '0.90 †'
     assert rep.cell(rec('x', 'pid', 0.9, ok=False, disturbed='x'), 'estimate', 'e_mu') == '-'
     text = rep.render([clean, bad], {'rtf': '3', 'wall_s': 60.0})
-    assert '0.90 †' in text and rep.DAGGER_NOTE in text
+    assert '0.90 †' in text and '† the controller was interrupted during this run' in text
     assert '1 run(s) needed a repeat, 1 remain disturbed' in text
     assert '| circle_r1_v1_pid | ok, disturbed: 4 hover commands | 2 |' in text
 
@@ -117,9 +112,20 @@ def test_disturbed_runs_are_marked_and_counted():
 def test_paper_comparison_ratios():
     records = [rec('straight_%d' % v, 'mpc', p) for v, p in zip((1, 2, 3, 4, 5), (0.16, 0.36, 0.59, 0.82, 1.41))]
     records += [rec('straight_%d' % v, 'pid', 2 * p) for v, p in zip((1, 2, 3, 4, 5), (1.32, 2.67, 4.07, 5.32, 7.0))]
-    lines = rep.paper_comparison(records)
+    text = rep.render(records, {'rtf': '3', 'wall_s': 60.0})
+    lines = [line for line in text.splitlines() if line.startswith('- Table 3')]
     assert lines[0].startswith('- Table 3, MPC: ours / paper = 1.00 on average')
     assert lines[1].startswith('- Table 3, PID: ours / paper = 2.00 on average (2.00 at')
     # PID/MPC ratio of ours (2 x the paper's PID over the paper's MPC), and the paper's own range
     assert '(the paper: 5.0 .. 8.2)' in lines[2]
     assert lines[2].startswith('- Table 3 (straight line): PID e_mu / MPC e_mu = 9.9 .. 16.5')
+
+
+def test_in_process_batch_says_what_the_engine_is():
+    records = [rec('static_wp0', 'mpc', 0.2, achieved_rtf=80.0), rec('static_wp0', 'pid', 0.4, achieved_rtf=95.0)]
+    text = rep.render(records, {'engine': 'inprocess', 'workers': '2 worker process(es)', 'wall_s': 12.0,
+                                'sim_s': 800.0, 'pid_mode': 'distributed'})
+    assert 'in-process (anafi_lab/engine/engine.py) on 2 worker process(es): virtual time' in text
+    assert 'Achieved real-time factor (simulated seconds per wall second of a run): min 80, max 95.' in text
+    assert '- 2 runs on 2 worker process(es): 12.0 s wall for 800 s of simulated time.' in text
+    assert 'one at a time, each on its own ROS master' not in text

@@ -14,7 +14,7 @@ from anafi_lab.engine import runs
 from anafi_lab.engine import sweep
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'experiment.py')
+SCRIPT = os.path.join(ROOT, 'anafi_lab', 'cli', 'experiment.py')
 
 SHORT = """
 name: %s

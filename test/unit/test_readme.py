@@ -24,13 +24,15 @@ from anafi_sim.ros.params import ParamReader
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SCRIPTS_DIR = os.path.join(ROOT, 'anafi_sim', 'scripts')
+LAB_TOOLS_DIR = os.path.join(ROOT, 'anafi_lab', 'cli')
 LAUNCH_DIR = os.path.join(ROOT, 'anafi_sim', 'launch')
 README = os.path.join(ROOT, 'README.md')
 NODES_DOC = os.path.join(ROOT, 'docs', 'nodes.md')
 ARCHITECTURE_DOC = os.path.join(ROOT, 'docs', 'architecture.md')
 
-#: command-line tools in anafi_sim/scripts (not ROS nodes): a usage line in the README each
-TOOLS = ('calibrate_model.py', 'echo.py', 'evaluate_log.py', 'experiment.py', 'record_bag.py', 'tlm_data_logger.py')
+#: command-line tools in anafi_sim/scripts and anafi_lab/cli (not ROS nodes): a usage line in the README each
+TOOLS = ('calibrate_model.py', 'echo.py', 'evaluate_log.py', 'experiment.py', 'measure_fidelity.py', 'record_bag.py',
+         'tlm_data_logger.py')
 
 #: the ParamReader's reading methods (number, positive, flag, string, ros_name, vector, choice, names, ...)
 READER_METHODS = frozenset(name for name, _ in inspect.getmembers(ParamReader, inspect.isfunction)
@@ -45,11 +47,14 @@ def _read(path):
 
 
 def _script(name):
-    return os.path.join(SCRIPTS_DIR, name)
+    lab = os.path.join(LAB_TOOLS_DIR, name)
+    return lab if os.path.isfile(lab) else os.path.join(SCRIPTS_DIR, name)
 
 
 def script_names():
-    return sorted(os.path.basename(p) for p in glob.glob(os.path.join(SCRIPTS_DIR, '*.py')))
+    """Every installed script: the nodes and tools of anafi_sim/scripts and the lab's tools (anafi_lab/cli)."""
+    return sorted(os.path.basename(p) for d in (SCRIPTS_DIR, LAB_TOOLS_DIR) for p in glob.glob(os.path.join(d, '*.py'))
+                  if os.path.basename(p) != '__init__.py')
 
 
 def node_scripts():
@@ -406,7 +411,7 @@ def test_every_launch_file_is_in_the_readme_launch_table():
 
 def _modules():
     found = []
-    for root in ('anafi_sim', 'anafi_control'):
+    for root in ('anafi_sim', 'anafi_control', 'anafi_lab'):
         for path in glob.glob(os.path.join(ROOT, root, '**', '*.py'), recursive=True):
             rel = os.path.relpath(path, ROOT)
             if os.path.basename(rel) != '__init__.py' and not rel.startswith(os.path.join('anafi_sim', 'scripts')):
@@ -450,11 +455,11 @@ def test_architecture_doc_lists_every_module_and_only_real_ones():
     assert not jobless, 'docs/architecture.md, module tree: modules without their job: %s' % jobless
     unlisted = [m for m in _modules() if m not in tree]
     assert not unlisted, 'modules missing from the tree in docs/architecture.md: %s' % unlisted
-    named = set(re.findall(r'((?:anafi_sim|anafi_control)/[\w/]+\.py)', text))   # also in the prose
+    named = set(re.findall(r'((?:anafi_sim|anafi_control|anafi_lab)/[\w/]+\.py)', text))   # also in the prose
     assert not sorted(p for p in named if not os.path.isfile(os.path.join(ROOT, p)))
 
 
-_TOP = ('anafi_sim', 'anafi_control', 'benchmarks', 'test', 'tools', 'docs', 'msg', 'cfg')
+_TOP = ('anafi_sim', 'anafi_control', 'anafi_lab', 'benchmarks', 'test', 'tools', 'docs', 'msg', 'cfg')
 _ROS_TYPE = re.compile(r'^\w+/[A-Z]\w*$')
 _PATH = re.compile(r'`((?:%s)/[^`\s]*)`' % '|'.join(_TOP))
 
@@ -487,9 +492,9 @@ def test_readme_architecture_diagram_names_real_folders():
     assert arch is not None, 'README.md has no "## Architecture" section'
     diagram = re.search(r'```\n(.*?)```', arch, re.S)
     assert diagram, 'the Architecture section has no diagram'
-    folders = set(re.findall(r'\b((?:anafi_sim/\w+|anafi_control))\b', diagram.group(1)))
+    folders = set(re.findall(r'\b((?:anafi_sim/\w+|anafi_control|anafi_lab))\b', diagram.group(1)))
     expected = {'anafi_sim/sim', 'anafi_sim/telemetry', 'anafi_sim/interface', 'anafi_sim/gazebo', 'anafi_control',
-                'anafi_sim/experiments', 'anafi_sim/calibration', 'anafi_sim/ros', 'anafi_sim/scripts'}
+                'anafi_sim/mission', 'anafi_lab', 'anafi_sim/ros', 'anafi_sim/scripts'}
     assert expected <= folders, 'diagram lacks %s' % sorted(expected - folders)
     absent = sorted(f for f in folders if not os.path.isdir(os.path.join(ROOT, f)))
     assert not absent, 'diagram names folders that do not exist: %s' % absent

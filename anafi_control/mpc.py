@@ -468,14 +468,9 @@ class CumulativeErrorMpc(object):
         did), so a fast start never makes the QP infeasible.
         """
         t0 = time.perf_counter()
-        try:
-            vecs = [np.asarray(v, dtype=float).reshape(3) for v in (drone_pos, drone_vel, wp_pos, wp_vel)]
-        except (TypeError, ValueError):
-            self._pending = None
-            return MpcResult(status='invalid input (need four 3-vectors)', run_time=time.perf_counter() - t0)
-        if not all(np.all(np.isfinite(v)) for v in vecs):
-            self._pending = None
-            return MpcResult(status='non-finite input', run_time=time.perf_counter() - t0)
+        vecs, error = self._checked_inputs(drone_pos, drone_vel, wp_pos, wp_vel)
+        if error:
+            return MpcResult(status=error, run_time=time.perf_counter() - t0)
         delayed = False
         if self.paper_timing:
             pending, self._pending = self._pending, vecs
@@ -494,67 +489,86 @@ class CumulativeErrorMpc(object):
         shift = np.zeros(NX)
         shift[list(REF_POS)] = dp
         shift[list(DRONE_POS)] = dp
-        xs = (x_bar - shift) / self._scale
-        Zs = (Z - shift) / self._scale
-        setup_time = 0.0
         result = MpcResult(z_ref=Z, inputs=tuple(v.copy() for v in vecs), delayed=delayed,
                            velocity_clipped=clipped)
         try:
-            if self.rebuild_every_cycle:
-                solver, qp, setup_time = self._build_and_setup(xs, Zs)
-            else:
-                solver, qp = self._solver, self.qp
-                qp.q = linear_cost(self._Qs, self._QNs, Zs)
-                qp.l[:NX] = -xs
-                qp.u[:NX] = -xs
-                solver.update(q=qp.q, l=qp.l, u=qp.u)
-            res = solver.solve(raise_error=False) if _OSQP_1X else solver.solve()
-            if self.verify and int(getattr(res.info, 'status_polish', 0)) != 1:
-                # the ADMM iterate did not lead to an exact (polished) solution: with a warm start far from
-                # the new problem OSQP can report 'solved' on a clearly wrong answer -> cold, tighter re-solve
-                first_iter = int(getattr(res.info, 'iter', 0))
-                first_time = float(getattr(res.info, 'solve_time', 0.0))
-                self._reset_warm_start()
-                solver.update_settings(eps_abs=self._verify_eps, eps_rel=self._verify_eps)
-                try:
-                    res = solver.solve(raise_error=False) if _OSQP_1X else solver.solve()
-                finally:
-                    solver.update_settings(eps_abs=self._settings['eps_abs'], eps_rel=self._settings['eps_rel'])
-                result.resolved = True
-                extra_iter, extra_time = first_iter, first_time
-            else:
-                extra_iter, extra_time = 0, 0.0
+            res, qp, extra = self._solve_qp((x_bar - shift) / self._scale, (Z - shift) / self._scale, result)
         except Exception as exc:  # solver refused: hover, keep running
             self._reset_warm_start()
             result.status = 'solver error: %s' % (exc,)
-            result.setup_time = setup_time
             result.run_time = time.perf_counter() - t0
             return result
-        info = res.info
-        status = str(info.status)
-        result.status = status
-        result.iterations = int(getattr(info, 'iter', 0)) + extra_iter
-        result.solve_time = float(getattr(info, 'solve_time', float('nan'))) + extra_time
-        result.setup_time = setup_time
-        accepted = ('solved', 'solved inaccurate') if self.accept_inaccurate else ('solved',)
-        if status.lower() in accepted and res.x is not None:
-            sol = np.array(res.x, dtype=float, copy=True)
-            n_x = NX * (self._N + 1)
-            if sol.shape == (qp.n_var,) and np.all(np.isfinite(sol)):
-                result.x_pred = sol[:n_x].reshape(self._N + 1, NX) * self._scale + shift
-                result.u_pred = sol[n_x:].reshape(self._N, NU)
-                # clipped to the limits: OSQP meets bounds only within its tolerance
-                result.u0 = tuple(float(a) for a in np.clip(result.u_pred[0], self.u_min, self.u_max))
-                result.vz_command = float(np.clip(result.x_pred[self._vz_step, VZ_INDEX],
-                                                  self.x_min[VZ_INDEX], self.x_max[VZ_INDEX]))
-                result.inaccurate = status.lower() != 'solved'
-                result.ok = True
-            else:
-                result.status = status + ' (non-finite solution)'
+        self._read_solution(res, qp, shift, extra, result)
         if not result.ok:
             self._reset_warm_start()
         result.run_time = time.perf_counter() - t0
         return result
+
+    def _checked_inputs(self, drone_pos, drone_vel, wp_pos, wp_vel):
+        """(the four inputs as 3-vectors, None) or (None, the reason they are refused)."""
+        try:
+            vecs = [np.asarray(v, dtype=float).reshape(3) for v in (drone_pos, drone_vel, wp_pos, wp_vel)]
+        except (TypeError, ValueError):
+            self._pending = None
+            return None, 'invalid input (need four 3-vectors)'
+        if not all(np.all(np.isfinite(v)) for v in vecs):
+            self._pending = None
+            return None, 'non-finite input'
+        return vecs, None
+
+    def _solve_qp(self, xs, Zs, result):
+        """(OSQP's result, the QP, (iterations, time) of a first solve that a verifying re-solve replaced) for the
+        scaled initial state ``xs`` and reference ``Zs``; sets ``result``'s setup time. May raise."""
+        result.setup_time = 0.0
+        if self.rebuild_every_cycle:
+            solver, qp, result.setup_time = self._build_and_setup(xs, Zs)
+        else:
+            solver, qp = self._solver, self.qp
+            qp.q = linear_cost(self._Qs, self._QNs, Zs)
+            qp.l[:NX] = -xs
+            qp.u[:NX] = -xs
+            solver.update(q=qp.q, l=qp.l, u=qp.u)
+        res = solver.solve(raise_error=False) if _OSQP_1X else solver.solve()
+        extra = (0, 0.0)
+        if self.verify and int(getattr(res.info, 'status_polish', 0)) != 1:
+            # the ADMM iterate did not lead to an exact (polished) solution: with a warm start far from
+            # the new problem OSQP can report 'solved' on a clearly wrong answer -> cold, tighter re-solve
+            first = (int(getattr(res.info, 'iter', 0)), float(getattr(res.info, 'solve_time', 0.0)))
+            self._reset_warm_start()
+            solver.update_settings(eps_abs=self._verify_eps, eps_rel=self._verify_eps)
+            try:
+                res = solver.solve(raise_error=False) if _OSQP_1X else solver.solve()
+            finally:
+                solver.update_settings(eps_abs=self._settings['eps_abs'], eps_rel=self._settings['eps_rel'])
+            result.resolved = True
+            extra = first
+        return res, qp, extra
+
+    def _read_solution(self, res, qp, shift, extra, result):
+        """``result`` from OSQP's ``res``: status, iterations, predictions and the first command (ok when the
+        solution is accepted and finite)."""
+        info = res.info
+        status = str(info.status)
+        extra_iter, extra_time = extra
+        result.status = status
+        result.iterations = int(getattr(info, 'iter', 0)) + extra_iter
+        result.solve_time = float(getattr(info, 'solve_time', float('nan'))) + extra_time
+        accepted = ('solved', 'solved inaccurate') if self.accept_inaccurate else ('solved',)
+        if status.lower() not in accepted or res.x is None:
+            return
+        sol = np.array(res.x, dtype=float, copy=True)
+        n_x = NX * (self._N + 1)
+        if sol.shape != (qp.n_var,) or not np.all(np.isfinite(sol)):
+            result.status = status + ' (non-finite solution)'
+            return
+        result.x_pred = sol[:n_x].reshape(self._N + 1, NX) * self._scale + shift
+        result.u_pred = sol[n_x:].reshape(self._N, NU)
+        # clipped to the limits: OSQP meets bounds only within its tolerance
+        result.u0 = tuple(float(a) for a in np.clip(result.u_pred[0], self.u_min, self.u_max))
+        result.vz_command = float(np.clip(result.x_pred[self._vz_step, VZ_INDEX],
+                                          self.x_min[VZ_INDEX], self.x_max[VZ_INDEX]))
+        result.inaccurate = status.lower() != 'solved'
+        result.ok = True
 
     # ----------------------------------------------------------------- internals
 

@@ -576,45 +576,14 @@ class PreviewMpc(Controller):
         yaw = inputs.yaw
         yaw = wrap_angle(yaw + self.sample.get('yaw_rate', 0.0) * max(0.0, t0 + 0.5 * dt - self.sample['t']))
         origin = P[0].copy()
-        d_w = self.disturbance
         c, sn = math.cos(yaw), math.sin(yaw)
         R = np.array([[c, sn], [-sn, c]])            # world -> heading (stability axes)
-        Pr = P - origin
-        Ph, Vh, Ah = Pr[:, :2].dot(R.T), V[:, :2].dot(R.T), A[:, :2].dot(R.T)
-        dh = R.dot(d_w[:2])
-        kl, kq = m.drag_linear, m.drag_quadratic
-        speed = np.hypot(Vh[:, 0], Vh[:, 1])[:, None]
-        eh = -kq * speed * Vh + dh                   # quadratic drag along the reference + disturbance
-        e = np.column_stack([eh, np.full(N + 2, d_w[2])])
-        ah = Ah + kl * Vh - eh                       # the tilt acceleration the reference needs
-        ref = np.column_stack([Ph[:, 0], Vh[:, 0], ah[:, 0], Ph[:, 1], Vh[:, 1], ah[:, 1], Pr[:, 2], V[:, 2]])
-        tau, tz = m.attitude_time_constant, m.vertical_speed_time_constant
-        u_ref = np.zeros((N + 1, NU))
-        u_ref[:, 0] = ref[:N + 1, AX] + tau * (ref[1:, AX] - ref[:-1, AX]) / dt
-        u_ref[:, 1] = ref[:N + 1, AY] + tau * (ref[1:, AY] - ref[:-1, AY]) / dt
-        u_ref[:, 2] = ref[:N + 1, VZ] + tz * (A[:N + 1, 2] - d_w[2])
-        u_ref = np.clip(u_ref, -self.u_max, self.u_max)
+        ref, u_ref, e = self._heading_reference(P - origin, V, A, R)
         # initial deviation
         ph, vh, ah0 = R.dot((p0 - origin)[:2]), R.dot(v0[:2]), R.dot(a0)
         x0 = np.array([ph[0], vh[0], ah0[0], ph[1], vh[1], ah0[1], p0[2] - origin[2], v0[2]])
-        dx0 = x0 - ref[0]
-        # residuals of the reference in the model: dx_{k+1} = Ad dx_k + Bd du_k + r_k
-        r = (ref[:N].dot(self.Ad.T) + u_ref[:N].dot(self.Bd.T) + e[:N].dot(self.Ed.T) - ref[1:N + 1])
-        n_eq = self.n_x
-        self.l[:NX] = self.u[:NX] = -dx0
-        self.l[NX:n_eq] = self.u[NX:n_eq] = -r.reshape(-1)
-        self.l[n_eq:] = (-self.u_max - u_ref[:N]).reshape(-1)
-        self.u[n_eq:] = (self.u_max - u_ref[:N]).reshape(-1)
-        self.solver.update(l=self.l, u=self.u)
-        res = self.solver.solve(raise_error=False) if _OSQP_1X else self.solver.solve()
-        info = res.info
-        result.status = str(info.status)
-        result.iterations = int(getattr(info, 'iter', 0))
-        result.solve_time = float(getattr(info, 'solve_time', float('nan')))
-        accepted = ('solved', 'solved inaccurate') if p['accept_inaccurate'] else ('solved',)
-        sol = None if res.x is None else np.array(res.x, dtype=float)
-        if result.status.lower() not in accepted or sol is None or sol.shape != (self.n_var,) \
-                or not np.all(np.isfinite(sol)):
+        sol = self._solve_deviation(x0 - ref[0], ref, u_ref, e, result)
+        if sol is None:
             self._reset_warm_start()
             return hover_output(SOLVER_FAILED, ': %s' % result.status, result)
         dx = sol[:self.n_x].reshape(N + 1, NX)
@@ -628,10 +597,62 @@ class PreviewMpc(Controller):
         ax, ay = stability_to_world(u0[0], u0[1], yaw)
         result.u0 = (float(ax), float(ay), 0.0)
         result.vz_command = float(u0[2])
-        result.disturbance = tuple(float(x) for x in d_w)
+        result.disturbance = tuple(float(x) for x in self.disturbance)
         # velocity at t0 in the stability axes for the governor (the stand-in's firmware gates on its velocity when
         # the PCMD arrives, attitude_delay before t0: they differ by the acceleration x ~0.12 s)
-        vh0 = R.dot(v0[:2])
+        command = self._command(t, t0, u0, R.dot(v0[:2]), yaw, yaw_ref)
+        result.ok = True
+        return CycleOutput(tuple(command), True, OK, OK, result)
+
+    def _heading_reference(self, Pr, V, A, R):
+        """(reference states, reference inputs, known accelerations: drag along the reference and the disturbance)
+        in the heading frame ``R`` from the world reference positions (relative to its first point) ``Pr``,
+        velocities ``V`` and accelerations ``A``, N+2 points each."""
+        m, N, dt, d_w = self.model, self.N, self.dt, self.disturbance
+        Ph, Vh, Ah = Pr[:, :2].dot(R.T), V[:, :2].dot(R.T), A[:, :2].dot(R.T)
+        dh = R.dot(d_w[:2])
+        kl, kq = m.drag_linear, m.drag_quadratic
+        speed = np.hypot(Vh[:, 0], Vh[:, 1])[:, None]
+        eh = -kq * speed * Vh + dh                   # quadratic drag along the reference + disturbance
+        e = np.column_stack([eh, np.full(N + 2, d_w[2])])
+        ah = Ah + kl * Vh - eh                       # the tilt acceleration the reference needs
+        ref = np.column_stack([Ph[:, 0], Vh[:, 0], ah[:, 0], Ph[:, 1], Vh[:, 1], ah[:, 1], Pr[:, 2], V[:, 2]])
+        tau, tz = m.attitude_time_constant, m.vertical_speed_time_constant
+        u_ref = np.zeros((N + 1, NU))
+        u_ref[:, 0] = ref[:N + 1, AX] + tau * (ref[1:, AX] - ref[:-1, AX]) / dt
+        u_ref[:, 1] = ref[:N + 1, AY] + tau * (ref[1:, AY] - ref[:-1, AY]) / dt
+        u_ref[:, 2] = ref[:N + 1, VZ] + tz * (A[:N + 1, 2] - d_w[2])
+        return ref, np.clip(u_ref, -self.u_max, self.u_max), e
+
+    def _solve_deviation(self, dx0, ref, u_ref, e, result):
+        """The QP's solution (deviations from the reference) for the initial deviation ``dx0``, or None when
+        OSQP gives none that is accepted and finite; fills ``result``'s status, iterations and solve time."""
+        N = self.N
+        # residuals of the reference in the model: dx_{k+1} = Ad dx_k + Bd du_k + r_k
+        r = (ref[:N].dot(self.Ad.T) + u_ref[:N].dot(self.Bd.T) + e[:N].dot(self.Ed.T) - ref[1:N + 1])
+        n_eq = self.n_x
+        self.l[:NX] = self.u[:NX] = -dx0
+        self.l[NX:n_eq] = self.u[NX:n_eq] = -r.reshape(-1)
+        self.l[n_eq:] = (-self.u_max - u_ref[:N]).reshape(-1)
+        self.u[n_eq:] = (self.u_max - u_ref[:N]).reshape(-1)
+        self.solver.update(l=self.l, u=self.u)
+        res = self.solver.solve(raise_error=False) if _OSQP_1X else self.solver.solve()
+        info = res.info
+        result.status = str(info.status)
+        result.iterations = int(getattr(info, 'iter', 0))
+        result.solve_time = float(getattr(info, 'solve_time', float('nan')))
+        accepted = ('solved', 'solved inaccurate') if self.params['accept_inaccurate'] else ('solved',)
+        sol = None if res.x is None else np.array(res.x, dtype=float)
+        if result.status.lower() not in accepted or sol is None or sol.shape != (self.n_var,) \
+                or not np.all(np.isfinite(sol)):
+            return None
+        return sol
+
+    def _command(self, t, t0, u0, vh0, yaw, yaw_ref):
+        """The piloting command [roll deg, pitch deg, yaw rate deg/s, vz m/s] for the first input ``u0`` (heading
+        frame), the velocity ``vh0`` at t0 in the stability axes and the yaw reference; the command buffer of the
+        Smith predictor gets what the firmware will apply."""
+        p, m, dt = self.params, self.model, self.dt
         u_cmd = m.governed(u0[:2], vh0, inverse=True)
         roll, pitch = attitude_for_acceleration(u_cmd[0], u_cmd[1], m.gravity)
         # yaw: P on the error at t0 plus the reference's yaw rate
@@ -643,6 +664,7 @@ class PreviewMpc(Controller):
             yaw_rate = max(-cap, min(cap, yaw_rate))
         command = [roll, pitch, yaw_rate, float(u0[2])]
         realised = list(command)
+        ax, ay = stability_to_world(u0[0], u0[1], yaw)
         if p['quantise']:
             quanta = (m.max_tilt_deg / 100.0, m.max_tilt_deg / 100.0, m.max_yaw_rate_deg / 100.0,
                       m.max_vertical_speed / 100.0)
@@ -656,8 +678,7 @@ class PreviewMpc(Controller):
         horizon = self.sample['t'] - 1.0
         while len(self.commands) > 1 and self.commands[1][0] <= horizon:
             self.commands.popleft()
-        result.ok = True
-        return CycleOutput(tuple(command), True, OK, OK, result)
+        return command
 
     def _quantise(self, i, value, quantum):
         """(value to send, value the bridge realises) for whole percents of ``quantum`` (the bridge truncates

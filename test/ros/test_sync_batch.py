@@ -19,11 +19,7 @@ import rospy
 import rostest
 import yaml
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(os.path.dirname(HERE))
-SCRIPT = os.path.join(ROOT, 'anafi_lab', 'cli', 'experiment.py')
-sys.path.insert(0, os.path.join(ROOT, 'benchmarks'))
-import bench_sync  # noqa: E402  (benchmarks/ is not a package)
+from anafi_lab.engine import lockstep
 
 
 class TestBatchEngineRos(unittest.TestCase):
@@ -31,9 +27,9 @@ class TestBatchEngineRos(unittest.TestCase):
         out = tempfile.mkdtemp(prefix='anafi_batch_ros_')
         log = os.path.join(out, 'batch.log')
         with open(log, 'wb') as f:
-            rc = subprocess.call([sys.executable, SCRIPT, 'batch', '--engine', 'ros', '--sync', '--scenarios',
-                                  'static_wp0', '--controllers', 'mpc', '--no-plots', '--out', out], stdout=f,
-                                 stderr=subprocess.STDOUT, timeout=280)
+            rc = subprocess.call([sys.executable, '-m', 'anafi_lab.cli.experiment', 'batch', '--engine', 'ros',
+                                  '--sync', '--scenarios', 'static_wp0', '--controllers', 'mpc', '--no-plots',
+                                  '--out', out], stdout=f, stderr=subprocess.STDOUT, timeout=280)
         try:
             self.assertEqual(rc, 0, 'experiment.py batch --engine ros exit %d' % rc)
             with open(os.path.join(out, 'experiments.yaml')) as f:
@@ -46,7 +42,7 @@ class TestBatchEngineRos(unittest.TestCase):
             self.assertTrue(record['ok'], record.get('error'))
             self.assertEqual(record['summary']['state'], 'final')
             self.assertTrue(math.isfinite(record['summary']['estimate']['e_mu']))
-            lockstep = bench_sync.lockstep_figures(os.path.join(out, 'runs', 'static_wp0_mpc.bag'))
+            lockstep = lockstep.lockstep_figures(os.path.join(out, 'runs', 'static_wp0_mpc.bag'))
             self.assertGreater(int(lockstep.get('lockstep periods waited', 0)), 50, 'simulator: %s' % lockstep)
             with open(os.path.join(out, 'report.md')) as f:
                 text = f.read()

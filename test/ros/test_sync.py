@@ -3,7 +3,7 @@
 
 ~controller: mpc | pid. Runs ``roslaunch anafi_sim experiment.launch sync:=true`` with the test scenario
 experiment_short.yaml (10 s of simulation time, rtf 0.5 as a ceiling, no mirror, bag recorded) on its own
-private ROS master (benchmarks/lockstep.py ``run_sync``: every process stopped by id afterwards), then the
+private ROS master (``anafi_lab.engine.lockstep.run_sync``: every process stopped by id afterwards), then the
 same scenario and seed in-process with the lockstep's schedule (``experiment.py run --engine inprocess
 --sync-schedule``). Checks: the evaluator's summary is final; the simulator's /diagnostics (in the bag) show
 the lockstep engaged (control periods waited for) with no timeout; e_mu vs estimate and vs ground truth
@@ -18,7 +18,7 @@ import unittest
 import rospy
 import rostest
 
-from anafi_lab.engine import lockstep
+from anafi_lab.engine import lockstep as lockstep_runs
 
 SHORT_SCENARIO = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'experiment_short.yaml')
 
@@ -29,7 +29,7 @@ class TestSync(unittest.TestCase):
     def test_lockstep_run_matches_the_inprocess_engine(self):
         controller = rospy.get_param('~controller', 'mpc')
         out = tempfile.mkdtemp(prefix='anafi_sync_%s_' % controller)
-        run = lockstep.run_sync(controller, out, SHORT_SCENARIO, rtf=0.5, timeout=180.0)
+        run = lockstep_runs.run_sync(controller, out, SHORT_SCENARIO, rtf=0.5, timeout=180.0)
         try:
             self.check(controller, run, out)
         except AssertionError:
@@ -47,10 +47,10 @@ class TestSync(unittest.TestCase):
         # ~14 s of simulation at 10 Hz: the simulator waited for (nearly) every command
         self.assertGreater(int(lockstep['lockstep periods waited']), 100, lockstep)
         self.assertEqual(lockstep['lockstep timeouts (period went on without a command)'], '0', lockstep)
-        reference = lockstep.run_inprocess(controller, os.path.join(out, 'inprocess'), SHORT_SCENARIO)
+        reference = lockstep_runs.run_inprocess(controller, os.path.join(out, 'inprocess'), SHORT_SCENARIO)
         self.assertEqual(reference.get('state'), 'final')
         for source in ('estimate', 'truth'):
-            ros, ref = lockstep.e_mu(summary, source), lockstep.e_mu(reference, source)
+            ros, ref = lockstep_runs.e_mu(summary, source), lockstep_runs.e_mu(reference, source)
             self.assertIsNotNone(ros, source)
             self.assertLess(abs(ros - ref), TOLERANCE * ref,
                             '%s e_mu vs %s: ROS lockstep %.4f, in-process %.4f' % (controller, source, ros, ref))

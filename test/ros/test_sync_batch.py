@@ -19,7 +19,7 @@ import rospy
 import rostest
 import yaml
 
-from anafi_lab.engine import lockstep
+from anafi_lab.engine import lockstep as lockstep_runs
 
 
 class TestBatchEngineRos(unittest.TestCase):
@@ -42,7 +42,7 @@ class TestBatchEngineRos(unittest.TestCase):
             self.assertTrue(record['ok'], record.get('error'))
             self.assertEqual(record['summary']['state'], 'final')
             self.assertTrue(math.isfinite(record['summary']['estimate']['e_mu']))
-            lockstep = lockstep.lockstep_figures(os.path.join(out, 'runs', 'static_wp0_mpc.bag'))
+            lockstep = lockstep_runs.lockstep_figures(os.path.join(out, 'runs', 'static_wp0_mpc.bag'))
             self.assertGreater(int(lockstep.get('lockstep periods waited', 0)), 50, 'simulator: %s' % lockstep)
             with open(os.path.join(out, 'report.md')) as f:
                 text = f.read()

@@ -141,6 +141,26 @@ class TestExperiment(unittest.TestCase):
         for topic in ('/tf', '/tf_static', '/clock'):
             self.assertIn(topic, topics, 'bag topics: %s' % sorted(topics))
             self.assertGreater(topics[topic].message_count, 0, topic)
+        # the chain rviz needs for the model (world -> stability axes -> base_link) and the camera frames, on the
+        # simulation clock of the bag's /clock
+        import tf2_ros
+        buffer = tf2_ros.Buffer(rospy.Duration(3600.0), debug=False)
+        clock = []
+        with rosbag.Bag(base + '.bag') as bag:
+            for topic, msg, _ in bag.read_messages(topics=['/tf', '/tf_static', '/clock']):
+                if topic == '/clock':
+                    clock.append(msg.clock.to_sec())
+                    continue
+                for t in msg.transforms:
+                    if topic == '/tf_static':
+                        buffer.set_transform_static(t, 'bag')
+                    else:
+                        buffer.set_transform(t, 'bag')
+        self.assertTrue(clock and clock[-1] > clock[0], 'the bag\'s /clock does not advance')
+        middle = rospy.Time.from_sec(0.5 * (clock[0] + clock[-1]))
+        for frame in ('anafi/base_link', 'anafi/camera'):
+            self.assertTrue(buffer.can_transform('world', frame, middle), 'world -> %s at %.2f s of the bag\'s '
+                            'clock: %s' % (frame, middle.to_sec(), buffer.all_frames_as_string()))
 
     def check_tuning(self, info):
         """The dynparam request is in the run info (time, parameter, old, new, requested, outcome) and on

@@ -396,7 +396,8 @@ def drone_launch_lines(drone, port, scenario_file, options):
         out.append('    </node>')
     out.append('  </group>')
     if options.get('rviz'):
-        out += _include('rviz.launch', [('drone_name', n), ('gui', 'false'), ('markers_topic', 'visualisation/markers')],
+        out += _include('rviz.launch', [('drone_name', n), ('gui', 'false'),
+                                        ('markers_topic', 'visualisation/markers')],
                         'rviz: model description, tf and this drone\'s markers (rviz itself: the end of the file)')
     return out
 
@@ -441,7 +442,7 @@ def launch_xml(fleet, ports, scenario_files, out_dir, evaluate=True, mirror=True
                   '    <rosparam command="load" file=%s ns="analyzers"/>' % quoteattr(aggregator_file),
                   '  </node>']
     if rviz and rviz_file:
-        lines += ['', '  <!-- rviz on the fleet\'s generated view: a model and markers per drone, framing the fleet -->',
+        lines += ['', '  <!-- rviz on the fleet\'s generated view: a model and markers per drone, the fleet framed -->',
                   '  <node pkg="rviz" type="rviz" name="rviz" args=%s output="log"/>' % quoteattr('-d ' + rviz_file)]
     lines.append('</launch>')
     return '\n'.join(lines) + '\n'

@@ -9,7 +9,8 @@ truth, and projects each drone's position into the 3D view with the generated vi
 (anafi_sim.experiments.rviz_config.project). Asserts, within 300 s: each drone's dark model pixels around
 its projected position (the three drones are found where they fly, all inside the view), each drone's
 markers on /<drone>/visualisation/markers, and the trail colour in the view. The screenshot goes to
-test_results/fleet_rviz.png (ANAFI_FLEET_RVIZ_SCREENSHOT=PATH: there too). Skipped where rviz or Xvfb is
+test_results/fleet_rviz.png (ANAFI_FLEET_RVIZ_SCREENSHOT=PATH: there too; ANAFI_FLEET_RVIZ_HOLD=S: taken S s
+after the checks passed, e.g. docs/fleet_rviz.png with the circles under way). Skipped where rviz or Xvfb is
 not installed.
 """
 import os
@@ -165,6 +166,10 @@ class TestFleetRviz(unittest.TestCase):
             trail = int(colour_mask(image[box[0]:box[1], box[2]:box[3]], COLOURS['trail']).sum())
             if all(found.get(n, (None, 0))[1] >= MIN_DARK for n in NAMES) and trail >= MIN_TRAIL:
                 break
+        hold = float(os.environ.get('ANAFI_FLEET_RVIZ_HOLD', '0'))     # s more of flight for a documentation shot
+        if hold > 0.0 and image is not None:
+            time.sleep(hold)
+            image = read_xwd(screen)
         if image is not None:
             self.save(image)
         print('view box %s; per drone (projected pixel, dark pixels around it): %s; trail pixels %d; markers %s'

@@ -61,3 +61,13 @@ def test_batch_times_are_those_of_the_committed_results():
 
 def test_no_unmeasured_setup_time():
     assert 'about a second' not in README
+
+
+def test_live_tuning_is_documented_with_the_packaged_client():
+    """rqt_reconfigure is not packaged on Debian 12: the README shows dynparam, for a node that exists."""
+    section = README[README.index('## Live tuning'):]
+    section = section[:section.index('\n## ', 1)]
+    assert 'rosrun dynamic_reconfigure dynparam set /anafi/mpc_controller' in section
+    assert 'tuning/changes' in section and 'run.yaml' in section
+    launch = open(os.path.join(ROOT, 'anafi_sim', 'launch', 'mpc.launch')).read()
+    assert 'name="mpc_controller"' in launch

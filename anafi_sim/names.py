@@ -32,6 +32,7 @@ TRAJECTORY_STATUS = 'trajectory/status'  # std_msgs/String (latched YAML)
 TRAJECTORY_COMMAND = 'trajectory_generator/command'  # std_msgs/String: start | stop | restart | switch NAME
 EVALUATION_SUMMARY = 'evaluation/summary'  # std_msgs/String (latched YAML)
 MPC_STATS = 'mpc/stats'                 # anafi_sim/MpcStats
+TUNING_CHANGES = 'tuning/changes'       # std_msgs/String YAML, one per live tuning change (ros/reconfigure.py)
 
 # --- global ---------------------------------------------------------------------------------------------
 CLOCK = '/clock'

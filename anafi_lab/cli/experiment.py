@@ -7,12 +7,13 @@
                       [--state-source estimate|truth]
                       [--engine inprocess|ros [--sync] [--rtf R]] [--no-plot] --out DIR
         -> DIR/<scenario>_<controller>.yaml (the evaluator's summary), .csv (reference log), .png; one
-           'RESULT ...' line on stdout (exit 0 when the summary is final).
+           'RESULT ...' line on stdout, then one line per file written (exit 0 when the summary is final).
     experiment.py batch [--engine inprocess|ros [--sync] [--rtf R]] [--workers N] [--scheduler ADDRESS]
                         [--scenarios ...] [--controllers mpc,pid,preview_mpc] [--runs-dir DIR] [--no-plots] --out DIR
         -> DIR/experiments.yaml (the ROS batch's schema) and DIR/report.md (the paper's tables), plots.
-    experiment.py sweep SPEC.yaml [--workers N] [--scheduler ADDRESS] [--no-plot] --out DIR
-        -> DIR/runs.csv (every run's metrics), DIR/summary.md, DIR/e_mu.png (anafi_sim/config/sweeps/).
+    experiment.py sweep NAME|SPEC.yaml [--workers N] [--scheduler ADDRESS] [--no-plot] --out DIR
+        -> DIR/runs.csv (every run's metrics), DIR/summary.md, DIR/e_mu.png. NAME: a spec of
+           anafi_sim/config/sweeps/ (e.g. wind_circles); a relative path missing here is looked up in the package.
 
 The in-process engine (anafi_lab.engine.engine) needs no ROS master: the same cores as the nodes on
 virtual time, bit-for-bit deterministic for a seed. ``--engine ros`` runs the real graph instead
@@ -20,7 +21,7 @@ virtual time, bit-for-bit deterministic for a seed. ``--engine ros`` runs the re
 sim.yaml; ``--sync``: in lockstep, experiment.launch sync:=true, so that its results do not depend on the
 machine's load). Workers: processes on this machine (concurrent.futures); ``--scheduler`` sends the same tasks to a
 Dask distributed scheduler (python3-distributed; the workers need this package importable). Progress: a
-tqdm bar on a terminal, one line per finished run otherwise (on stderr).
+tqdm bar on a terminal (with its ETA), one line per finished run otherwise (on stderr: elapsed, ETA).
 """
 import argparse
 import os
@@ -36,6 +37,10 @@ from anafi_lab.engine.engine import CONTROLLERS, make_schedule, wind_settings
 from anafi_lab.engine.runs import SYNC_SCHEDULE, batch, make_task, result_line, run_task, task_name
 from anafi_lab.engine.sweep import GROUPS, load_spec, run_sweep, unflatten
 from anafi_sim.mission.trajectory import list_scenarios
+
+
+#: the batch's controllers by engine (the ROS batch runs the paper's two); README's run counts come from these
+BATCH_CONTROLLERS = {'inprocess': 'mpc,pid,preview_mpc', 'ros': 'mpc,pid'}
 
 
 def _key_values(items, what):
@@ -111,10 +116,15 @@ def cmd_run(args):
         if not args.no_plot and os.path.isfile(csv_path):
             from anafi_sim.mission.plots import plot_run
             plot_run(csv_path, os.path.join(args.out, name + '.png'), summary=summary, title=name)
+        record['files'] = dict((key, os.path.join(args.out, name + ext)) for key, ext in (
+            ('summary', '.yaml'), ('csv', '.csv'), ('plot', '.png'), ('bag', '.bag'), ('info', '.run.yaml')))
     else:
         _in_process_only(args)
         record = run_task(task)
     print(result_line(record, name))
+    for key, path in sorted((record.get('files') or {}).items()):
+        if path and os.path.isfile(path):
+            print('  %-8s %s' % (key + ':', os.path.abspath(path)))
     return 0 if record['ok'] else 1
 
 
@@ -133,8 +143,8 @@ def _selection(text, groups, known, what):
 
 def cmd_batch(args):
     scenarios = _selection(args.scenarios, GROUPS, set(list_scenarios()), 'scenario')
-    default = 'mpc,pid' if args.engine == 'ros' else 'mpc,pid,preview_mpc'   # the ROS batch runs the paper's two
-    controllers = _selection(args.controllers or default, {}, set(report.KNOWN_CONTROLLERS), 'controller')
+    controllers = _selection(args.controllers or BATCH_CONTROLLERS[args.engine], {}, set(report.KNOWN_CONTROLLERS),
+                             'controller')
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
     command = 'anafi_lab/cli/experiment.py ' + ' '.join(sys.argv[1:])
@@ -207,7 +217,8 @@ def parser():
     bat.add_argument('--scheduler', default=None, help='Dask distributed scheduler address (tcp://host:8786)')
     bat.add_argument('--scenarios', default='all', help='all, a group (static, straight, circle, vertical) or names')
     bat.add_argument('--controllers', default=None,
-                     help='comma list (default mpc,pid,preview_mpc in-process; mpc,pid with --engine ros)')
+                     help='comma list (default %s in-process; %s with --engine ros)'
+                          % (BATCH_CONTROLLERS['inprocess'], BATCH_CONTROLLERS['ros']))
     bat.add_argument('--runs-dir', default=None, help='per-run summaries and CSVs (default OUT/runs)')
     bat.add_argument('--no-plots', action='store_true')
     bat.add_argument('--rtf', type=float, default=2.0, help='--engine ros: requested real-time factor')
@@ -217,7 +228,7 @@ def parser():
     bat.set_defaults(func=cmd_batch)
 
     swp = sub.add_parser('sweep', help='a grid or list of runs from a YAML spec')
-    swp.add_argument('spec', help='sweep spec (e.g. anafi_sim/config/sweeps/wind_circles.yaml)')
+    swp.add_argument('spec', help='sweep spec: a name in anafi_sim/config/sweeps (e.g. wind_circles) or a path')
     swp.add_argument('--workers', type=int, default=1, help='processes (default 1)')
     swp.add_argument('--scheduler', default=None, help='Dask distributed scheduler address')
     swp.add_argument('--no-plot', action='store_true')

@@ -155,8 +155,19 @@ def result_line(record, name=None):
 
 
 # ---------------------------------------------------------------------------------------------- executors
+def eta(elapsed, done, total):
+    """Time left [m:ss or h:mm:ss] when ``done`` of ``total`` runs took ``elapsed`` s (the mean pace so far, as
+    tqdm estimates it); '?' before the first run, '0:00' at the end."""
+    if done <= 0 or not elapsed >= 0.0:
+        return '?'
+    left = int(round(elapsed / done * max(0, total - done)))
+    hours, rest = divmod(left, 3600)
+    return ('%d:%02d:%02d' % (hours, rest // 60, rest % 60)) if hours else '%d:%02d' % (rest // 60, rest % 60)
+
+
 class Progress(object):
-    """A tqdm bar when ``stream`` is a terminal (and tqdm is installed), else one line per finished run."""
+    """A tqdm bar when ``stream`` is a terminal (and tqdm is installed: its ETA), else one line per finished run
+    (elapsed time and ETA, ``eta``)."""
 
     def __init__(self, total, label='runs', stream=None, bar=None):
         self.total, self.label = total, label
@@ -183,8 +194,9 @@ class Progress(object):
             return
         est = ((record.get('summary') or {}).get('estimate') or {})
         info = record.get('info') or {}
-        self.stream.write('[%7.1f s] %*d/%d %-24s %s  e_mu %s m  (%s s, rtf %s)%s\n' % (
-            time.monotonic() - self.t0, len(str(self.total)), self.done, self.total,
+        elapsed = time.monotonic() - self.t0
+        self.stream.write('[%7.1f s, ETA %s] %*d/%d %-24s %s  e_mu %s m  (%s s, rtf %s)%s\n' % (
+            elapsed, eta(elapsed, self.done, self.total), len(str(self.total)), self.done, self.total,
             (record.get('name') or (record.get('summary') or {}).get('name')
              or '%s_%s' % (record.get('scenario'), record.get('controller'))),
             'ok    ' if record.get('ok') else 'FAILED', report.fmt(est.get('e_mu'), 4),

@@ -41,6 +41,7 @@ import time
 
 import yaml
 
+from anafi_sim import paths
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import CONTROLLERS, WIND_KEYS, make_schedule, simulator_config, wind_settings
 from anafi_lab.engine.runs import execute, make_task, run_task
@@ -57,8 +58,42 @@ METRICS = (('e_mu', 'estimate', 'e_mu'), ('e_max', 'estimate', 'e_max'), ('e_sig
 
 
 # ---------------------------------------------------------------------------------------------- spec
+def sweep_path(name_or_path):
+    """Path of a sweep spec given by name (``real_flights``: ``anafi_sim/config/sweeps/real_flights.yaml``) or by
+    a path; a relative path that does not exist from the current folder is looked up in the package
+    (``anafi_sim/config/sweeps/x.yaml`` works from any folder). ValueError naming the known specs when none."""
+    if os.path.isfile(name_or_path):
+        return name_or_path
+    if os.sep not in name_or_path and not name_or_path.endswith(('.yaml', '.yml')):
+        path = paths.config_path('sweeps', name_or_path + '.yaml')
+    elif not os.path.isabs(name_or_path):
+        path = os.path.join(paths.package_dir(), name_or_path)
+    else:
+        path = name_or_path
+    if os.path.isfile(path):
+        return path
+    raise ValueError('no sweep spec %s (known by name: %s)' % (name_or_path, ', '.join(list_specs())))
+
+
+def list_specs():
+    """Names of the shipped sweep specs (anafi_sim/config/sweeps)."""
+    folder = paths.config_path('sweeps')
+    return sorted(os.path.splitext(f)[0] for f in os.listdir(folder) if f.endswith('.yaml'))
+
+
+def median(values):
+    """The median of ``values`` (the mean of the two middle ones for an even count)."""
+    v = sorted(values)
+    if not v:
+        raise ValueError('median of no values')
+    mid = len(v) // 2
+    return v[mid] if len(v) % 2 else 0.5 * (v[mid - 1] + v[mid])
+
+
 def load_spec(path):
-    """The spec dict of a YAML file (``name`` defaults to the file name); ValueError when malformed."""
+    """The spec dict of a YAML file, or of a spec name (``sweep_path``; ``name`` defaults to the file name);
+    ValueError when malformed."""
+    path = sweep_path(path)
     with open(path) as stream:
         try:
             spec = yaml.safe_load(stream)
@@ -343,7 +378,7 @@ def plot_distribution(tasks, table, path, metric='e_mu', title=''):
         if not data:
             continue
         color = RUN_COLORS[j % len(RUN_COLORS)]
-        relative = [[v / sorted(d)[len(d) // 2] for v in d] if sorted(d)[len(d) // 2] else d for d in data]
+        relative = [[v / median(d) for v in d] if median(d) else d for d in data]
         for ax, values in zip(axes, (data, relative)):
             box = ax.boxplot(values, positions=positions, widths=0.85 * width, patch_artist=True,
                              manage_ticks=False, flierprops={'markersize': 3})

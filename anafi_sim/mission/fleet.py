@@ -396,8 +396,9 @@ def drone_launch_lines(drone, port, scenario_file, options):
         out.append('    </node>')
     out.append('  </group>')
     if options.get('rviz'):
-        out += _include('rviz.launch', [('drone_name', n), ('gui', 'false')],
-                        'rviz: model description, tf and markers (rviz itself is fleet.launch\'s)')
+        out += _include('rviz.launch', [('drone_name', n), ('gui', 'false'),
+                                        ('markers_topic', 'visualisation/markers')],
+                        'rviz: model description, tf and this drone\'s markers (rviz itself: the end of the file)')
     return out
 
 
@@ -413,13 +414,14 @@ def describe_task(drone):
 
 
 def launch_xml(fleet, ports, scenario_files, out_dir, evaluate=True, mirror=True, mirror_rate=100.0,
-               output='log', source='', aggregator_file='', rviz=False):
+               output='log', source='', aggregator_file='', rviz=False, rviz_file=''):
     """The roslaunch XML of every drone of ``fleet`` (the world is fleet.launch's): ``ports`` {name: telemetry
     port}, ``scenario_files`` {name: path} (drones with a scenario or waypoint), ``out_dir`` for the
     evaluators' files (``evaluate``), ``mirror`` (spawn_anafi.launch per drone at ``mirror_rate`` Hz),
     ``output`` (screen | log) of the nodes; ``aggregator_file``: a YAML of ``aggregator_analyzers`` -> a
     diagnostic_aggregator node with diagnostics_aggregator.yaml + it ('' = none); ``rviz``: rviz.launch
-    (gui false) per drone: robot description, robot_state_publisher, the markers on /visualisation/markers."""
+    (gui false) per drone: robot description, robot_state_publisher, the markers on /<drone>/visualisation/markers;
+    ``rviz_file``: rviz on that config (the fleet's view, rviz_config.fleet_rviz; '' = no rviz window)."""
     options = {'evaluate': bool(evaluate), 'mirror': 'true' if mirror else 'false', 'mirror_rate': mirror_rate,
                'output': output, 'out_dir': out_dir, 'rviz': bool(rviz)}
     if output not in ('screen', 'log'):
@@ -439,6 +441,9 @@ def launch_xml(fleet, ports, scenario_files, out_dir, evaluate=True, mirror=True
                   % quoteattr('$(find anafi_sim)/anafi_sim/config/diagnostics_aggregator.yaml'),
                   '    <rosparam command="load" file=%s ns="analyzers"/>' % quoteattr(aggregator_file),
                   '  </node>']
+    if rviz and rviz_file:
+        lines += ['', '  <!-- rviz on the fleet\'s generated view: a model and markers per drone, the fleet framed -->',
+                  '  <node pkg="rviz" type="rviz" name="rviz" args=%s output="log"/>' % quoteattr('-d ' + rviz_file)]
     lines.append('</launch>')
     return '\n'.join(lines) + '\n'
 

@@ -44,7 +44,6 @@ import threading
 import time
 
 import rospy
-from dynamic_reconfigure.server import Server
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 
@@ -61,6 +60,7 @@ from anafi_sim.cfg import MpcConfig
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG
 from anafi_sim.sim.drone_model import DEFAULT_MODEL_FILE, load_model_params
 from anafi_sim.msg import MpcStats
+from anafi_sim.ros.reconfigure import TracedServer
 from anafi_sim import names
 from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
@@ -137,7 +137,7 @@ class MpcAdapter(Adapter):
         self.pub_pred = rospy.Publisher('mpc/predicted_path', Path, queue_size=2)
         self.pub_ref = rospy.Publisher('mpc/reference_path', Path, queue_size=2)
         self.pub_stats = rospy.Publisher(names.MPC_STATS, MpcStats, queue_size=10)
-        self.reconfigure_server = Server(MpcConfig, self._on_reconfigure)
+        self.reconfigure_server = TracedServer(MpcConfig, self._on_reconfigure)
         rospy.loginfo('%s: N=%d, dt=%.2f s', self.label, core.mpc.N, core.mpc.dt)
 
     def _on_reconfigure(self, config, level):
@@ -275,7 +275,7 @@ class PreviewAdapter(MpcAdapter):
         self.pub_ref = rospy.Publisher('preview_mpc/reference_path', Path, queue_size=2)
         self.pub_stats = rospy.Publisher('preview_mpc/stats', MpcStats, queue_size=10)
         rospy.Subscriber(self.reference_topic, MultiDOFJointTrajectory, self._on_reference, queue_size=2)
-        self.reconfigure_server = Server(PreviewMpcConfig, self._on_reconfigure)
+        self.reconfigure_server = TracedServer(PreviewMpcConfig, self._on_reconfigure)
         rospy.loginfo('%s: N=%d, dt=%.3f s, preview on %s', self.label, core.N, core.dt,
                       rospy.resolve_name(self.reference_topic))
 

@@ -10,7 +10,9 @@ anafi_sim.mission.monitor.ExperimentMonitor. Topics relative to the node's names
   position_control/waypoint (anafi_sim/Waypoint), drone/odom (nav_msgs/Odometry, the estimate),
   trajectory/status (std_msgs/String YAML), trajectory/begin, trajectory/end (std_msgs/Header),
   evaluation/summary (std_msgs/String YAML), mpc/stats (anafi_sim/MpcStats), /diagnostics (the
-  simulator's status: achieved real-time factor, overruns);
+  simulator's status: achieved real-time factor, overruns), tuning/changes (std_msgs/String YAML: the
+  live tuning history of each node of anafi_sim/ros/reconfigure.py, latched; kept in the run info as
+  ``tuning``, every change in time order);
 - out ~start_topic (default trajectory_generator/command, std_msgs/String, latched): 'start' once the
   drone flies, the controller has sent ~min_commands (5) non-zero commands and every node of
   ~wait_subscribers (names relative to the namespace, e.g. [evaluator, recorder]) subscribes to the
@@ -111,6 +113,8 @@ class ExperimentMonitorNode(object):
         rospy.Subscriber(names.EVALUATION_SUMMARY, String, self._on_summary, queue_size=5)
         rospy.Subscriber(names.MPC_STATS, MpcStats, self._on_mpc_stats, queue_size=20)
         rospy.Subscriber(names.DIAGNOSTICS, DiagnosticArray, self._on_diagnostics, queue_size=20)
+        self.tuning = {}     # node -> its live tuning changes (ros/reconfigure.py), kept in the run info
+        rospy.Subscriber(names.TUNING_CHANGES, String, self._on_tuning, queue_size=50)
         self.sim_status_prefix = 'anafi_sim: simulated Anafi'
         self._say('%s: scenario %s (%.1f s of simulation time); waiting for the drone, the controller and %s'
                   % (self.label, self.scenario.name, self.scenario.duration,
@@ -157,6 +161,12 @@ class ExperimentMonitorNode(object):
     def _on_mpc_stats(self, msg):
         with self.lock:
             self.core.on_mpc_stats(msg.solve_time, msg.cycle_time, msg.cycles, msg.hover_cycles)
+
+    def _on_tuning(self, msg):
+        d = _yaml(msg)      # {node, changes: the node's whole history} (latched)
+        if isinstance(d, dict) and isinstance(d.get('changes'), list):
+            with self.lock:
+                self.tuning[str(d.get('node'))] = [c for c in d['changes'] if isinstance(c, dict)]
 
     def _on_diagnostics(self, msg):
         for status in msg.status:
@@ -231,6 +241,9 @@ class ExperimentMonitorNode(object):
             summary = self.core.summary
         info['label'] = self.label
         info['scenario'] = self.scenario.name
+        with self.lock:
+            info['tuning'] = sorted((c for changes in self.tuning.values() for c in changes),
+                                    key=lambda c: c.get('wall', 0.0))      # [] = no live tuning
         exited = True
         if ok:
             exited = self._wait_for_evaluator_exit()

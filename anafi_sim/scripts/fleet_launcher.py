@@ -12,7 +12,8 @@ Exits with the child's code; a bad fleet file or parameter: logfatal, exit code 
 
 Parameters: ~fleet (name in anafi_sim/config/fleets or a path; three_circles), ~drones (0: the file's list;
 N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
-~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false: rviz.launch per drone),
+~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false; true: rviz.launch
+per drone and rviz on the fleet's generated view ~out_dir/fleet.rviz, anafi_sim/mission/rviz_config.py),
 ~stop_timeout (30 s).
 
 Also a command-line tool, to see or check what a fleet file starts without starting it:
@@ -35,6 +36,8 @@ import time
 import yaml
 
 from anafi_sim.mission.fleet import aggregator_analyzers, drone_scenario, fleet_path, launch_xml, load_fleet
+from anafi_sim.mission.rviz_config import fleet_rviz
+from anafi_sim.mission.trajectory import scenario_from_dict
 from anafi_sim.processes import free_port, stop
 
 DEFAULT_OUT_DIR = os.path.join(os.path.expanduser('~'), '.ros', 'anafi_fleet')
@@ -64,9 +67,16 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
         aggregator_file = os.path.join(out_dir, 'diagnostics_aggregator.yaml')
         with open(aggregator_file, 'w') as f:
             yaml.safe_dump(aggregator_analyzers(fleet), f, default_flow_style=False, sort_keys=False)
+    rviz_file = ''
+    if rviz:
+        rviz_file = os.path.join(out_dir, 'fleet.rviz')
+        text, _ = fleet_rviz(fleet, dict((name, scenario_from_dict(yaml.safe_load(open(path))))
+                                         for name, path in files.items()))
+        with open(rviz_file, 'w') as f:
+            f.write(text)
     xml = launch_xml(fleet, ports, files, out_dir, evaluate=evaluate, mirror=mirror, mirror_rate=mirror_rate,
                      output=output, source=fleet_path(fleet_name), aggregator_file=aggregator_file,
-                     rviz=rviz)
+                     rviz=rviz, rviz_file=rviz_file)
     path = os.path.join(out_dir, 'fleet.launch')
     with open(path, 'w') as f:
         f.write(xml)

@@ -30,11 +30,11 @@ import time
 
 import rospy
 from diagnostic_msgs.msg import DiagnosticStatus
-from dynamic_reconfigure.server import Server
 from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid import PidController, join_gain, split_gain
 from anafi_sim.cfg import PidConfig
+from anafi_sim.ros.reconfigure import TracedServer
 from anafi_sim.ros.node import (diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 start_diagnostics_thread)
 
@@ -80,7 +80,7 @@ class PidControllerNode(object):
         self.rate_count_seen = False
         self.pub = rospy.Publisher(self.topics['topic_from_controller'], Float64, queue_size=10)
         self.pub_diag = diagnostics_publisher()
-        self.server = Server(PidConfig, self._on_reconfigure)
+        self.server = TracedServer(PidConfig, self._on_reconfigure)
         rospy.Subscriber(self.topics['topic_from_plant'], Float64, self._on_state, queue_size=10)
         rospy.Subscriber(self.topics['setpoint_topic'], Float64, self._on_setpoint, queue_size=10)
         rospy.Subscriber(self.topics['pid_enable_topic'], Bool, self._on_enable, queue_size=10)

@@ -6,7 +6,7 @@ simulation time, rtf 2, kinematic world + mirror, record) as a subprocess on its
 (free port, own ROS_HOME) and waits for the experiment monitor (the launch's required node) to end it;
 every process of the run is stopped by id afterwards. Then checks the run's files:
 
-- RUN.bag: a readable bag with the waypoint, the estimate, ground truth, the commands and the
+- RUN.bag: a readable bag with the waypoint, the estimate, ground truth, the commands, /tf, /tf_static, /clock and the
   begin/end signals recorded;
 - RUN.csv: reference-log columns, one row per estimate sample, finite waypoint and positions;
 - RUN.yaml (evaluator summary): state final, e_max, e_mu, e_sigma finite (vs estimate and vs ground
@@ -30,6 +30,14 @@ from anafi_sim import processes
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCENARIO = os.path.join(HERE, 'experiment_short.yaml')
 RUN_TIMEOUT = 130.0       # s wall for the whole launch
+#: live tuning during the run (`rosrun dynamic_reconfigure dynparam set`): node, request, the expected records
+#: (parameter, old, new, outcome). Harmless to the flight: a_max 5 -> 5.5 m/s^2; q_cum_vel asked -1, clamped to
+#: its minimum 0 (its value already); the PID's x_outer Kd_scale asked 0.01, clamped to 0.1 (Kd is 0).
+TUNING = {
+    'mpc': ('/anafi/mpc_controller', "{'a_max': 5.5, 'q_cum_vel': -1.0}",
+            [('a_max', 5.0, 5.5, 'applied'), ('q_cum_vel', 0.0, 0.0, 'clamped')]),
+    'pid': ('/anafi/pid/x_outer', "{'Kd_scale': 0.01}", [('Kd_scale', None, 0.1, 'clamped')]),
+}
 
 
 class TestExperiment(unittest.TestCase):
@@ -46,6 +54,10 @@ class TestExperiment(unittest.TestCase):
                'telemetry_port:=%d' % processes.free_port()]
         log_path = os.path.join(out, 'launch.log')
         proc = processes.start(cmd, env=env, log=log_path)
+        node, request, self.expected_tuning = TUNING[controller]
+        tuner = processes.start(['rosrun', 'dynamic_reconfigure', 'dynparam', 'set', '--timeout=60', node, request],
+                              env=env, log=os.path.join(out, 'dynparam.log'))
+        self.tuned_node, self.ros_home = node, env['ROS_HOME']
         base = os.path.join(out, name)
         deadline = time.monotonic() + RUN_TIMEOUT
         try:
@@ -55,6 +67,7 @@ class TestExperiment(unittest.TestCase):
                 time.sleep(0.5)
             time.sleep(0.5)
         finally:
+            processes.stop(tuner, grace=2.0)
             processes.stop(proc, grace=20.0)
         try:
             self.check(base)
@@ -71,6 +84,8 @@ class TestExperiment(unittest.TestCase):
         # the simulator's rtf (experiment.launch default 2) is a ceiling: simulation time never runs faster
         self.assertGreater(info['achieved_rtf'], 0.0)
         self.assertLessEqual(info['achieved_rtf'], 2.0 * 1.05)
+
+        self.check_tuning(info)
 
         summary = self.load_yaml(base + '.yaml')
         self.assertEqual(summary.get('state'), 'final')
@@ -121,6 +136,54 @@ class TestExperiment(unittest.TestCase):
             self.assertIn('/anafi/' + topic, topics, 'bag topics: %s' % sorted(topics))
             self.assertGreater(topics['/anafi/' + topic].message_count, 0, topic)
         self.assertGreater(topics['/anafi/drone/odom'].message_count, 200)
+        # replayable into rviz: the drone's tf (the interface's world -> anafi/... frames, the static camera
+        # frames) and the simulation clock
+        for topic in ('/tf', '/tf_static', '/clock'):
+            self.assertIn(topic, topics, 'bag topics: %s' % sorted(topics))
+            self.assertGreater(topics[topic].message_count, 0, topic)
+        # the chain rviz needs for the model (world -> stability axes -> base_link) and the camera frames, on the
+        # simulation clock of the bag's /clock
+        import tf2_ros
+        buffer = tf2_ros.Buffer(rospy.Duration(3600.0), debug=False)
+        clock = []
+        with rosbag.Bag(base + '.bag') as bag:
+            for topic, msg, _ in bag.read_messages(topics=['/tf', '/tf_static', '/clock']):
+                if topic == '/clock':
+                    clock.append(msg.clock.to_sec())
+                    continue
+                for t in msg.transforms:
+                    if topic == '/tf_static':
+                        buffer.set_transform_static(t, 'bag')
+                    else:
+                        buffer.set_transform(t, 'bag')
+        self.assertTrue(clock and clock[-1] > clock[0], 'the bag\'s /clock does not advance')
+        middle = rospy.Time.from_sec(0.5 * (clock[0] + clock[-1]))
+        for frame in ('anafi/base_link', 'anafi/camera'):
+            self.assertTrue(buffer.can_transform('world', frame, middle), 'world -> %s at %.2f s of the bag\'s '
+                            'clock: %s' % (frame, middle.to_sec(), buffer.all_frames_as_string()))
+
+    def check_tuning(self, info):
+        """The dynparam request is in the run info (time, parameter, old, new, requested, outcome) and on
+        /rosout: the node's log holds the INFO line of an applied change and the WARN of a clamped one."""
+        records = info.get('tuning')
+        self.assertIsInstance(records, list, 'no tuning list in the run info: %s' % info)
+        got = [(r['parameter'], r['old'], r['new'], r['outcome']) for r in records if r['node'] == self.tuned_node]
+        for parameter, old, new, outcome in self.expected_tuning:
+            match = [g for g in got if g[0] == parameter and g[3] == outcome and g[2] == new
+                     and (old is None or g[1] == old)]
+            self.assertTrue(match, '%s %s -> %s (%s) not in the run\'s tuning records %s'
+                            % (parameter, old, new, outcome, records))
+        for r in records:
+            self.assertTrue(r['stamp'] >= 0.0 and r['wall'] > 0.0 and 'requested' in r, r)
+        logs = []
+        for folder, _, files in os.walk(os.path.join(self.ros_home, 'log')):
+            logs += [os.path.join(folder, f) for f in files if f.endswith('.log')]
+        text = ''.join(open(path, errors='replace').read() for path in logs)
+        for parameter, _, new, outcome in self.expected_tuning:
+            self.assertIn('tuning %s: %s' % (self.tuned_node, parameter), text, 'no tuning line in the node logs')
+        self.assertRegex(text, r'INFO.*tuning %s' % self.tuned_node if any(
+            e[3] == 'applied' for e in self.expected_tuning) else r'WARN.*tuning %s' % self.tuned_node)
+        self.assertRegex(text, r'WARN.*tuning %s: .*clamped' % self.tuned_node)
 
     def load_yaml(self, path):
         self.assertTrue(os.path.exists(path), '%s not written' % path)

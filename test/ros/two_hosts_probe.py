@@ -114,6 +114,8 @@ class Probe(object):
         stamps = np.array([g[0] for g in gt])
         out['gt_samples'] = len(gt)
         out['gt_rate_hz'] = round(len(gt) / window, 2)
+        span = float(stamps.max() - stamps.min()) if len(stamps) > 1 else 0.0
+        out['gt_stamp_rate_hz'] = round((len(stamps) - 1) / span, 2) if span > 0.0 else 0.0   # per s of stamps
         gaps = np.diff(np.sort(stamps)) if len(stamps) > 1 else np.array([])
         out['gt_max_gap_ms'] = round(1e3 * float(gaps.max()), 2) if len(gaps) else None
         out['gt_gaps_over_15ms'] = int((gaps > 0.015).sum()) if len(gaps) else 0

@@ -52,7 +52,8 @@ def test_stop_ends_the_group_and_children_in_other_sessions(tmp_path):
     assert os.getpgid(proc.pid) == proc.pid and os.getpgid(child) != proc.pid
     t0 = time.monotonic()
     assert processes.stop(proc, grace=0.3, kill_wait=0.5) == []
-    assert time.monotonic() - t0 < 5.0
+    # behaviour: stop escalated instead of waiting for the 60 s the leader and its child would live
+    assert time.monotonic() - t0 < 30.0
     assert proc.poll() is not None and not _pids_alive([child])
 
 

@@ -134,9 +134,50 @@ def test_command_line_run(short, tmp_path):
                           timeout=120, env=env)
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith('RESULT short_a_pid  ok  e_mu '), proc.stdout
+    assert lines[0].startswith('RESULT short_a_pid  ok  e_mu '), proc.stdout
+    # then the paths it wrote, absolute, one per line (before: none printed)
+    printed = dict(line.split(None, 1) for line in lines[1:])
+    assert printed == {'csv:': os.path.join(out, 'short_a_pid.csv'), 'plot:': os.path.join(out, 'short_a_pid.png'),
+                       'summary:': os.path.join(out, 'short_a_pid.yaml')}, proc.stdout
     assert sorted(os.listdir(out)) == ['short_a_pid.csv', 'short_a_pid.png', 'short_a_pid.yaml']
     bad = subprocess.run([sys.executable, SCRIPT, 'run', '--scenario', short[0], '--schedule', 'bogus=1',
                           '--out', out], stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True,
                          timeout=60, env=env)
     assert bad.returncode == 2 and 'bogus' in bad.stderr
+
+
+def test_median_is_the_middle_of_an_even_count():
+    """The sweep plot's '/ median' row divided by the upper median (sorted(d)[n // 2]) of an even count."""
+    assert sweep.median([4.0, 1.0, 3.0, 2.0]) == 2.5
+    assert sweep.median([3.0, 1.0, 2.0]) == 2.0
+    assert sweep.median([5.0]) == 5.0
+    with pytest.raises(ValueError):
+        sweep.median([])
+
+
+def test_sweep_spec_found_by_name_or_by_package_path_from_any_folder(tmp_path, monkeypatch):
+    """`experiment.py sweep wind_circles` and the README's `anafi_sim/config/sweeps/wind_circles.yaml` from a
+    folder other than the repository root (before: 'No such file' from anywhere but the root; no names)."""
+    monkeypatch.chdir(str(tmp_path))
+    shipped = paths.config_path('sweeps', 'wind_circles.yaml')
+    assert sweep.sweep_path('wind_circles') == shipped
+    assert os.path.samefile(sweep.sweep_path('anafi_sim/config/sweeps/wind_circles.yaml'), shipped)
+    assert sweep.load_spec('wind_circles')['name'] == 'wind_circles'
+    own = tmp_path / 'anafi_sim' / 'config' / 'sweeps'          # a file here wins over the package's
+    own.mkdir(parents=True)
+    (own / 'wind_circles.yaml').write_text('name: mine\nscenarios: [circle_r1_v1]\ncontrollers: [mpc]\n')
+    assert sweep.load_spec('anafi_sim/config/sweeps/wind_circles.yaml')['name'] == 'mine'
+    with pytest.raises(ValueError) as error:
+        sweep.sweep_path('no_such_sweep')
+    assert 'wind_circles' in str(error.value)        # the known names are listed
+    assert 'wind_circles' in sweep.list_specs()
+
+
+def test_progress_lines_have_an_eta():
+    import io
+    assert runs.eta(10.0, 1, 4) == '0:30' and runs.eta(10.0, 4, 4) == '0:00' and runs.eta(0.0, 0, 4) == '?'
+    assert runs.eta(3600.0, 1, 3) == '2:00:00'
+    stream = io.StringIO()
+    progress = runs.Progress(3, 'x', stream=stream, bar=False)
+    progress.update({'ok': True, 'scenario': 's', 'controller': 'mpc', 'summary': {'estimate': {'e_mu': 0.1}}})
+    assert 'ETA ' in stream.getvalue() and ' 1/3 ' in stream.getvalue()

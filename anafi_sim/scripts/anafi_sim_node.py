@@ -38,6 +38,7 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Empty, Float32, String
 
+import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.frames import euler_to_quaternion
 from anafi_sim import paths
 from anafi_sim.ros import conversions, topics

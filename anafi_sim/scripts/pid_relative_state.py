@@ -34,6 +34,7 @@ import threading
 import rospy
 from std_msgs.msg import Bool, Float64
 
+import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.contract import MESSAGES, NO_STATE, NO_WAYPOINT, OK, InputGate, health
 from anafi_control.pid_framework import DEFAULTS, relative_state
 from anafi_control.pid_wiring import input_topics, loop_inputs

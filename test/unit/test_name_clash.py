@@ -27,8 +27,10 @@ def their_package(tmp_path):
 
 def run(args, path, cwd):
     """``python args`` with PYTHONPATH = ``path`` (the source tree, as an install space lays it out: no
-    devel-space relay) in ``cwd``."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(path))
+    devel-space relay) then the current PYTHONPATH's entries without an anafi_control (ROS's own) in ``cwd``."""
+    ros = [p for p in os.environ.get('PYTHONPATH', '').split(os.pathsep)
+           if p and not os.path.isdir(os.path.join(p, 'anafi_control'))]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(list(path) + ros))
     return subprocess.run([sys.executable] + args, env=env, cwd=cwd, stdout=subprocess.PIPE,
                           stderr=subprocess.PIPE, universal_newlines=True, timeout=60)
 

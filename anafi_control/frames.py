@@ -54,6 +54,21 @@ def quaternion_multiply(a, b):
             aw * bw - ax * bx - ay * by - az * bz)
 
 
+#: (x, y, z, w) of the rotation from a north-west-up (NWU) world frame to ENU: +90 deg about z (north = ENU +y)
+NWU_TO_ENU = (0.0, 0.0, math.sin(math.pi / 4.0), math.cos(math.pi / 4.0))
+
+
+def enu_from_nwu(q):
+    """An attitude (x, y, z, w) referenced to north-west-up, referenced to ENU instead (same body axes)."""
+    return quaternion_multiply(NWU_TO_ENU, q)
+
+
+def nwu_from_enu(q):
+    """An attitude (x, y, z, w) referenced to ENU, referenced to north-west-up instead (same body axes)."""
+    x, y, z, w = NWU_TO_ENU
+    return quaternion_multiply((-x, -y, -z, w), q)
+
+
 def yaw_from_quaternion(x, y, z, w):
     """Heading [rad] of a quaternion (x, y, z, w)."""
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))

@@ -15,7 +15,9 @@ ATTITUDE = 'drone/attitude'             # geometry_msgs/QuaternionStamped
 SPEED = 'drone/speed'                   # geometry_msgs/Vector3Stamped, world ENU
 ALTITUDE = 'drone/altitude'             # std_msgs/Float32
 RPY = 'drone/rpy'                       # geometry_msgs/Vector3Stamped [deg]
-CAMERA_ATTITUDE = 'camera/attitude'     # geometry_msgs/QuaternionStamped
+CAMERA_ATTITUDE = 'camera/attitude'     # geometry_msgs/QuaternionStamped, frame "/body" (NWU-referenced)
+CAMERA_BASE_ATTITUDE = 'camera/base_attitude'  # the same without the gimbal's tilt
+STATE_ENU = 'position_control/state_enu'  # anafi_control/State: the reference implementation's bridge fork
 DRONE_STATE = 'drone/state'             # std_msgs/String (latched): landed | taking_off | flying | landing
 SIM_TRUTH = 'sim/truth'                 # nav_msgs/Odometry: the simulator's ground truth (anafi_sim only)
 

@@ -9,7 +9,11 @@ child frame), the gimbal roll/pitch motor angles [rad, relative to the body]
 and the sample's stamp [s, ROS clock]. Outputs are ``ModelStateSpec`` s for
 two models, the drone body and its camera, with the twist rotated into the
 world frame (gazebo_msgs/ModelState's twist is in ``reference_frame``).
-The camera pose is ``anafi_sim.interface.ground_truth.camera_pose``.
+The camera pose is ``anafi_sim.interface.ground_truth.camera_pose`` (gimbal angles from the telemetry,
+``camera_attitude_source='telemetry'``), or, with ``camera_attitude_source='bridge'``, the camera attitude
+the anafi_ros bridge publishes on camera/attitude (``on_camera_attitude``): referenced to north-west-up
+despite its frame_id "/body" (``anafi_sim.sim.bridge``, README "The camera attitude"), so the world
+orientation is ``anafi_control.frames.enu_from_nwu`` of it, heading included; position as above.
 
 ``Mirror`` rejects non-finite, stale (older than ``stale_timeout``),
 future-stamped and duplicate samples with counters, limits the output to
@@ -85,6 +89,29 @@ def camera_model_state(name, position, orientation, linear_body, angular_body, g
     return ModelStateSpec(name, cam_position, tuple(float(v) for v in cam_q), lin, ang, reference_frame)
 
 
+def camera_model_state_from_attitude(name, position, orientation, linear_body, angular_body, camera_orientation,
+                                     offset=DEFAULT_CAMERA_OFFSET, reference_frame='world'):
+    """ModelStateSpec of the camera at its world orientation ``camera_orientation`` (x, y, z, w; ENU, FLU
+    camera axes): position and twist of the body point ``offset`` as in ``camera_model_state``."""
+    q = frames.normalize_quaternion(orientation)
+    rot = frames.quaternion_matrix(q).tolist()
+    lin, ang = _rotate(rot, linear_body), _rotate(rot, angular_body)
+    lever = _rotate(rot, offset)
+    lin = tuple(a + b for a, b in zip(lin, _cross(ang, lever)))
+    cam_position = tuple(float(p) + d for p, d in zip(position, lever))
+    cam_q = frames.normalize_quaternion(camera_orientation)
+    return ModelStateSpec(name, cam_position, tuple(float(v) for v in cam_q), lin, ang, reference_frame)
+
+
+def camera_world_orientation(bridge_quaternion):
+    """World (ENU) orientation of the camera from the anafi_ros bridge's camera/attitude quaternion."""
+    return frames.enu_from_nwu(frames.normalize_quaternion(bridge_quaternion))
+
+
+CAMERA_ATTITUDE_SOURCES = ('telemetry', 'bridge')
+"""Where the camera model's attitude comes from: the telemetry's gimbal angles, or the bridge's camera/attitude."""
+
+
 def hold_state(state):
     """The same pose with zero twist (sent when the input goes stale)."""
     return state._replace(linear=(0.0, 0.0, 0.0), angular=(0.0, 0.0, 0.0))
@@ -104,13 +131,14 @@ class Mirror(object):
     second of stamp time (``rate_tolerance`` = fraction of a period a sample may come early);
     stale_timeout [s]: samples older than this (now - stamp) are rejected and the mirror holds;
     camera_offset: camera position in the body frame [m]; spawn_camera: mirror the camera model too;
-    lag_window: number of lag samples kept; retry_period / missing_grace: see ``SpawnTracker``.
+    lag_window: number of lag samples kept; retry_period / missing_grace: see ``SpawnTracker``;
+    camera_attitude_source: 'telemetry' (gimbal angles, ``on_gimbal``) or 'bridge' (``on_camera_attitude``).
     """
 
     def __init__(self, drone_name='anafi', rate=100.0, stale_timeout=0.2, camera_offset=DEFAULT_CAMERA_OFFSET,
                  drone_model_name='', camera_model_name='', spawn_camera=True, rate_tolerance=0.3,
                  lag_window=2000, rate_window=1.0, retry_period=1.0, missing_grace=1.0,
-                 reference_frame='world', low_rate_fraction=0.9):
+                 reference_frame='world', low_rate_fraction=0.9, camera_attitude_source='telemetry'):
         for name, value in (('rate', rate), ('stale_timeout', stale_timeout), ('rate_window', rate_window),
                             ('retry_period', retry_period)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -120,6 +148,11 @@ class Mirror(object):
         offset = tuple(float(v) for v in camera_offset)
         if len(offset) != 3 or not _finite(offset):
             raise ValueError('camera_offset must be 3 finite numbers [m], got %r' % (camera_offset,))
+        if camera_attitude_source not in CAMERA_ATTITUDE_SOURCES:
+            raise ValueError('camera_attitude_source must be one of %s, got %r'
+                             % (', '.join(CAMERA_ATTITUDE_SOURCES), camera_attitude_source))
+        self.camera_attitude_source = camera_attitude_source
+        self.camera_attitude = None    # world orientation of the camera from the bridge (x, y, z, w)
         if int(lag_window) < 1:
             raise ValueError('lag_window must be >= 1')
         self.drone_model, self.camera_model = model_names(drone_name, drone_model_name, camera_model_name)
@@ -174,6 +207,20 @@ class Mirror(object):
         self.gimbal_stamp = float(stamp)
         return True
 
+    def on_camera_attitude(self, quaternion, stamp, now):
+        """The bridge's camera/attitude quaternion (x, y, z, w; see the module doc); True when accepted
+        (counted with the gimbal inputs)."""
+        self.gimbal_received += 1
+        try:
+            if not _finite(tuple(quaternion) + (stamp, now)):
+                raise ValueError('non-finite')
+            self.camera_attitude = camera_world_orientation(quaternion)
+        except (ValueError, TypeError):
+            self.gimbal_rejected += 1
+            return False
+        self.gimbal_stamp = float(stamp)
+        return True
+
     def on_ground_truth(self, position, orientation, linear_body, angular_body, stamp, now):
         """A ground-truth sample (see module doc; ``stamp`` and ``now`` on the ROS clock [s]).
 
@@ -214,7 +261,14 @@ class Mirror(object):
 
         states = [drone_model_state(self.drone_model, position, q, linear_body, angular_body,
                                     self.reference_frame)]
-        if self.spawn_camera:
+        if self.spawn_camera and self.camera_attitude_source == 'bridge':
+            camera_q = self.camera_attitude
+            if camera_q is None:         # none yet: level, along the drone's heading
+                camera_q = frames.euler_to_quaternion(0.0, 0.0, frames.yaw_from_quaternion(*q))
+            states.append(camera_model_state_from_attitude(self.camera_model, position, q, linear_body,
+                                                           angular_body, camera_q, self.camera_offset,
+                                                           self.reference_frame))
+        elif self.spawn_camera:
             g_roll, g_pitch = self.gimbal if self.gimbal is not None else (0.0, 0.0)
             states.append(camera_model_state(self.camera_model, position, q, linear_body, angular_body,
                                              g_roll, g_pitch, self.camera_offset, self.reference_frame))
@@ -326,7 +380,9 @@ class Mirror(object):
             level, message = ERROR, 'ground truth stale for %.1f s: holding models' % age
         elif rate < self.low_rate_fraction * self.rate:
             level, message = WARN, 'mirroring %.1f Hz < %.1f Hz' % (rate, self.rate)
-        elif self.spawn_camera and self.gimbal is None:
+        elif self.spawn_camera and self.camera_attitude_source == 'bridge' and self.camera_attitude is None:
+            level, message = WARN, 'mirroring %.1f Hz, no camera attitude from the bridge yet (camera level)' % rate
+        elif self.spawn_camera and self.camera_attitude_source == 'telemetry' and self.gimbal is None:
             level, message = WARN, 'mirroring %.1f Hz, no gimbal angles yet (camera at 0, 0)' % rate
         elif news:
             level, message = WARN, 'mirroring %.1f Hz but ' % rate + ', '.join(news)

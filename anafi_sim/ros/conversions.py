@@ -7,7 +7,7 @@ from nav_msgs.msg import Odometry
 
 from anafi_control import frames
 from anafi_control.contract import LIMIT_DEFAULTS, WaypointLimits
-from anafi_sim.msg import Waypoint
+from anafi_sim.ros import waypoints
 
 
 def pose(position, orientation):
@@ -44,14 +44,16 @@ def odometry_state(msg, twist_frame=None):
 
 
 def waypoint_numbers(msg):
-    """(x, y, z [m], vx, vy, vz [m/s], yaw [deg]) of an anafi_sim/Waypoint: what ``on_waypoint`` takes."""
-    return (msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz, msg.yaw)
+    """(x, y, z [m], vx, vy, vz [m/s], yaw [deg]) of a waypoint of either type (``anafi_sim.ros.waypoints``):
+    what ``on_waypoint`` takes."""
+    return waypoints.waypoint_numbers(msg)
 
 
-def subscribe_inputs(target, lock, state_topic, waypoint_topic):
+def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=waypoints.DEFAULT_WAYPOINT_TYPE):
     """Feed ``target.on_state`` / ``target.on_waypoint`` (an ``anafi_control.contract`` Controller or
-    InputGate) from nav_msgs/Odometry on ``state_topic`` and anafi_sim/Waypoint on ``waypoint_topic``, with
-    the ROS time of receipt, under ``lock``. A refused sample is logged (throttled, with the count of
+    InputGate) from nav_msgs/Odometry on ``state_topic`` and waypoints of ``waypoint_type`` (``anafi_sim`` or
+    the reference implementation's ``anafi_control``) on ``waypoint_topic``, with the ROS time of receipt,
+    under ``lock``. A refused sample is logged (throttled, with the count of
     ``target.counters``). Returns the resolved (state topic, waypoint topic)."""
     resolved = rospy.resolve_name(state_topic), rospy.resolve_name(waypoint_topic)
 
@@ -66,7 +68,8 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic):
 
     rospy.Subscriber(state_topic, Odometry, lambda m: feed('state', odometry_numbers(m), resolved[0]),
                      queue_size=5, tcp_nodelay=True)
-    rospy.Subscriber(waypoint_topic, Waypoint, lambda m: feed('waypoint', (waypoint_numbers(m),), resolved[1]),
+    rospy.Subscriber(waypoint_topic, waypoints.waypoint_class(waypoint_type),
+                     lambda m: feed('waypoint', (waypoint_numbers(m),), resolved[1]),
                      queue_size=5, tcp_nodelay=True)
     return resolved
 

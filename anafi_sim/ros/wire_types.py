@@ -91,3 +91,53 @@ def class_from_connection_header(header):
 def decode(header, buffer):
     """Deserialize one message (bytes ``buffer``) of the type announced in ``header`` (see above)."""
     return class_from_connection_header(header)().deserialize(buffer)
+
+
+# --- the reference implementation's own message package ``anafi_control`` (its waypoint and state) --------
+# Not to be confused with this project's control library of the same name (README, "The anafi_control name
+# clash"): the classes below are the real ones when their message package is importable as
+# ``anafi_control.msg`` (our package extends its path, so theirs is found behind ours), else built at run
+# time with the same type names, fields and md5sums (definitions from shared/interfaces/anafi_ros.md).
+_SEPARATOR = '=' * 80 + '\n'
+
+
+def _definition(text, *dependencies):
+    """``text`` followed by its dependencies ((type, text) pairs) in the ``gendeps --cat`` layout."""
+    return text + ''.join('%sMSG: %s\n%s' % (_SEPARATOR, name, body) for name, body in dependencies)
+
+
+_STD_HEADER = ('std_msgs/Header', 'uint32 seq\ntime stamp\nstring frame_id\n')
+_VECTOR3_STAMPED = ('geometry_msgs/Vector3Stamped', 'std_msgs/Header header\ngeometry_msgs/Vector3 vector\n')
+_VECTOR3 = ('geometry_msgs/Vector3', 'float64 x\nfloat64 y\nfloat64 z\n')
+_TWIST_MODIFIED = ('anafi_control/TwistModified',
+                   'geometry_msgs/Vector3Stamped linear\ngeometry_msgs/Vector3Stamped angular\n')
+_TWIST_STAMPED_MODIFIED = ('anafi_control/TwistStampedModified',
+                           'std_msgs/Header header\nanafi_control/TwistModified twist\n')
+
+PAPER_WAYPOINT_TYPE = 'anafi_control/Waypoint'
+PAPER_WAYPOINT_MD5 = 'c72c4e4d66b8cdce8f9bcb0dbae36dca'
+PAPER_WAYPOINT_FIELDS = ('x', 'y', 'z', 'v_x', 'v_y', 'v_z', 'yaw')
+PAPER_WAYPOINT_DEFINITION = ''.join('float64 %s\n' % f for f in PAPER_WAYPOINT_FIELDS)
+
+PAPER_STATE_TYPE = 'anafi_control/State'
+PAPER_STATE_MD5 = 'e65cd25dc6c41d22d5b47104c1dfbd7b'
+PAPER_STATE_DEFINITION = _definition(
+    'std_msgs/Header header\ngeometry_msgs/PoseStamped pose\nanafi_control/TwistStampedModified twist\n',
+    _STD_HEADER,
+    ('geometry_msgs/PoseStamped', 'std_msgs/Header header\ngeometry_msgs/Pose pose\n'),
+    ('geometry_msgs/Pose', 'geometry_msgs/Point position\ngeometry_msgs/Quaternion orientation\n'),
+    ('geometry_msgs/Point', 'float64 x\nfloat64 y\nfloat64 z\n'),
+    ('geometry_msgs/Quaternion', 'float64 x\nfloat64 y\nfloat64 z\nfloat64 w\n'),
+    _TWIST_STAMPED_MODIFIED, _TWIST_MODIFIED, _VECTOR3_STAMPED, _VECTOR3)
+PAPER_TWIST_STAMPED_MODIFIED_MD5 = '953cf8d869ec497d6eb74723a9307a2e'
+PAPER_TWIST_MODIFIED_MD5 = '2d3ab5e2b924162f6809bed7c278f6b8'
+
+
+def paper_waypoint_class():
+    """``anafi_control/Waypoint`` of the reference implementation (md5 c72c4e4d66b8cdce8f9bcb0dbae36dca)."""
+    return load_message_class(PAPER_WAYPOINT_TYPE, PAPER_WAYPOINT_DEFINITION)
+
+
+def paper_state_class():
+    """``anafi_control/State`` of the reference implementation (md5 e65cd25dc6c41d22d5b47104c1dfbd7b)."""
+    return load_message_class(PAPER_STATE_TYPE, PAPER_STATE_DEFINITION)

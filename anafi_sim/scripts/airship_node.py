@@ -18,6 +18,7 @@ import rosgraph
 import rospy
 from nav_msgs.msg import Odometry
 
+import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control import frames
 from anafi_sim import paths
 from anafi_sim.gazebo.airship_path import SHAPES, AirshipPath

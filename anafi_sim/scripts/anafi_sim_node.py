@@ -13,16 +13,20 @@ topics are put under /<~drone_name>/). Subscribes: drone/rpyt
 Publishes: drone/odom (nav_msgs/Odometry of the estimate, world ->
 <drone>/base_link, twist in the child frame; angular twist not estimated:
 zero), drone/pose_enu, drone/attitude, drone/speed (world ENU), drone/altitude,
-drone/rpy (deg), camera/attitude, drone/state (latched), sim/truth (ground
+drone/rpy (deg), camera/attitude and camera/base_attitude (as the real bridge: frame_id "/body",
+north-west-up referenced, anafi_sim.sim.bridge), drone/state (latched), sim/truth (ground
 truth Odometry stamped at its sample's time), /diagnostics (1 Hz wall),
-/clock when ~publish_clock. Parameters: see anafi_sim/config/sim.yaml; the
+/clock when ~publish_clock; with ~publish_state_enu (true) also position_control/state_enu
+(anafi_control/State, the reference implementation's bridge fork: frame ids "/world",
+pose = drone/pose_enu, twist.linear = drone/speed, twist.angular = 0; wire-identical class from anafi_sim.ros.wire_types). Parameters: see anafi_sim/config/sim.yaml; the
 fitted model dict is ~model if set, else read from ~model_file (default anafi_model.yaml, a name in
 anafi_sim/config such as anafi_model_fitted.yaml, or an absolute path).
 ~sync (with ~publish_clock): lockstep with the controller
 (anafi_sim.sim.clock.Lockstep): simulation time held at 0 until the graph is
 up (~sync_settle), then at each control period (~sync_period) /clock stops at
 the period's tick until the command stamped at it arrives on drone/rpyt (at
-most ~sync_timeout s wall, counted on /diagnostics).
+most ~sync_timeout s wall, counted on /diagnostics); a command with header.stamp 0 (the reference
+implementation's controllers) counts at its time of arrival (counted and named on /diagnostics).
 Bad parameters: logfatal, exit code 1.
 """
 import os
@@ -34,14 +38,15 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Empty, Float32, String
 
+import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.frames import euler_to_quaternion
 from anafi_sim import paths
 from anafi_sim import names
 from anafi_sim.ros import conversions
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 start_diagnostics_thread)
-from anafi_sim.ros.wire_types import piloting_command_class
-from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
+from anafi_sim.ros.wire_types import paper_state_class, piloting_command_class
+from anafi_sim.sim.bridge import CAMERA_FRAME_ID, MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.sim.clock import SYNC_DEFAULTS, Lockstep, SimClock, StartHold
 from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
 from anafi_sim.sim.simulator import SimulatedAnafi
@@ -49,6 +54,9 @@ from anafi_sim.sim.state_estimate import StateEstimate
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX
 from anafi_sim.telemetry.server import TelemetryServer
 
+
+STATE_ENU_FRAME_ID = '/world'
+"""frame_id of every header in position_control/state_enu, as the reference implementation's bridge sets it."""
 
 FIRST_TICK_HOLD = 1.0
 """s of wall time the lockstep holds the first step's /clock tick: nodes that wait for /clock to start
@@ -76,6 +84,7 @@ class AnafiSimNode(object):
         port = p.integer('telemetry_port', 9060, minimum=0, maximum=65535)   # 0 = any free port
         prefix = p.string('telemetry_prefix', DEFAULT_PREFIX)
         auto_takeoff = p.flag('auto_takeoff', True)
+        publish_state_enu = p.flag('publish_state_enu', True)
         sync = p.flag('sync', False)
         d = SYNC_DEFAULTS
         sync_period = p.positive('sync_period', d['sync_period'])            # s sim, the controller's period
@@ -138,6 +147,9 @@ class AnafiSimNode(object):
         self.pub_altitude = pub(base + names.ALTITUDE, Float32, queue_size=10)
         self.pub_rpy = pub(base + names.RPY, Vector3Stamped, queue_size=10)
         self.pub_camera = pub(base + names.CAMERA_ATTITUDE, QuaternionStamped, queue_size=10)
+        self.pub_camera_base = pub(base + names.CAMERA_BASE_ATTITUDE, QuaternionStamped, queue_size=10)
+        self.State = paper_state_class() if publish_state_enu else None
+        self.pub_state_enu = pub(base + names.STATE_ENU, self.State, queue_size=10) if publish_state_enu else None
         self.pub_state = pub(base + names.DRONE_STATE, String, queue_size=1, latch=True)
         self.pub_truth = pub(base + names.SIM_TRUTH, Odometry, queue_size=20)
         self.pub_diag = diagnostics_publisher(queue_size=5)
@@ -185,7 +197,25 @@ class AnafiSimNode(object):
         self.pub_speed.publish(self._header(Vector3Stamped(vector=Vector3(*e.velocity)), stamp))
         self.pub_altitude.publish(Float32(e.position[2]))
         self.pub_rpy.publish(self._header(Vector3Stamped(vector=Vector3(*e.rpy_deg)), stamp))
-        self.pub_camera.publish(self._header(QuaternionStamped(quaternion=Quaternion(*e.camera_orientation)), stamp))
+        self.pub_camera.publish(self._header(QuaternionStamped(quaternion=Quaternion(*e.camera_orientation)), stamp,
+                                             CAMERA_FRAME_ID))
+        self.pub_camera_base.publish(self._header(QuaternionStamped(quaternion=Quaternion(*e.camera_base_orientation)),
+                                                  stamp, CAMERA_FRAME_ID))
+        if self.pub_state_enu is not None:
+            self.pub_state_enu.publish(self._state_enu(pose, e.velocity, stamp))
+
+    def _state_enu(self, pose, velocity, stamp):
+        """anafi_control/State as the reference implementation's bridge fills it: frame ids "/world", pose =
+        drone/pose_enu, twist.linear = drone/speed (ENU), twist.angular = 0."""
+        msg = self.State()
+        for header in (msg.header, msg.pose.header, msg.twist.header, msg.twist.twist.linear.header,
+                       msg.twist.twist.angular.header):
+            header.stamp = stamp
+            header.frame_id = STATE_ENU_FRAME_ID
+        msg.pose.pose = pose
+        v = msg.twist.twist.linear.vector
+        v.x, v.y, v.z = velocity
+        return msg
 
     def diagnostic_statuses(self):
         health = self.sim.health(time.monotonic())

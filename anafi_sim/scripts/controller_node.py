@@ -16,7 +16,8 @@ commands 10 Hz).
 Namespace /<drone> (default /anafi). Topics, relative to the namespace:
 - in  ~state_topic (nav_msgs/Odometry, default drone/odom = the drone's estimate as in the paper;
       ground_truth/odom selectable; pose in the world frame, twist in the child frame),
-      ~waypoint_topic (anafi_sim/Waypoint, default position_control/waypoint: ENU m, m/s, yaw deg);
+      ~waypoint_topic (default position_control/waypoint: ENU m, m/s, yaw deg; type ~waypoint_type: anafi_sim
+      = anafi_sim/Waypoint (default), anafi_control = the reference implementation's anafi_control/Waypoint);
 - out ~command_topic (olympe_bridge/PilotingCommand, default drone/rpyt). Failsafes (docs/reliability.md,
       anafi_control.contract): a bad / stale / out-of-limits waypoint -> the controller holds the position
       where the hold began with its own loop (commands keep flowing); no / bad / stale state, a clock jump,
@@ -31,7 +32,7 @@ Namespace /<drone> (default /anafi). Topics, relative to the namespace:
       carry_cumulative_errors, applied live).
 Parameters: ~controller (mpc | pid), ~rate [Hz] (default the controller's RATE), ~command_rate [Hz] (pid),
 ~state_timeout, ~waypoint_timeout [s], ~geofence_radius, ~min_altitude, ~max_altitude, ~max_waypoint_jump [m]
-(contract.WaypointLimits), ~state_topic, ~waypoint_topic, ~command_topic; mpc: the keys of
+(contract.WaypointLimits), ~state_topic, ~waypoint_topic, ~waypoint_type, ~command_topic; mpc: the keys of
 anafi_sim/config/mpc.yaml; pid: ~<loop>/<pid param> of anafi_sim/config/pid.yaml. Bad parameters:
 logfatal, exit code 1.
 
@@ -47,6 +48,7 @@ import rospy
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 
+import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.contract import TIMEOUT_DEFAULTS, WAITING, health
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, RECONFIGURABLE, MpcTracking,
@@ -63,6 +65,7 @@ from anafi_sim.msg import MpcStats
 from anafi_sim.ros.reconfigure import TracedServer
 from anafi_sim import names
 from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
+from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 sleep_until_aligned, start_diagnostics_thread)
 from anafi_sim.sim.clock import TIMER_PHASES
@@ -357,6 +360,7 @@ class ControllerNode(object):
         state_topic = p.ros_name('state_topic', names.ESTIMATE)
         waypoint_topic = p.ros_name('waypoint_topic', names.WAYPOINT)
         command_topic = p.ros_name('command_topic', names.COMMAND)
+        waypoint_type = p.choice('waypoint_type', DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES)
         self.lock = threading.Lock()
         self.last_key = None
         self.commands = self.hover_commands = self.silent_cycles = 0
@@ -364,9 +368,10 @@ class ControllerNode(object):
         self.pub_cmd = rospy.Publisher(command_topic, self.Command, queue_size=10)
         self.pub_diag = diagnostics_publisher()
         self.adapter.setup()
-        self.state_topic, self.waypoint_topic = subscribe_inputs(self.core, self.lock, state_topic, waypoint_topic)
-        rospy.loginfo('%s: %s controller, state %s, waypoint %s -> %s; cycle %g Hz, command %g Hz',
-                      rospy.get_name(), kind, self.state_topic, self.waypoint_topic,
+        self.state_topic, self.waypoint_topic = subscribe_inputs(self.core, self.lock, state_topic, waypoint_topic,
+                                                                  waypoint_type)
+        rospy.loginfo('%s: %s controller, state %s, waypoint %s (%s/Waypoint) -> %s; cycle %g Hz, command %g Hz',
+                      rospy.get_name(), kind, self.state_topic, self.waypoint_topic, waypoint_type,
                       rospy.resolve_name(command_topic), self.rate, self.command_rate or self.rate)
 
     # -- cycle and command ----------------------------------------------------------------------

@@ -5,7 +5,9 @@ Stage: (waypoint, estimate, ground truth) -> tracking-error summary. Thin
 node over anafi_sim.mission.evaluation.LiveEvaluator (same code as evaluate_log.py
 for bags and CSV). Topics relative to the node's namespace (/<drone>/):
 
-- in ~waypoint_topic (position_control/waypoint, anafi_sim/Waypoint),
+- in ~waypoint_topic (position_control/waypoint, anafi_sim/Waypoint; with
+  ~waypoint_type anafi_control the reference implementation's
+  anafi_control/Waypoint, which has no header: timed at receipt),
   ~estimate_topic (drone/odom, nav_msgs/Odometry: the paper's metric),
   ~truth_topic (ground_truth/odom; '' = none), ~begin_topic / ~end_topic
   (trajectory/begin, trajectory/end: std_msgs/Header from the generator);
@@ -34,9 +36,9 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
 from anafi_sim.mission.evaluation import LiveEvaluator, stamp_ns, summary_markdown
-from anafi_sim.msg import Waypoint
 from anafi_sim.mission.reference_log import write_log
 from anafi_sim import names
+from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES, waypoint_class, waypoint_numbers
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params,
                                 publish_diagnostics, run_node)
 
@@ -64,7 +66,8 @@ class EvaluatorNode(object):
         inputs = dict((k, p.string('%s_topic' % k, d, allow_empty=(k == 'truth'))) for k, d in (
             ('waypoint', names.WAYPOINT), ('estimate', names.ESTIMATE), ('truth', names.GROUND_TRUTH),
             ('begin', names.TRAJECTORY_BEGIN), ('end', names.TRAJECTORY_END)))
-        rospy.Subscriber(inputs['waypoint'], Waypoint, self._on_waypoint, queue_size=50)
+        self.waypoint_type = p.choice('waypoint_type', DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES)
+        rospy.Subscriber(inputs['waypoint'], waypoint_class(self.waypoint_type), self._on_waypoint, queue_size=50)
         rospy.Subscriber(inputs['estimate'], Odometry, self._on_estimate, queue_size=100)
         if inputs['truth']:
             rospy.Subscriber(inputs['truth'], Odometry, self._on_truth, queue_size=100)
@@ -78,8 +81,8 @@ class EvaluatorNode(object):
         return stamp_ns(msg, rospy.get_rostime(), self.use_header_stamp) * 1e-9
 
     def _on_waypoint(self, msg):
-        with self.lock:
-            self.core.add_waypoint(self._t(msg), msg)
+        with self.lock:     # anafi_control/Waypoint has no header: _t is its time of receipt
+            self.core.add_waypoint(self._t(msg), waypoint_numbers(msg))
 
     def _on_estimate(self, msg):
         with self.lock:

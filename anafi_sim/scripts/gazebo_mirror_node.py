@@ -11,7 +11,9 @@ and the world-loss rule, shared with the airship node). Runs in /<drone>:
 - on every ground_truth/odom sample (nav_msgs/Odometry, twist in the body frame) sends both model states
   (gazebo_msgs/ModelState, pose and world-frame twist), at most ~rate per second, on the asynchronous
   <gazebo_namespace>/set_model_state TOPIC, or with ~use_service the paper's per-cycle synchronous
-  set_model_state SERVICE call; the camera pose uses the gimbal angles of ground_truth/drone_data;
+  set_model_state SERVICE call; the camera pose uses the gimbal angles of ground_truth/drone_data, or with
+  ~camera_attitude_source bridge the anafi_ros bridge's ~camera_attitude_topic (camera/attitude,
+  geometry_msgs/QuaternionStamped, as the real bridge publishes it: anafi_sim.gazebo.mirror);
 - never forwards non-finite or stale (~stale_timeout) samples; when the input goes stale the models
   are held (zero twist) so the world does not extrapolate them away;
 - detects a Gazebo restart (spawn service endpoint changed or gone, or a model missing from
@@ -26,10 +28,11 @@ import time
 
 import rosgraph
 import rospy
+from geometry_msgs.msg import QuaternionStamped
 from nav_msgs.msg import Odometry
 
 from anafi_sim import paths
-from anafi_sim.gazebo.mirror import Mirror, model_names, model_warnings, namespaced_model_xml
+from anafi_sim.gazebo.mirror import CAMERA_ATTITUDE_SOURCES, Mirror, model_names, model_warnings, namespaced_model_xml
 from anafi_sim.gazebo.spawn import SpawnDriver
 from anafi_sim.msg import DroneData
 from anafi_sim import names
@@ -77,6 +80,8 @@ def read_params():
         'odom_topic': r.string('odom_topic', names.GROUND_TRUTH),
         'drone_data_topic': r.string('drone_data_topic', names.DRONE_DATA),
         'camera_offset': r.vector('camera_offset', [0.1, 0.0, 0.0], 3),   # [m]
+        'camera_attitude_source': r.choice('camera_attitude_source', 'telemetry', CAMERA_ATTITUDE_SOURCES),
+        'camera_attitude_topic': r.string('camera_attitude_topic', names.CAMERA_ATTITUDE),
     }
     p['urdf_file'] = r.string('urdf_file', '') or paths.data_path('urdf', 'anafi.urdf')
     p['camera_urdf_file'] = r.string('camera_urdf_file', '') or paths.data_path('urdf', 'anafi_camera.urdf')
@@ -101,7 +106,8 @@ class GazeboMirrorNode(object):
                            drone_model_name=params['drone_model_name'],
                            camera_model_name=params['camera_model_name'], spawn_camera=params['spawn_camera'],
                            retry_period=params['retry_period'], missing_grace=params['missing_grace'],
-                           reference_frame=params['reference_frame'])   # validates the remaining parameters
+                           reference_frame=params['reference_frame'],
+                           camera_attitude_source=params['camera_attitude_source'])   # validates the remaining ones
         self.lock = threading.Lock()
         ns = params['gazebo_namespace']
         self.spawn_service = names.gazebo(names.SPAWN_URDF_MODEL, ns)
@@ -125,8 +131,12 @@ class GazeboMirrorNode(object):
         self.diag_pub = diagnostics_publisher()
         self.odom_sub = rospy.Subscriber(params['odom_topic'], Odometry, self.on_odom, queue_size=1,
                                          tcp_nodelay=True)
-        self.data_sub = rospy.Subscriber(params['drone_data_topic'], DroneData, self.on_drone_data, queue_size=1,
-                                         tcp_nodelay=True)
+        if params['camera_attitude_source'] == 'bridge':
+            self.data_sub = rospy.Subscriber(params['camera_attitude_topic'], QuaternionStamped,
+                                             self.on_camera_attitude, queue_size=1, tcp_nodelay=True)
+        else:
+            self.data_sub = rospy.Subscriber(params['drone_data_topic'], DroneData, self.on_drone_data,
+                                             queue_size=1, tcp_nodelay=True)
         self.states_sub = rospy.Subscriber(names.gazebo(names.MODEL_STATES, ns), gazebo_types.model_states_class(),
                                            self.on_model_states, queue_size=1)
         self._last_model_states = 0.0
@@ -139,6 +149,11 @@ class GazeboMirrorNode(object):
         with self.lock:
             self.core.on_gimbal(msg.gimbalRollMotorAngle, msg.gimbalPitchMotorAngle, msg.header.stamp.to_sec(),
                                 rospy.get_time())
+
+    def on_camera_attitude(self, msg):
+        q = msg.quaternion
+        with self.lock:
+            self.core.on_camera_attitude((q.x, q.y, q.z, q.w), msg.header.stamp.to_sec(), rospy.get_time())
 
     def on_model_states(self, msg):
         now = time.monotonic()

@@ -17,7 +17,9 @@ queued, so ROS I/O never blocks the reader):
 - /tf, one TFMessage per sample: ~frame_id -> <drone>/stability_axes
   (position, heading) -> <drone>/base_link (roll, pitch) -> <drone>/camera
   (~camera_offset, gimbal roll and pitch); static <drone>/camera ->
-  <drone>/camera_optical (z along the view, the Gazebo camera's image frame);
+  <drone>/camera_optical (z along the view, the Gazebo camera's image frame); with ~publish_body_fixed also
+  ~frame_id -> <drone>/body_fixed (position, roll, pitch, yaw: the frame the reference implementation's
+  interface publishes and its Gazebo mirror poses the camera through);
 - /diagnostics at 1 Hz of wall time (so it reports even when /clock stops): ERROR while
   there is no fresh sample, while the telemetry process is not running (killed,
   restarting) and after a restart until samples flow again; the restart note stays in
@@ -29,7 +31,9 @@ for ~restart_timeout s; lines longer than MAX_LINE bytes are dropped and counted
 
 Namespace /<drone> (default drone name: the namespace's last part; in the
 root namespace the topics go under /<~drone_name>/). Parameters: see
-anafi_sim/config/interface.yaml. Bad parameters: logfatal and exit code 2.
+anafi_sim/config/interface.yaml. Under the reference implementation's names (compat.launch): node name
+sphinx_interface_node, ~publish_hz = ~rate (wins when set); the node sets ~publish_hz to the rate it
+publishes at, where the reference implementation's MPC reads it. Bad parameters: logfatal and exit code 2.
 """
 import threading
 import time
@@ -64,6 +68,9 @@ def read_params():
     for name, default in (('rate', 100.0), ('stale_timeout', 0.5), ('restart_timeout', 2.0),
                           ('backoff_initial', 0.2), ('backoff_max', 5.0)):
         p[name] = reader.positive(name, default)
+    if rospy.has_param('~publish_hz'):        # the reference implementation's name of ~rate wins when set
+        p['rate'] = reader.positive('publish_hz', p['rate'])
+    p['publish_body_fixed'] = reader.flag('publish_body_fixed', False)
     if p['backoff_max'] < p['backoff_initial']:
         raise ValueError('~backoff_max (%g) must be >= ~backoff_initial (%g)'
                          % (p['backoff_max'], p['backoff_initial']))
@@ -95,6 +102,8 @@ class InterfaceNode(object):
         self.base_link = drone + '/base_link'
         self.stability_axes = drone + '/stability_axes'
         self.camera = drone + '/camera'
+        self.body_fixed = drone + '/body_fixed' if params['publish_body_fixed'] else None
+        rospy.set_param('~publish_hz', params['rate'])     # read by the reference implementation's MPC
         self.parser = TelemetryParser(prefix=params['prefix'])
         self.core = gt.GroundTruthInterface(publish_rate=params['rate'], stale_timeout=params['stale_timeout'])
         self.lock = threading.Lock()  # parser + core: reader thread vs diagnostics thread
@@ -204,6 +213,8 @@ class InterfaceNode(object):
         transforms = [_transform(stamp, self.frame_id, self.stability_axes, t_sa, q_sa),
                       _transform(stamp, self.stability_axes, self.base_link, t_bl, q_bl),
                       _transform(stamp, self.base_link, self.camera, t_cam, q_cam)]
+        if self.body_fixed is not None:     # the reference implementation's frame: the drone pose in one transform
+            transforms.append(_transform(stamp, self.frame_id, self.body_fixed, odo.position, odo.orientation))
 
         sphinx = self.sphinx_class(**dict((f, getattr(d, f)) for f in SPHINX_FIELDS))
 

@@ -6,7 +6,8 @@ Stage: target -> waypoint (-> PID / MPC controller). Thin node over anafi_sim.mi
 - in ~model_states_topic (default /gazebo/model_states, gazebo_msgs/ModelStates: works with Gazebo and
   with anafi_sim's kinematic world); the entry named ~model_name (airship);
 - out ~waypoint_topic (default position_control/waypoint relative to the node's namespace /<drone>/,
-  anafi_sim/Waypoint: ENU position [m], velocity [m/s], yaw [deg]) at ~rate Hz (10) of ROS time, while
+  anafi_sim/Waypoint, or anafi_control/Waypoint with ~waypoint_type anafi_control: ENU position [m],
+  velocity [m/s], yaw [deg]) at ~rate Hz (10) of ROS time, while
   the target is fresh (last seen within ~stale_timeout s, 1.0; else nothing is published, so the
   controllers hover after their waypoint timeout, and a warning says why); /diagnostics at 1 Hz (wall).
 
@@ -19,9 +20,9 @@ import threading
 import rospy
 
 from anafi_sim.mission.model_following import OFFSET_FRAMES, VELOCITY_SOURCES, YAW_MODES, ModelFollower
-from anafi_sim.msg import Waypoint
 from anafi_sim import names
 from anafi_sim.ros import gazebo_types
+from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES, waypoint_class, waypoint_message
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 start_diagnostics_thread, wait_for_clock)
 
@@ -46,7 +47,9 @@ class ModelFollowerNode(object):
         self.missing = 0
         self.published = 0
         self.state_msgs = 0
-        self.pub = rospy.Publisher(p.string('waypoint_topic', names.WAYPOINT), Waypoint, queue_size=10)
+        self.waypoint_type = p.choice('waypoint_type', DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES)
+        self.pub = rospy.Publisher(p.string('waypoint_topic', names.WAYPOINT), waypoint_class(self.waypoint_type),
+                                   queue_size=10)
         self.pub_diag = diagnostics_publisher(queue_size=5)
         topic = p.string('model_states_topic', names.gazebo(names.MODEL_STATES))
         rospy.Subscriber(topic, gazebo_types.model_states_class(), self._on_model_states, queue_size=1)
@@ -84,11 +87,7 @@ class ModelFollowerNode(object):
             rospy.logwarn_throttle(5.0, '%s: target %s %s: no waypoint published' % (
                 rospy.get_name(), self.model_name, 'never seen' if latest is None else 'stale'))
             return
-        msg = Waypoint()
-        msg.header.stamp = rospy.Time.from_sec(now)
-        msg.header.frame_id = self.frame_id
-        msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz, msg.yaw = self.waypoint
-        self.pub.publish(msg)
+        self.pub.publish(waypoint_message(self.waypoint_type, self.waypoint, rospy.Time.from_sec(now), self.frame_id))
         self.published += 1
 
     def diagnostic_statuses(self):

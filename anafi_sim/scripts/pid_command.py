@@ -21,6 +21,7 @@ import rospy
 from diagnostic_msgs.msg import DiagnosticStatus
 from std_msgs.msg import Bool, Float64
 
+import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler
 from anafi_sim import names
 from anafi_sim.ros.node import (diagnostic_status, diagnostics_publisher, namespace_id, private_params, run_node,

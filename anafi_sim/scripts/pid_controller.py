@@ -32,6 +32,7 @@ import rospy
 from diagnostic_msgs.msg import DiagnosticStatus
 from std_msgs.msg import Bool, Float64
 
+import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.pid import PidController, join_gain, split_gain
 from anafi_sim.cfg import PidConfig
 from anafi_sim.ros.reconfigure import TracedServer

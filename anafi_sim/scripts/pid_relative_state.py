@@ -12,7 +12,9 @@ yaw [deg, world]. Inner-loop setpoints are the outer loops' control efforts
 Inputs (relative to the node's namespace, i.e. /<drone>/):
 ~state_topic (nav_msgs/Odometry, default drone/odom = the drone's estimate;
 ground_truth/odom selectable; pose in the world frame, twist in the child
-frame), ~waypoint_topic (anafi_sim/Waypoint, default position_control/waypoint).
+frame), ~waypoint_topic (default position_control/waypoint; ~waypoint_type
+anafi_sim = anafi_sim/Waypoint, the default, or anafi_control = the reference
+implementation's anafi_control/Waypoint).
 
 Safety (the controllers' input gate and failsafes, anafi_control.contract,
 docs/reliability.md): a non-finite, stale (> ~waypoint_timeout s; 0 = never)
@@ -32,11 +34,13 @@ import threading
 import rospy
 from std_msgs.msg import Bool, Float64
 
+import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.contract import MESSAGES, NO_STATE, NO_WAYPOINT, OK, InputGate, health
 from anafi_control.pid_framework import DEFAULTS, relative_state
 from anafi_control.pid_wiring import input_topics, loop_inputs
 from anafi_sim import names
 from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
+from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
 
@@ -47,6 +51,7 @@ class RelativeStateNode(object):
         self.rate = p.positive('rate', DEFAULTS['rate'])
         state_topic = p.ros_name('state_topic', names.ESTIMATE)
         waypoint_topic = p.ros_name('waypoint_topic', names.WAYPOINT)
+        waypoint_type = p.choice('waypoint_type', DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES)
         pid_ns = p.ros_name('pid_namespace', 'pid')
         self.gate = InputGate(p.positive('state_timeout', DEFAULTS['state_timeout']),
                               p.number('waypoint_timeout', DEFAULTS['waypoint_timeout'], minimum=0.0),  # 0: never
@@ -61,7 +66,8 @@ class RelativeStateNode(object):
         self.pub_enable = rospy.Publisher(pid_ns + '/pid_enable', Bool, queue_size=1, latch=True)
         self.pub_diag = diagnostics_publisher()
         self._set_enabled(False)
-        self.state_topic, self.waypoint_topic = subscribe_inputs(self.gate, self.lock, state_topic, waypoint_topic)
+        self.state_topic, self.waypoint_topic = subscribe_inputs(self.gate, self.lock, state_topic, waypoint_topic,
+                                                                  waypoint_type)
         rospy.loginfo('%s: state %s, waypoint %s -> %s/<loop>/{setpoint,state} at %g Hz',
                       rospy.get_name(), self.state_topic, self.waypoint_topic,
                       rospy.resolve_name(pid_ns), self.rate)

@@ -14,6 +14,7 @@ import rospy
 from nav_msgs.msg import Odometry
 from std_msgs.msg import String
 
+import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.frames import quaternion_to_euler
 from anafi_sim import names
 from anafi_sim.ros.node import private_params, run_node

@@ -7,7 +7,9 @@ node's namespace (/<drone>/):
 
 - out ~waypoint_topic (default position_control/waypoint, anafi_sim/Waypoint:
   ENU position [m], velocity [m/s], yaw [deg]; header.frame_id ~frame_id) at
-  ~rate Hz (10) of ROS time (simulation time under /use_sim_time);
+  ~rate Hz (10) of ROS time (simulation time under /use_sim_time); with
+  ~waypoint_type anafi_control the reference implementation's
+  anafi_control/Waypoint instead (no header; anafi_sim.ros.waypoints);
 - out trajectory/begin, trajectory/end (std_msgs/Header, latched): stamp =
   the exact start / end of the measured phase, frame_id = scenario name;
   trajectory/status (std_msgs/String, latched YAML: scenario, state, phase);
@@ -39,12 +41,13 @@ from geometry_msgs.msg import Transform, Twist
 from std_msgs.msg import Header, String
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
+import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.frames import euler_to_quaternion
 
 from anafi_sim.mission.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
                                               load_scenario)
-from anafi_sim.msg import Waypoint
 from anafi_sim import names
+from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES, waypoint_class, waypoint_message
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, namespace_id, private_params,
                                 run_node, sleep_until_aligned, start_diagnostics_thread, wait_for_clock)
 from anafi_sim.sim.clock import TIMER_PHASES
@@ -82,7 +85,9 @@ class TrajectoryGeneratorNode(object):
         self.done_time = None
         self.failed = False
         self.published = 0
-        self.pub = rospy.Publisher(p.string('waypoint_topic', names.WAYPOINT), Waypoint, queue_size=10)
+        self.waypoint_type = p.choice('waypoint_type', DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES)
+        self.pub = rospy.Publisher(p.string('waypoint_topic', names.WAYPOINT), waypoint_class(self.waypoint_type),
+                                   queue_size=10)
         self.pub_begin = rospy.Publisher(names.TRAJECTORY_BEGIN, Header, queue_size=2, latch=True)
         self.pub_end = rospy.Publisher(names.TRAJECTORY_END, Header, queue_size=2, latch=True)
         self.pub_status = rospy.Publisher(names.TRAJECTORY_STATUS, String, queue_size=5, latch=True)
@@ -192,11 +197,7 @@ class TrajectoryGeneratorNode(object):
                 self.done_time = now
         self._publish_events(events)
         if wp is not None:
-            msg = Waypoint()
-            msg.header.stamp = rospy.Time.from_sec(now)
-            msg.header.frame_id = self.frame_id
-            msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz, msg.yaw = wp
-            self.pub.publish(msg)
+            self.pub.publish(waypoint_message(self.waypoint_type, wp, rospy.Time.from_sec(now), self.frame_id))
             self.published += 1
             if self.pub_preview.get_num_connections():
                 with self.lock:

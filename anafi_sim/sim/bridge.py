@@ -12,6 +12,15 @@ counter-clockwise), gaz + = climb.
 
 ``bridge_estimate``: the numbers of the bridge's estimate topics (drone/odom, drone/rpy, camera/attitude,
 ...) from the drone's own estimate.
+
+Camera attitude (camera/attitude, camera/base_attitude; README, "The camera attitude"): anafi_ros builds it
+from the video metadata's frame view quaternion (Olympe's camera.quat; camera.base_quat without the user's
+tilt), which Parrot's metadata format defines in the local north-east-down frame, like the drone's own
+quaternion: the camera's attitude in the world, heading included (the Anafi's gimbal has no yaw axis).
+The bridge publishes it as (x, -y, -z, w), which turns that NED/FRD rotation into a north-west-up / FLU
+one, with frame_id "/body" although nothing in it is relative to the body. ``camera_attitude`` gives
+exactly that quaternion for a camera attitude in our ENU world (north = +y);
+``anafi_control.frames.enu_from_nwu`` undoes it (the mirror's ``camera_attitude_source: bridge``).
 """
 import collections
 import math
@@ -19,11 +28,15 @@ import math
 from anafi_control import frames
 
 BridgeEstimate = collections.namedtuple('BridgeEstimate', 'position orientation body_velocity velocity rpy_deg '
-                                                         'camera_orientation')
+                                                         'camera_orientation camera_base_orientation')
 """What the bridge publishes of the drone's estimate: position (x, y, z) [m] and velocity [m/s] world ENU,
 orientation quaternion (x, y, z, w), body_velocity [m/s] FLU (drone/odom's twist), rpy_deg (roll, pitch,
-yaw) [deg] (drone/rpy), camera_orientation: quaternion of the camera (gimbal pitch command, the drone's
-yaw; camera/attitude)."""
+yaw) [deg] (drone/rpy), camera_orientation: the camera's attitude (gimbal pitch command, the drone's
+yaw) as the real bridge publishes it on camera/attitude (``camera_attitude``: north-west-up referenced),
+camera_base_orientation: the same without the gimbal's tilt (camera/base_attitude)."""
+
+CAMERA_FRAME_ID = '/body'
+"""header.frame_id of the real bridge's camera/attitude and camera/base_attitude (a misnomer, see above)."""
 
 # Firmware settings used by the paper (Table 1).
 MAX_TILT_DEG = math.degrees(math.asin(5.0 / 9.81))   # 30.64 deg
@@ -80,6 +93,13 @@ class PilotingMapping(object):
         return self.pcmd_to_setpoints(*self.to_pcmd(roll_deg, pitch_deg, yaw_rate_deg, gaz))
 
 
+def camera_attitude(roll, pitch, yaw):
+    """The real bridge's camera/attitude quaternion (x, y, z, w) of a camera at ``roll``, ``pitch`` (+ = looking
+    down), ``yaw`` [rad] in the ENU world (FLU camera axes, x along the view): the metadata's NED/FRD
+    quaternion after the bridge's (x, -y, -z, w), i.e. the attitude referenced to north-west-up."""
+    return frames.nwu_from_enu(frames.euler_to_quaternion(roll, pitch, yaw))
+
+
 def bridge_estimate(values, gimbal_pitch):
     """BridgeEstimate of the estimate's ``values`` (x, y, z, vx, vy, vz, roll, pitch, yaw) and the gimbal
     pitch command [rad]."""
@@ -87,4 +107,4 @@ def bridge_estimate(values, gimbal_pitch):
     return BridgeEstimate((x, y, z), frames.euler_to_quaternion(roll, pitch, yaw),
                           frames.world_to_body(roll, pitch, yaw, (vx, vy, vz)), (vx, vy, vz),
                           (math.degrees(roll), math.degrees(pitch), math.degrees(yaw)),
-                          frames.euler_to_quaternion(0.0, gimbal_pitch, yaw))
+                          camera_attitude(0.0, gimbal_pitch, yaw), camera_attitude(0.0, 0.0, yaw))

@@ -9,7 +9,9 @@ Stage: piloting command -> **simulated drone** -> (telemetry server, bridge-like
 ``anafi_sim.sim.clock.SimClock``, sends the decimated ground truth to the telemetry server, and says
 what the node publishes after each step (``Step``). ``health(wall)`` sums it up for /diagnostics.
 With a ``anafi_sim.sim.clock.Lockstep`` (``~sync``), ``sync(t)`` after a step waits for the controller's
-command of the control period when one is due (commands carry their stamps: ``on_command(..., stamp=)``).
+command of the control period when one is due (commands carry their stamps: ``on_command(..., stamp=)``;
+an unstamped command, header.stamp 0 as the reference implementation's controllers send, counts at the
+simulation time of its arrival, and ``health`` says so).
 """
 import collections
 import math
@@ -51,11 +53,14 @@ class SimulatedAnafi(object):
         self._last_state = None
         self.lockstep = lockstep
         self._timeouts_reported = 0
+        self.unstamped_commands = 0      # lockstep: commands without a stamp, taken at their arrival time
 
     # ------------------------------------------------------------ inputs (any thread)
     def on_command(self, roll_deg, pitch_deg, yaw_rate_deg, gaz, stamp=None):
-        """A piloting command (ROS units) of the controller's cycle at ``stamp`` [s sim] (None: unknown);
-        False when refused (non-finite), counted. Either way it answers the lockstep's period."""
+        """A piloting command (ROS units) of the controller's cycle at ``stamp`` [s sim] (None or 0: unknown);
+        False when refused (non-finite), counted. Either way it answers the lockstep's period: an unknown
+        stamp is replaced by the simulation time of the command's arrival (counted; at time 0, before the
+        simulation starts, it does not arm the lockstep)."""
         values = (roll_deg, pitch_deg, yaw_rate_deg, gaz)
         ok = all(math.isfinite(v) for v in values)
         if ok:
@@ -63,8 +68,14 @@ class SimulatedAnafi(object):
             self.commands.append(self.model.mapping.to_pcmd(*values))
         else:
             self.bad_commands += 1
-        if self.lockstep is not None and stamp is not None and math.isfinite(stamp) and stamp > 0.0:
-            self.lockstep.on_command(stamp)
+        if self.lockstep is not None:
+            if stamp is not None and math.isfinite(stamp) and stamp > 0.0:
+                self.lockstep.on_command(stamp)
+            else:
+                self.unstamped_commands += 1
+                arrival = self.clock.t
+                if arrival > 0.0:
+                    self.lockstep.on_command(arrival)
         return ok
 
     def on_event(self, event):
@@ -161,6 +172,8 @@ class SimulatedAnafi(object):
             message = 'flying, hovering (no piloting command)'
         else:
             message = state
+        if lockstep is not None and self.unstamped_commands:
+            message += '; lockstep on unstamped commands, taken at their arrival time (%d)' % self.unstamped_commands
         age = model.command_age(report.sim_time)
         values = report_values(report) + [
             ('flight state', state),
@@ -171,6 +184,7 @@ class SimulatedAnafi(object):
         ]
         if lockstep is not None:
             values += lockstep_values(lockstep)
+            values.append(('lockstep unstamped commands (taken at arrival)', str(self.unstamped_commands)))
         server = self.server
         if server is not None:
             values += [

@@ -89,7 +89,10 @@ def test_bridge_estimate_numbers():
     assert e.orientation == frames.euler_to_quaternion(0.1, -0.2, math.pi / 2)
     assert e.body_velocity == pytest.approx(frames.world_to_body(0.1, -0.2, math.pi / 2, (1.0, 0.0, 0.5)))
     assert e.rpy_deg == pytest.approx((math.degrees(0.1), math.degrees(-0.2), 90.0))
-    assert e.camera_orientation == frames.euler_to_quaternion(0.0, -0.3, math.pi / 2)
+    # camera/attitude as the real bridge publishes it: referenced to north-west-up (test_camera_attitude.py)
+    camera = frames.euler_to_quaternion(0.0, -0.3, math.pi / 2)
+    assert frames.enu_from_nwu(e.camera_orientation) == pytest.approx(camera)
+    assert frames.enu_from_nwu(e.camera_base_orientation) == pytest.approx(frames.euler_to_quaternion(0, 0, math.pi / 2))
 
 
 def test_health_values_and_warnings():
@@ -172,3 +175,30 @@ def test_lockstep_timeouts_are_a_warning_and_the_wanted_rate_is_not():
     health = sim.health(2.0)
     assert health.warning and 'lockstep timeouts' in health.message
     assert not sim.health(3.0).warning                        # reported once
+
+
+def test_unstamped_commands_count_at_their_arrival_time_and_say_so():
+    """The reference implementation's controllers leave header.stamp at 0: the lockstep takes the
+    simulation time of arrival instead (before, such commands never armed it: the world ran free)."""
+    sim, lock = lockstep_simulator()
+    sim.on_command(1.0, 0.0, 0.0, 0.0, stamp=0.0)            # at time 0 (start hold): counted, not armed
+    assert not lock.armed and sim.unstamped_commands == 1
+    steps(sim, 40)                                           # 0.2 s
+    sim.on_command(1.0, 0.0, 0.0, 0.0, stamp=0.0)            # arrives at 0.2 s: arms, stamped 0.2
+    assert lock.armed and lock.last == pytest.approx(0.2)
+    t = sim.step().t
+    while not lock.due(t):
+        assert sim.sync(t) is None
+        t = sim.step().t
+    assert t == pytest.approx(0.3)                           # due one period after the arrival
+    sim.on_command(1.0, 0.0, 0.0, 0.0, stamp=None)           # arrives while the clock waits at 0.3 s
+    assert sim.sync(t) is True and lock.last == pytest.approx(0.3)
+    health = sim.health(1.0)
+    assert not health.warning and 'unstamped commands, taken at their arrival time (3)' in health.message
+    assert dict(health.values)['lockstep unstamped commands (taken at arrival)'] == '3'
+
+
+def test_stamped_commands_are_not_counted_as_unstamped():
+    sim, lock = lockstep_simulator()
+    sim.on_command(1.0, 0.0, 0.0, 0.0, stamp=0.1)
+    assert sim.unstamped_commands == 0 and 'unstamped' not in sim.health(1.0).message

@@ -257,8 +257,8 @@ def render(figures):
             other = 'yes' if o['other_seed_identical'] else 'no'
             lines.append('| %s | %s | %s | %s | %s / %s |' % (o['run'], o['seeds'], same, other, o['e_mu_seed_5'],
                                                               o['e_mu_seed_6']))
-        lines += ['', 'Tests: test/unit/test_engine.py (same seed -> identical summaries, MPC and distributed PID; '
-                  'a parallel sweep equals the serial one run for run: test/unit/test_sweep.py).', '']
+        lines += ['', 'Tests: test/unit/lab/test_engine.py (same seed -> identical summaries, MPC and distributed PID; '
+                  'a parallel sweep equals the serial one run for run: test/unit/lab/test_sweep.py).', '']
     for key, title, target in (('sweep', 'A 200-run sweep', '< 5 min'), ('phases', 'The phase sweep', None)):
         s = figures.get(key)
         if not s:

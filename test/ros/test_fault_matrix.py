@@ -13,7 +13,7 @@ stops (speed < ``STOP_SPEED`` within ``STOP_TIME``, no farther than 1.2 x the fi
 speed -- measured in the first case, the controller killed -- plus the speed x the detection delay), and
 the recovery (time until the node reports OK / tracking again after the fault is removed). The observed
 matrix is written to test_results/fault_matrix.json; ``tools/fault_table.py`` turns it into the table of
-docs/reliability.md (``test/unit/test_fault_glue.py`` checks that the table lists exactly ``FAULTS``).
+docs/reliability.md (``test/unit/sim/test_fault_glue.py`` checks that the table lists exactly ``FAULTS``).
 """
 import json
 import math

@@ -11,9 +11,9 @@ from anafi_control.pid import PidController
 from anafi_control.pid_framework import DEFAULT_CONFIG, LOOP_NAMES, PidFramework, relative_state
 from anafi_control.pid_wiring import (CASCADES, COMMAND_LOOPS, DISABLED, CommandAssembler, input_topics,
                                       loop_inputs, loop_topics)
+from conftest import ROOT
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-LAUNCH = os.path.join(REPO, 'anafi_sim', 'launch', 'pid.launch')
+LAUNCH = os.path.join(ROOT, 'anafi_sim', 'launch', 'pid.launch')
 NAN = float('nan')
 
 

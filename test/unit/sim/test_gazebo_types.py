@@ -9,6 +9,7 @@ import pytest
 from geometry_msgs.msg import Pose, Twist
 
 from anafi_sim.ros import gazebo_types
+from conftest import ROOT
 
 # md5sums of the real Noetic gazebo_msgs (copied from shared/interfaces/gazebo_msgs.md).
 EXPECTED = {
@@ -22,7 +23,7 @@ EXPECTED = {
 }
 SERVICES = ['SpawnModel', 'DeleteModel', 'SetModelState', 'GetModelState', 'GetModelProperties']
 MESSAGES = ['ModelState', 'ModelStates']
-DOC = os.path.join(os.path.dirname(__file__), '..', '..', '..', 'shared', 'interfaces', 'gazebo_msgs.md')
+DOC = os.path.join(os.path.dirname(ROOT), 'shared', 'interfaces', 'gazebo_msgs.md')
 
 FIELDS = {
     'gazebo_msgs/ModelState': ['model_name', 'pose', 'twist', 'reference_frame'],
@@ -191,7 +192,6 @@ def test_no_module_named_gazebo_msgs_is_created():
     if not installed:
         assert 'gazebo_msgs' not in sys.modules
         assert importlib.util.find_spec('gazebo_msgs') is None
-    here = os.path.join(os.path.dirname(__file__), '..', '..')
-    for root, dirs, files in os.walk(here):
+    for root, dirs, files in os.walk(ROOT):
         dirs[:] = [d for d in dirs if not d.startswith('.')]
         assert 'gazebo_msgs' not in dirs and 'gazebo_msgs.py' not in files, root

@@ -1,12 +1,11 @@
 """anafi_sim/scripts/record_bag.py: the bag path it creates the directory for, and its refusal without -O."""
 import importlib.util
 import os
-
-REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+from conftest import ROOT
 
 
 def load():
-    spec = importlib.util.spec_from_file_location('record_bag', os.path.join(REPO, 'anafi_sim', 'scripts',
+    spec = importlib.util.spec_from_file_location('record_bag', os.path.join(ROOT, 'anafi_sim', 'scripts',
                                                                              'record_bag.py'))
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)

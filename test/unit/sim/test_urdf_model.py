@@ -4,8 +4,8 @@ import os
 import pytest
 
 from anafi_sim.gazebo import urdf_model
+from conftest import ROOT
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 URDF_DIR = os.path.join(ROOT, 'anafi_sim', 'urdf')
 
 

@@ -1,15 +1,11 @@
 """anafi_sim.mission.step_response: overshoot and settling of a static-waypoint step, on hand-made logs."""
 import math
-import os
-import sys
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from experiment_logs import make_log  # noqa: E402
-
-from anafi_sim.mission import step_response as sr  # noqa: E402
+from anafi_sim.mission import step_response as sr
+from experiment_logs import make_log
 
 
 def test_settling_time_is_the_last_exit_from_the_band():

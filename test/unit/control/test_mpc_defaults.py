@@ -1,6 +1,5 @@
 """One source of MPC defaults: anafi_sim/config/mpc.yaml. The code defaults (anafi_control.mpc.DEFAULT_PARAMS,
 anafi_control.mpc_tracking.DEFAULTS) and the dynamic_reconfigure defaults (cfg/Mpc.cfg) must equal it."""
-import ast
 import os
 
 import pytest
@@ -9,8 +8,8 @@ import yaml
 from anafi_control.contract import LIMIT_DEFAULTS
 from anafi_control.mpc import DEFAULT_PARAMS
 from anafi_control.mpc_tracking import DEFAULTS, RECONFIGURABLE, MpcTracking, mpc_params_from_flat
+from conftest import ROOT, cfg_defaults
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 #: node-only keys of mpc.yaml (topic and frame names, read by the controller node)
 NODE_KEYS = ('state_topic', 'waypoint_topic', 'command_topic', 'frame_id')
 #: flat names of the MPC core's parameters as the YAML and the reconfigure server have them
@@ -18,20 +17,8 @@ FLAT_VMAX = ('v_max_x', 'v_max_y', 'v_max_z')
 
 
 def _yaml():
-    with open(os.path.join(REPO, 'anafi_sim', 'config', 'mpc.yaml')) as f:
+    with open(os.path.join(ROOT, 'anafi_sim', 'config', 'mpc.yaml')) as f:
         return yaml.safe_load(f)
-
-
-def _cfg_defaults():
-    """{name: default} of every gen.add / group.add call in cfg/Mpc.cfg (read as text, not run)."""
-    path = os.path.join(REPO, 'cfg', 'Mpc.cfg')
-    tree = ast.parse(open(path).read(), filename=path)
-    out = {}
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == 'add' \
-                and node.args and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str):
-            out[node.args[0].value] = ast.literal_eval(node.args[4])
-    return out
 
 
 def _flat_code_default(key):
@@ -67,7 +54,7 @@ def test_the_yaml_sets_every_reconfigurable_parameter():
 
 
 def test_reconfigure_defaults_equal_the_yaml():
-    data, cfg = _yaml(), _cfg_defaults()
+    data, cfg = _yaml(), cfg_defaults('Mpc.cfg')
     assert sorted(cfg) == sorted(RECONFIGURABLE)
     for key, value in cfg.items():
         assert value == pytest.approx(data[key], rel=1e-12), key
@@ -85,7 +72,7 @@ def test_tracking_defaults_are_the_constructor_defaults():
 
 
 def test_waypoint_limits_are_the_same_in_both_controller_yamls_and_the_code():
-    with open(os.path.join(REPO, 'anafi_sim', 'config', 'pid.yaml')) as f:
+    with open(os.path.join(ROOT, 'anafi_sim', 'config', 'pid.yaml')) as f:
         pid = yaml.safe_load(f)
     data = _yaml()
     for key, value in LIMIT_DEFAULTS.items():

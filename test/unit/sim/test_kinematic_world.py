@@ -6,9 +6,10 @@ import pytest
 
 from anafi_sim.gazebo import kinematic_world as kw
 from anafi_sim.gazebo.kinematic_world import KinematicWorld
+from conftest import repo_path
 
 G = 9.81
-URDF_DIR = os.path.join(os.path.dirname(__file__), '..', '..', 'anafi_sim', 'urdf')
+URDF_DIR = repo_path('anafi_sim', 'urdf')
 
 
 def box_robot(name='box', gravity=None, collision=True, legacy_off=False, static=False, size='0.2 0.2 0.2'):

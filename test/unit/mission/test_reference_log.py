@@ -7,9 +7,9 @@ import pytest
 
 from anafi_sim.mission.reference_log import (COLUMNS, ReferenceLog, as_logged, detect_garbage,
                                                  horizontal_tracking_error, read_log, tracking_error, write_log)
+from conftest import ROOT
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-LOG_DIR = os.path.join(os.path.dirname(REPO), 'shared', 'reference_logs')
+LOG_DIR = os.path.join(os.path.dirname(ROOT), 'shared', 'reference_logs')
 LOG_NAMES = (['static_waypoint_yaw_%d_%s' % (yaw, c) for yaw in (0, 180) for c in ('mpc', 'pid')]
              + ['x_straight_%d_%s' % (v, c) for v in range(1, 6) for c in ('mpc', 'pid')])
 GLITCHED = ('x_straight_2_pid', 'x_straight_3_pid')

@@ -10,8 +10,8 @@ import sys
 import time
 
 import pytest
+from conftest import ROOT
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(ROOT, 'tools'))
 import two_hosts_link  # noqa: E402
 

@@ -1,19 +1,16 @@
 """anafi_sim.mission.plots: run and comparison figures from reference-log CSV files (Agg, no display)."""
 import math
 import os
-import sys
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from experiment_logs import make_log  # noqa: E402
+from anafi_sim.mission import plots
+from anafi_sim.mission.reference_log import write_log
+from conftest import ROOT
+from experiment_logs import make_log
 
-from anafi_sim.mission import plots  # noqa: E402
-from anafi_sim.mission.reference_log import write_log  # noqa: E402
-
-REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-REFERENCE_LOGS = os.path.join(REPO, '..', 'shared', 'reference_logs')
+REFERENCE_LOGS = os.path.join(ROOT, '..', 'shared', 'reference_logs')
 PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 
 

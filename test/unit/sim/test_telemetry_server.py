@@ -12,9 +12,9 @@ import pytest
 from anafi_sim.telemetry.protocol import FIELDS, TelemetrySample, format_sample
 from anafi_sim.telemetry.server import (BlockDecimator, TelemetryServer, block_timestamp, parse_endpoint,
                                         parse_logger_args, run_logger)
+from conftest import ROOT
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-SCRIPT = os.path.join(REPO, 'anafi_sim', 'scripts', 'tlm_data_logger.py')
+SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'tlm_data_logger.py')
 
 
 def sample(t, x=1.25):
@@ -179,7 +179,7 @@ def test_two_clients_get_the_same_stream(server):
 
 def test_script_end_to_end(server):
     env = dict(os.environ)
-    env['PYTHONPATH'] = REPO + os.pathsep + env.get('PYTHONPATH', '')
+    env['PYTHONPATH'] = ROOT + os.pathsep + env.get('PYTHONPATH', '')
     proc = subprocess.Popen([sys.executable, SCRIPT, '-r', '0', 'inet:127.0.0.1:%d' % server.port],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     try:

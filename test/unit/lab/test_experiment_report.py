@@ -4,8 +4,7 @@ import os
 import pytest
 
 from anafi_lab.reports import paper_tables as rep
-
-REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+from conftest import ROOT
 
 
 def rec(scenario, controller, e_mu, e_max=None, e_sigma=0.05, truth=None, ok=True, **info):

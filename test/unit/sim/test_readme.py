@@ -21,8 +21,8 @@ import re
 import pytest
 
 from anafi_sim.ros.params import ParamReader
+from conftest import ROOT
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SCRIPTS_DIR = os.path.join(ROOT, 'anafi_sim', 'scripts')
 LAUNCH_DIR = os.path.join(ROOT, 'anafi_sim', 'launch')
 README = os.path.join(ROOT, 'README.md')

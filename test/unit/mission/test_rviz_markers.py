@@ -10,8 +10,7 @@ import yaml
 
 from anafi_sim import paths
 from anafi_sim.mission.visualisation import COLOURS, DEFAULTS, Trail, markers
-
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from conftest import ROOT
 
 
 def test_trail_keeps_a_point_per_spacing():

@@ -1,9 +1,7 @@
 """The preview MPC (anafi_control/preview_mpc.py) and its target estimator (anafi_control/target_estimator.py):
 the prediction model against the simulated Anafi, feed-forward, offset-free under wind, the estimator on a
 circle and a line, failsafes, the preview transport of the trajectory generator, one source of defaults."""
-import ast
 import math
-import os
 
 import numpy as np
 import pytest
@@ -19,13 +17,13 @@ from anafi_sim.mission.trajectory import Circle, StraightLine, TrajectoryGenerat
     load_scenario
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.sim.drone_model import AnafiModel, load_model_params
+from conftest import cfg_defaults
 
 PARAMS = load_model_params()
 MODEL = PredictionModel.from_params(PARAMS, MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG)
 #: the controller fed with the ground truth: no estimate lag, no sample grid
 TRUTH_MODEL = MODEL._replace(estimate_lag=0.0, position_lag=0.0, sample_period=0.0)
 PHYSICS_DT = 0.005
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def hovering(x=0.0, y=0.0, z=5.0, yaw=0.0, settings=None, params=None):
@@ -523,20 +521,8 @@ def test_yaml_is_the_one_source_of_the_defaults():
     assert sorted(k for k in DEFAULTS if k not in config) == []
 
 
-def _cfg_defaults():
-    """{name: default} of every gen.add / group.add call in cfg/PreviewMpc.cfg (read as text, not run)."""
-    path = os.path.join(REPO, 'cfg', 'PreviewMpc.cfg')
-    tree = ast.parse(open(path).read(), filename=path)
-    out = {}
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == 'add' \
-                and node.args and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str):
-            out[node.args[0].value] = ast.literal_eval(node.args[4])
-    return out
-
-
 def test_cfg_has_the_yaml_defaults():
-    found = _cfg_defaults()
+    found = cfg_defaults('PreviewMpc.cfg')
     assert sorted(found) == sorted(RECONFIGURABLE)
     for key, value in found.items():
         assert value == DEFAULTS[key] and type(value) == type(DEFAULTS[key]), key

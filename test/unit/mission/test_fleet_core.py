@@ -11,6 +11,7 @@ import yaml
 
 from anafi_sim.mission import fleet as fl
 from anafi_sim.mission.trajectory import list_scenarios, load_scenario, scenario_from_dict
+from conftest import repo_path
 
 
 def drones_of(d, drones=0):
@@ -224,8 +225,7 @@ def test_the_generated_launch_starts_the_aggregator_when_asked():
 
 
 # ------------------------------------------------------------------------------------------ the launcher tool
-SCRIPT = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
-                      'anafi_sim', 'scripts', 'fleet_launcher.py')
+SCRIPT = repo_path('anafi_sim', 'scripts', 'fleet_launcher.py')
 
 
 @pytest.mark.skipif(shutil.which('roslaunch') is None, reason='roslaunch not on PATH (source env.bash)')

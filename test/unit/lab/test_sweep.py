@@ -12,8 +12,8 @@ import yaml
 from anafi_sim import paths
 from anafi_lab.engine import runs
 from anafi_lab.engine import sweep
+from conftest import ROOT
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'experiment.py')
 
 SHORT = """

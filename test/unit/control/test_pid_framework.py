@@ -9,8 +9,8 @@ from anafi_control.contract import HOVER, LIMIT_DEFAULTS
 from anafi_control.pid_framework import (DEFAULT_CONFIG, LOOP_NAMES, PidFramework,
                                          make_config, relative_state)
 from anafi_sim.sim.bridge import PilotingMapping
+from conftest import ROOT
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 S = math.sqrt(0.5)
 DT = 1.0 / 30.0
 
@@ -49,7 +49,7 @@ def test_relative_state_refuses_missing_or_non_finite(bad):
 
 # -- configuration ------------------------------------------------------------------------
 def test_yaml_matches_default_config():
-    with open(os.path.join(REPO, 'anafi_sim', 'config', 'pid.yaml')) as f:
+    with open(os.path.join(ROOT, 'anafi_sim', 'config', 'pid.yaml')) as f:
         data = yaml.safe_load(f)
     limits = dict((k, data.pop(k)) for k in LIMIT_DEFAULTS if k in data)
     assert limits == dict(LIMIT_DEFAULTS)      # the waypoint limits (contract.WaypointLimits), = the code defaults

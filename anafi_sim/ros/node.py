@@ -9,7 +9,7 @@ Diagnostics: ``diagnostic_status`` builds one DiagnosticStatus (values stored as
 ``LEVELS``; ``start_diagnostics_thread`` publishes them every period of WALL time (1 s in most nodes),
 so a node still reports when /clock stops.
 
-Master restart (issue 14): rospy cannot re-register a running node with a new ROS master (publishers,
+Master restart: rospy cannot re-register a running node with a new ROS master (publishers,
 subscribers, services and parameters are lost and never come back), so ``run_node`` watches the master
 (``MasterWatch``: its pid and ``/run_id``, polled every ``MASTER_POLL`` s of wall time from a daemon thread).
 When a different master answers at the same URI the node puts its private parameters (and

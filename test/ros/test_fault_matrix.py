@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""rostest: the fault matrix (issue 14). Each fault is injected into a running graph with a flying drone.
+"""rostest: the fault matrix. Each fault is injected into a running graph with a flying drone.
 
 The graph runs on a private ROS master of this test (so that the master itself can be restarted, the last
 case): world.launch (simulated Anafi + interface + kinematic Gazebo world + mirror) + mpc.launch whose state comes through this test

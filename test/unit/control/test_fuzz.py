@@ -1,4 +1,4 @@
-"""Property-based fuzzing (python3-hypothesis) of every core that takes outside input (issue 14).
+"""Property-based fuzzing (python3-hypothesis) of every core that takes outside input.
 
 Bounded for CI: ``FUZZ_EXAMPLES`` examples per property (default 50; ``FUZZ_EXAMPLES=100000`` for a long
 run), no deadline. Properties: nothing raises, nothing non-finite comes out, and every rejected input is
@@ -284,7 +284,7 @@ def test_waypoint_limits_check_never_raises(wp, centre, drone):
     assert out is None or out[0] in (contract.GEOFENCE, contract.WAYPOINT_JUMP)
 
 
-# found by fuzzing (issue 14): the distance to the drone once overflowed (sqrt of squares) for a finite but
+# found by fuzzing: the distance to the drone once overflowed (sqrt of squares) for a finite but
 # huge state; now math.hypot
 def test_a_huge_finite_state_then_a_waypoint_is_rejected_not_raised():
     gate = contract.InputGate()

@@ -378,7 +378,7 @@ def test_zero_pcmd_drifts_with_the_wind_and_timeout_holds_against_it():
     assert model.pitch < -0.05                                              # leaning into the wind (nose up)
 
 
-# -------------------------------------------------------------- fidelity effects (issue 10)
+# -------------------------------------------------------------- fidelity effects
 EFFECT_SETTINGS = dict(PARAMS, tilt_attenuation=0.2, max_descent_speed=1.5)
 
 

@@ -1,4 +1,4 @@
-"""Issue 14 pieces without a running graph: master-restart detection (anafi_sim.ros.node), the fault table of
+"""Fault handling without a running graph: master-restart detection (anafi_sim.ros.node), the fault table of
 docs/reliability.md (tools/fault_table.py), the sphinx_with_gazebo/Sphinx wire type and gazebo_ros's wording."""
 import os
 import sys

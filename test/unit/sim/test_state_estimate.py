@@ -110,7 +110,7 @@ def test_time_going_back_resets():
     assert est.position()[0] == pytest.approx(0.0)
 
 
-# ------------------------------------------------------------------ fidelity effects (issue 10)
+# ------------------------------------------------------------------ fidelity effects
 FUSION = {'estimate_position_fusion': True, 'estimate_position_fix_delay': 0.2, 'estimate_position_fix_gain': 0.3}
 
 

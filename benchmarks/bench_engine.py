@@ -43,6 +43,7 @@ from anafi_sim import paths
 from anafi_lab.engine import runs, sweep
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, Engine
+from anafi_sim.numeric import fmt
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, 'benchmarks', 'results')
@@ -60,10 +61,6 @@ def read_yaml(path, default=None):
 def write_yaml(path, data):
     with open(path, 'w') as f:
         yaml.safe_dump(data, f, default_flow_style=False, sort_keys=False)
-
-
-def fmt(v, digits=2):
-    return report.fmt(v, digits)
 
 
 # ---------------------------------------------------------------------------------------------- steps

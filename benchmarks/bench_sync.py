@@ -27,6 +27,8 @@ import time
 
 import yaml
 
+from anafi_sim.numeric import fmt
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, 'benchmarks', 'results')
 FIGURES = os.path.join(RESULTS, 'sync.yaml')
@@ -181,7 +183,8 @@ def _float(text):
 
 
 def _fmt(v, n=3):
-    return '-' if v is None else ('%.*f' % (n, v) if isinstance(v, float) else str(v))
+    """A float with ``n`` decimals, anything else (counts, labels) as it is; '-' when missing."""
+    return fmt(v, n) if v is None or isinstance(v, float) else str(v)
 
 
 def _ratio(a, b):

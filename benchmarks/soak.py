@@ -29,6 +29,7 @@ import time
 import psutil
 
 from anafi_sim import processes
+from anafi_sim.mission.fleet import launch_document
 
 BENCH = os.path.dirname(os.path.abspath(__file__))
 RESULTS = os.path.join(BENCH, 'results')
@@ -39,28 +40,20 @@ RATE_TOPICS = (('ground_truth/odom', 'nav_msgs/Odometry'), ('drone/odom', 'nav_m
                ('drone/rpyt', None), ('position_control/waypoint', 'anafi_sim/Waypoint'))
 BAG_TOPICS = ('position_control/waypoint', 'drone/odom', 'ground_truth/odom', 'drone/rpyt', 'mpc/stats')
 
-LAUNCH = """<launch>
-  <include file="$(find anafi_sim)/anafi_sim/launch/world.launch">
-    <arg name="drone_name" value="{drone}"/>
-    <arg name="rtf" value="1.0"/>
-    <arg name="use_sim_time" value="true"/>
-    <arg name="telemetry_port" value="{telemetry_port}"/>
-  </include>
-  <include file="$(find anafi_sim)/anafi_sim/launch/mpc.launch">
-    <arg name="drone_name" value="{drone}"/>
-    <arg name="output" value="log"/>
-  </include>
-  <group ns="{drone}">
-    <node pkg="anafi_sim" type="trajectory_generator.py" name="trajectory_generator" output="log">
-      <param name="scenario" value="{scenario}"/>
-      <param name="autostart" value="true"/>
-      <param name="wait_for_flying" value="true"/>
-    </node>
-    <node pkg="anafi_sim" type="record_bag.py" name="recorder" output="log"
-          args="-O {bag} {bag_topics}"/>
-  </group>
-</launch>
-"""
+def launch_text(scenario, bag, telemetry_port):
+    """The soak graph: world.launch + mpc.launch, the trajectory generator looping ``scenario``, the recorder."""
+    body = ['  <group ns="%s">' % DRONE,
+            '    <node pkg="anafi_sim" type="trajectory_generator.py" name="trajectory_generator" output="log">',
+            '      <param name="scenario" value="%s"/>' % scenario,
+            '      <param name="autostart" value="true"/>',
+            '      <param name="wait_for_flying" value="true"/>',
+            '    </node>',
+            '    <node pkg="anafi_sim" type="record_bag.py" name="recorder" output="log"',
+            '          args="-O %s %s"/>' % (bag, ' '.join('/%s/%s' % (DRONE, t) for t in BAG_TOPICS)),
+            '  </group>']
+    return launch_document([('world.launch', [('drone_name', DRONE), ('rtf', '1.0'), ('use_sim_time', 'true'),
+                                              ('telemetry_port', telemetry_port)]),
+                            ('mpc.launch', [('drone_name', DRONE), ('output', 'log')])], body)
 
 # interface / controller diagnostic values reported per row (diagnostic key -> column)
 INTERFACE_VALUES = (('samples published', 'gt_published'), ('parse malformed', 'gt_malformed'),
@@ -151,8 +144,7 @@ def main(argv=None):
         port = int(uri.rsplit(':', 1)[1])
         launch = os.path.join(workdir, 'soak.launch')
         with open(launch, 'w') as f:
-            f.write(LAUNCH.format(drone=DRONE, telemetry_port=processes.free_port(), scenario=args.scenario, bag=bag,
-                                  bag_topics=' '.join('/%s/%s' % (DRONE, t) for t in BAG_TOPICS)))
+            f.write(launch_text(args.scenario, bag, processes.free_port()))
         procs.start('roslaunch', ['roslaunch', '--port', str(port), launch], env)
         if not processes.wait_for(lambda: all(processes.node_pid(n, uri) for n in NODES), 120.0, 0.5):
             missing = [n for n in NODES if not processes.node_pid(n, uri)]

@@ -20,6 +20,7 @@ import math
 
 from anafi_lab.paper import (ALL_SCENARIOS, BEYOND, CIRCLE_SCENARIOS, CIRCLES, CONTROLLERS, KNOWN_CONTROLLERS,  # noqa: F401
                               PAPER_TABLE3, STATIC, STRAIGHT, STRAIGHT_SPEEDS, VERTICAL, VERTICAL_SCENARIOS)
+from anafi_sim.numeric import fmt
 
 SOURCES = (('estimate', 'vs the drone\'s estimate (the paper\'s metric)'), ('truth', 'vs ground truth'))
 LABELS = {'mpc': 'MPC', 'pid': 'PID', 'preview_mpc': 'preview MPC'}
@@ -29,19 +30,6 @@ def present(records):
     """The controllers to tabulate: the paper's two, then those of ``BEYOND`` some record has."""
     have = set(r.get('controller') for r in records)
     return CONTROLLERS + tuple(c for c in BEYOND if c in have)
-
-
-def fmt(value, digits=2):
-    """Number as text with ``digits`` decimals; '-' for None / NaN."""
-    if value is None or isinstance(value, bool):
-        return '-'
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        return '-'
-    if not math.isfinite(v):
-        return '-'
-    return '%.*f' % (digits, v)
 
 
 def index(records):

@@ -4,6 +4,7 @@ import os
 import pytest
 
 from anafi_lab.reports import paper_tables as rep
+from anafi_sim.numeric import fmt
 from conftest import ROOT
 
 
@@ -77,8 +78,8 @@ def test_render_has_every_section_and_the_wall_time():
 
 
 def test_fmt():
-    assert rep.fmt(None) == '-' and rep.fmt(float('nan')) == '-' and rep.fmt(True) == '-'
-    assert rep.fmt(1.234) == '1.23' and rep.fmt(2, 0) == '2'
+    assert fmt(None) == '-' and fmt(float('nan')) == '-' and fmt(True) == '-'
+    assert fmt(1.234) == '1.23' and fmt(2, 0) == '2'
 
 
 def _runner():

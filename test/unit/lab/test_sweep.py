@@ -14,7 +14,7 @@ from anafi_lab.engine import runs
 from anafi_lab.engine import sweep
 from conftest import ROOT
 
-SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'experiment.py')
+SCRIPT = os.path.join(ROOT, 'anafi_lab', 'cli', 'experiment.py')
 
 SHORT = """
 name: %s

@@ -35,7 +35,7 @@ import rospy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from anafi_sim.interface import ground_truth
-from anafi_sim import names
+from anafi_sim import names, processes
 from anafi_sim.ros.params import ParamReader
 from anafi_sim.sim.clock import aligned_start
 
@@ -182,20 +182,9 @@ class MasterWatch(object):
         return 'pid %s -> %s, run_id %s -> %s' % (p0, p1, r0 or '?', r1 or '?')
 
 
-class _TimeoutTransport(xmlrpc.client.Transport):
-    def __init__(self, timeout):
-        xmlrpc.client.Transport.__init__(self)
-        self.timeout = timeout
-
-    def make_connection(self, host):
-        conn = xmlrpc.client.Transport.make_connection(self, host)
-        conn.timeout = self.timeout
-        return conn
-
-
 def master_identity(uri, caller, timeout=MASTER_TIMEOUT):
     """(pid, run_id) of the ROS master at ``uri`` (run_id None when unset), or None when it does not answer."""
-    proxy = xmlrpc.client.ServerProxy(uri, transport=_TimeoutTransport(timeout))
+    proxy = processes.xmlrpc_proxy(uri, timeout)
     try:
         code, _, pid = proxy.getPid(caller)
         if code != 1:

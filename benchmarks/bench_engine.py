@@ -135,7 +135,7 @@ def _profile_one(scenario, controller):
     def cum(function, file_part=''):
         return sum(v[3] for (f, _, fn), v in stats.items() if fn == function and file_part in f)
 
-    total = cum('run', 'experiments/engine.py')
+    total = cum('run', 'engine/engine.py')
     parts = collections.OrderedDict()
     if controller == 'mpc':
         osqp = cum('solve', 'osqp/') + cum('update', 'osqp/')
@@ -149,11 +149,11 @@ def _profile_one(scenario, controller):
     else:
         parts['PID loops (pid.update in 6 nodes)'] = cum('update', 'anafi_control/pid.py')
         parts['relative state, gate, command assembly, message hops'] = (
-            cum('_on_timer', 'experiments/engine.py') + cum('_on_state', 'experiments/engine.py')
-            + cum('_on_waypoint', 'experiments/engine.py') + cum('_compute', 'experiments/engine.py')
+            cum('_on_timer', 'engine/engine.py') + cum('_on_state', 'engine/engine.py')
+            + cum('_on_waypoint', 'engine/engine.py') + cum('_compute', 'engine/engine.py')
             - cum('update', 'anafi_control/pid.py'))
     parts['simulated Anafi (model + estimate + bridge, 200 Hz)'] = cum('step', 'sim/simulator.py')
-    parts['evaluation at the end (LiveEvaluator.evaluate)'] = cum('evaluate', 'experiments/evaluation.py')
+    parts['evaluation at the end (LiveEvaluator.evaluate)'] = cum('evaluate', 'mission/evaluation.py')
     parts['recording (evaluator inputs)'] = (cum('add_estimate', 'evaluation.py') + cum('add_truth', 'evaluation.py')
                                              + cum('add_waypoint', 'evaluation.py'))
     parts['event loop, timers, topics, monitor, generator (the rest)'] = total - sum(parts.values())

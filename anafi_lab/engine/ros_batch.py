@@ -11,11 +11,11 @@ the static waypoints' overshoot and settling from the exported CSV, draws one PN
 (default benchmarks/results/experiments.md, plots under benchmarks/results/plots/) plus the raw
 records (experiments.yaml beside the report; ``--from-records`` re-renders a report from it).
 
-    run_experiments.py [--controllers mpc,pid] [--scenarios all|NAME,...] [--rtf 2] [--jobs 1]
+    python -m anafi_lab.engine.ros_batch [--controllers mpc,pid] [--scenarios all|NAME,...] [--rtf 2] [--jobs 1]
                        [--mirror true|false] [--pid-mode distributed|single] [--runs-dir DIR]
                        [--report PATH] [--no-plots] [--record true|false] [--retries 1]
 
-Run it inside the project's environment (env.bash: ROS, the workspace, the venv); ``make bench``.
+Run it inside the project's environment (env.bash: ROS, the workspace, the venv); ``make bench-ros``.
 Exit code 0 when every run produced a final summary, 1 otherwise.
 """
 import argparse

@@ -239,7 +239,7 @@ def section(figures):
                              ', target < 2 %' if mode == 'lockstep' else '',
                              ', '.join('%.1f' % w for w in walls['idle']),
                              ', '.join('%.1f' % w for w in walls['busy'])))
-    lines += ['', 'How the lockstep works and what it does not hold: README (Experiments, lockstep) and '
+    lines += ['', 'How the lockstep works and what it does not hold: docs/experiments.md (Lockstep ROS runs) and '
               '`anafi_sim/sim/clock.py` (`Lockstep`, `StartHold`).', SECTION_END, '']
     return '\n'.join(lines)
 

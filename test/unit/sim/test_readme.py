@@ -1,13 +1,15 @@
-"""The docs stay true to the code: README.md, docs/nodes.md and docs/architecture.md.
+"""The docs stay true to the code: README.md and the pages of docs/ written by hand.
 
 - every node script in anafi_sim/scripts has a section in docs/nodes.md (a heading naming it), and every
   private parameter it reads (through ``anafi_sim.ros.params.ParamReader`` or ``rospy.get_param('~...')``,
   found statically, loops and helper functions resolved) appears as `name` in that section; every node is
-  named in the README's node table and every command-line tool has a usage line there;
-- every launch file is in the README's launch table, and the table names no other;
-- the module tree of docs/architecture.md names every module of anafi_sim/ and anafi_control/ (but
+  named in the README's node table and every command-line tool (anafi_sim/scripts, anafi_lab/cli) has a
+  usage line there;
+- every launch file is in the launch table of docs/launch.md, and the table names no other;
+- the module tree of docs/architecture.md names every module of anafi_sim/, anafi_control/ and anafi_lab/ (but
   __init__.py and scripts/) with its job, and nothing that does not exist;
-- every repository path named in README.md and docs/*.md (`anafi_sim/...`, `benchmarks/...`, ...) exists;
+- every repository path named in README.md and the hand-written docs (`anafi_sim/...`, `benchmarks/...`, ...)
+  exists, and every link to a section leads to a heading;
 - the README's architecture diagram names the stage folders, and only real ones.
 """
 import ast
@@ -28,9 +30,16 @@ LAUNCH_DIR = os.path.join(ROOT, 'anafi_sim', 'launch')
 README = os.path.join(ROOT, 'README.md')
 NODES_DOC = os.path.join(ROOT, 'docs', 'nodes.md')
 ARCHITECTURE_DOC = os.path.join(ROOT, 'docs', 'architecture.md')
+LAUNCH_DOC = os.path.join(ROOT, 'docs', 'launch.md')
+#: the pages written by hand (docs/calibration.md and docs/fidelity.md are generated reports)
+HAND_WRITTEN = ['README.md', 'docs/install.md', 'docs/launch.md', 'docs/nodes.md', 'docs/architecture.md',
+                'docs/experiments.md', 'docs/benchmarks.md', 'docs/fleet.md', 'docs/two_hosts.md', 'docs/reliability.md']
 
 #: command-line tools in anafi_sim/scripts (not ROS nodes): a usage line in the README each
-TOOLS = ('calibrate_model.py', 'echo.py', 'evaluate_log.py', 'experiment.py', 'record_bag.py', 'tlm_data_logger.py')
+TOOLS = ('echo.py', 'evaluate_log.py', 'record_bag.py', 'tlm_data_logger.py')
+#: the lab's command-line tools (anafi_lab/cli, installed beside the nodes): a usage line in the README each
+LAB_TOOLS = ('calibrate_model.py', 'experiment.py', 'measure_fidelity.py')
+LAB_CLI_DIR = os.path.join(ROOT, 'anafi_lab', 'cli')
 
 #: the ParamReader's reading methods (number, positive, flag, string, ros_name, vector, choice, names, ...)
 READER_METHODS = frozenset(name for name, _ in inspect.getmembers(ParamReader, inspect.isfunction)
@@ -365,6 +374,8 @@ def test_a_missing_parameter_is_reported():
 def test_tools_and_nodes_cover_every_script():
     scripts = script_names()
     assert set(TOOLS) <= set(scripts), 'a tool was renamed or removed: update TOOLS and the README'
+    lab = set(os.path.basename(p) for p in glob.glob(os.path.join(LAB_CLI_DIR, '*.py'))) - {'__init__.py'}
+    assert set(LAB_TOOLS) == lab, 'a lab tool was added, renamed or removed: update LAB_TOOLS and the README'
     for name in node_scripts():
         source = _read(_script(name))
         assert 'run_node(' in source or 'run_path(' in source, \
@@ -388,7 +399,7 @@ def test_every_node_has_a_line_in_the_readme(script):
     assert '`%s`' % script in _read(README), 'README.md does not name the node %s' % script
 
 
-@pytest.mark.parametrize('tool', TOOLS)
+@pytest.mark.parametrize('tool', TOOLS + LAB_TOOLS)
 def test_every_tool_has_a_usage_line_in_the_readme(tool):
     readme = _read(README)
     assert re.search(r'`[^`\n]*%s[^`\n]*`' % re.escape(tool), readme) and tool in readme, tool
@@ -396,17 +407,16 @@ def test_every_tool_has_a_usage_line_in_the_readme(tool):
                if not line.startswith('#')), 'README.md: no usage line for %s' % tool
 
 
-def test_every_launch_file_is_in_the_readme_launch_table():
-    readme = _read(README)
-    rows = set(re.findall(r'^\|\s*`([\w.]+\.launch)`', readme, re.M))
+def test_every_launch_file_is_in_the_launch_table():
+    rows = set(re.findall(r'^\|\s*`([\w.]+\.launch)`', _read(LAUNCH_DOC), re.M))
     files = set(os.path.basename(p) for p in glob.glob(os.path.join(LAUNCH_DIR, '*.launch')))
-    assert files - rows == set(), 'launch files missing from the README table: %s' % sorted(files - rows)
-    assert rows - files == set(), 'README launch table names files that do not exist: %s' % sorted(rows - files)
+    assert files - rows == set(), 'launch files missing from the table of docs/launch.md: %s' % sorted(files - rows)
+    assert rows - files == set(), 'docs/launch.md\'s table names files that do not exist: %s' % sorted(rows - files)
 
 
 def _modules():
     found = []
-    for root in ('anafi_sim', 'anafi_control'):
+    for root in ('anafi_sim', 'anafi_control', 'anafi_lab'):
         for path in glob.glob(os.path.join(ROOT, root, '**', '*.py'), recursive=True):
             rel = os.path.relpath(path, ROOT)
             if os.path.basename(rel) != '__init__.py' and not rel.startswith(os.path.join('anafi_sim', 'scripts')):
@@ -450,11 +460,11 @@ def test_architecture_doc_lists_every_module_and_only_real_ones():
     assert not jobless, 'docs/architecture.md, module tree: modules without their job: %s' % jobless
     unlisted = [m for m in _modules() if m not in tree]
     assert not unlisted, 'modules missing from the tree in docs/architecture.md: %s' % unlisted
-    named = set(re.findall(r'((?:anafi_sim|anafi_control)/[\w/]+\.py)', text))   # also in the prose
+    named = set(re.findall(r'((?:anafi_sim|anafi_control|anafi_lab)/[\w/]+\.py)', text))   # also in the prose
     assert not sorted(p for p in named if not os.path.isfile(os.path.join(ROOT, p)))
 
 
-_TOP = ('anafi_sim', 'anafi_control', 'benchmarks', 'test', 'tools', 'docs', 'msg', 'cfg')
+_TOP = ('anafi_sim', 'anafi_control', 'anafi_lab', 'benchmarks', 'test', 'tools', 'docs', 'msg', 'cfg')
 _ROS_TYPE = re.compile(r'^\w+/[A-Z]\w*$')
 _PATH = re.compile(r'`((?:%s)/[^`\s]*)`' % '|'.join(_TOP))
 
@@ -467,7 +477,7 @@ def _expand(pattern):
     return [p for alt in m.group(1).split(',') for p in _expand(pattern[:m.start()] + alt + pattern[m.end():])]
 
 
-@pytest.mark.parametrize('doc', ['README.md', 'docs/nodes.md', 'docs/architecture.md'])
+@pytest.mark.parametrize('doc', HAND_WRITTEN)
 def test_repository_paths_in_the_docs_exist(doc):
     text = _read(os.path.join(ROOT, doc))
     absent = []
@@ -487,9 +497,9 @@ def test_readme_architecture_diagram_names_real_folders():
     assert arch is not None, 'README.md has no "## Architecture" section'
     diagram = re.search(r'```\n(.*?)```', arch, re.S)
     assert diagram, 'the Architecture section has no diagram'
-    folders = set(re.findall(r'\b((?:anafi_sim/\w+|anafi_control))\b', diagram.group(1)))
+    folders = set(re.findall(r'\b((?:anafi_sim/\w+|anafi_control|anafi_lab))\b', diagram.group(1)))
     expected = {'anafi_sim/sim', 'anafi_sim/telemetry', 'anafi_sim/interface', 'anafi_sim/gazebo', 'anafi_control',
-                'anafi_sim/experiments', 'anafi_sim/calibration', 'anafi_sim/ros', 'anafi_sim/scripts'}
+                'anafi_sim/mission', 'anafi_lab', 'anafi_sim/ros', 'anafi_sim/scripts'}
     assert expected <= folders, 'diagram lacks %s' % sorted(expected - folders)
     absent = sorted(f for f in folders if not os.path.isdir(os.path.join(ROOT, f)))
     assert not absent, 'diagram names folders that do not exist: %s' % absent
@@ -505,7 +515,7 @@ def test_anchor_rule():
     assert anchor("The paper's distributed PID framework") == 'the-papers-distributed-pid-framework'
 
 
-@pytest.mark.parametrize('doc', ['README.md', 'docs/nodes.md', 'docs/architecture.md'])
+@pytest.mark.parametrize('doc', HAND_WRITTEN)
 def test_links_to_sections_resolve(doc):
     """Links like (docs/nodes.md#evaluatorpy--live-tracking-error) or (#calibration) lead to a heading."""
     path = os.path.join(ROOT, doc)
@@ -517,32 +527,3 @@ def test_links_to_sections_resolve(doc):
         if not os.path.isfile(linked) or frag not in [anchor(t) for _, t, _ in sections(_read(linked))]:
             broken.append('%s#%s' % (target, frag))
     assert not broken, '%s: links to missing sections: %s' % (doc, broken)
-
-
-# ----------------------------------------------------------------------------- fidelity figures in the README
-FIDELITY_DOC = os.path.join(ROOT, 'docs', 'fidelity.md')
-
-
-def _summary_row(text, title):
-    """(within +-10 %, within +-25 %, cells) of the first row titled ``title`` in docs/fidelity.md's summary."""
-    match = re.search(r'^\| %s \| (\d+) / (\d+) \| \d+ / \d+ \| (\d+) / \d+ \|' % re.escape(title), text, re.M)
-    assert match, 'no summary row %r in docs/fidelity.md' % title
-    return int(match.group(1)), int(match.group(3)), int(match.group(2))
-
-
-def test_the_readme_fidelity_figures_are_the_reports():
-    """The counts the README quotes (shipped defaults within +-10 % and +-25 %, effects off, settled start, without
-    the stalls) are those of the summary of docs/fidelity.md, which anafi_lab/cli/measure_fidelity.py regenerates."""
-    with open(README) as stream:
-        readme = ' '.join(stream.read().split())
-    with open(FIDELITY_DOC) as stream:
-        report = stream.read()
-    match = re.search(r'put (\d+) of (\d+) shared-log cells within \+-10 % of Sphinx and (\d+) of \d+ within \+-25 % '
-                      r'\(effects off: (\d+); the same defaults replayed from a settled start: (\d+), without the '
-                      r'stalls: (\d+)\)', readme)
-    assert match, 'the README\'s fidelity sentence changed: update this test with it'
-    k10, cells, k25, off, settled, nostalls = (int(g) for g in match.groups())
-    assert (k10, k25, cells) == _summary_row(report, 'shipped defaults')
-    assert off == _summary_row(report, 'effects off')[0]
-    assert settled == _summary_row(report, 'shipped, settled start')[0]
-    assert nostalls == _summary_row(report, 'shipped, without the logs\' estimate stalls')[0]

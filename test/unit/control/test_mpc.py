@@ -381,23 +381,23 @@ def _jump_sequence(seed, n=60):
     return out
 
 
-#: the settings before the fix: warm start, eps 1e-3, no polish, no verification, unscaled cumulative errors
-OLD_NUMERICS = {'polish': False, 'verify': False, 'cum_scale': 1.0, 'accept_inaccurate': False}
+#: the MPC without its robust settings: warm start, eps 1e-3, no polish, no verification, unscaled cumulative errors
+PLAIN_NUMERICS = {'polish': False, 'verify': False, 'cum_scale': 1.0, 'accept_inaccurate': False}
 
 
 @pytest.mark.parametrize('seed', [0, 1])
 def test_every_u0_within_0p05_of_the_exact_optimum_after_waypoint_jumps(seed):
-    new, old = CumulativeErrorMpc({'paper_timing': False}), CumulativeErrorMpc(dict(OLD_NUMERICS, paper_timing=False))
-    err_new, err_old = [], []
+    robust, plain = CumulativeErrorMpc({'paper_timing': False}), CumulativeErrorMpc(dict(PLAIN_NUMERICS, paper_timing=False))
+    err_robust, err_plain = [], []
     for p, v, wp, wv in _jump_sequence(seed):
-        u_ex = exact_u0(new, mpc.initial_state(p, v, wp, wv), new.reference(wp, wv))
-        rn, ro = new.solve(p, v, wp, wv), old.solve(p, v, wp, wv)
+        u_ex = exact_u0(robust, mpc.initial_state(p, v, wp, wv), robust.reference(wp, wv))
+        rn, ro = robust.solve(p, v, wp, wv), plain.solve(p, v, wp, wv)
         assert rn.ok
-        err_new.append(np.abs(np.subtract(rn.u0, u_ex)).max())
+        err_robust.append(np.abs(np.subtract(rn.u0, u_ex)).max())
         if ro.ok:
-            err_old.append(np.abs(np.subtract(ro.u0, u_ex)).max())
-    assert max(err_new) < 0.05, max(err_new)
-    assert max(err_old) > 0.1, max(err_old)    # the old path reproduces the wrong answers
+            err_plain.append(np.abs(np.subtract(ro.u0, u_ex)).max())
+    assert max(err_robust) < 0.05, max(err_robust)
+    assert max(err_plain) > 0.1, max(err_plain)    # the plain numerics give the wrong answers
 
 
 def test_set_weights_updates_in_place_like_a_fresh_solver():

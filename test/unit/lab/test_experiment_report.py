@@ -1,11 +1,8 @@
 """anafi_lab.reports.paper_tables (the batch's Markdown tables) and anafi_lab/engine/ros_batch.py options."""
-import os
-
 import pytest
 
 from anafi_lab.reports import paper_tables as rep
 from anafi_sim.numeric import fmt
-from conftest import ROOT
 
 
 def rec(scenario, controller, e_mu, e_max=None, e_sigma=0.05, truth=None, ok=True, **info):

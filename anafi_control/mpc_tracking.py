@@ -46,7 +46,7 @@ RECONFIGURABLE = ('q_cum', 'q_cum_terminal', 'q_cum_vel', 'q_cum_vel_terminal', 
 #: counters of MpcTracking besides the contract's (contract.COUNTER_NAMES)
 EXTRA_COUNTERS = ('waypoint_jumps', 'reconfigurations', 'solved_inaccurate', 'velocity_clipped', 'cold_resolves')
 
-#: defaults of the tracking parameters (= anafi_sim/config/mpc.yaml, checked by test/unit/test_mpc_defaults.py)
+#: defaults of the tracking parameters (= anafi_sim/config/mpc.yaml, checked by test/unit/control/test_mpc_defaults.py)
 DEFAULTS = {
     'rate': 10.0,                 # [Hz] cycle (solve) rate, = 1/dt
     'state_timeout': TIMEOUT_DEFAULTS['state_timeout'],        # [s] state older than this -> silent

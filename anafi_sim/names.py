@@ -35,6 +35,9 @@ TRAJECTORY_COMMAND = 'trajectory_generator/command'  # std_msgs/String: start | 
 EVALUATION_SUMMARY = 'evaluation/summary'  # std_msgs/String (latched YAML)
 MPC_STATS = 'mpc/stats'                 # anafi_sim/MpcStats
 TUNING_CHANGES = 'tuning/changes'       # std_msgs/String YAML, one per live tuning change (ros/reconfigure.py)
+REFERENCE_PREVIEW = 'command/trajectory'  # trajectory_msgs/MultiDOFJointTrajectory: the generator's preview
+PID_NAMESPACE = 'pid'                   # the distributed PID framework's loop topics: pid/<loop>/..., pid/pid_enable
+PID_ENABLE = 'pid_enable'               # std_msgs/Bool (latched), under PID_NAMESPACE
 
 # --- global ---------------------------------------------------------------------------------------------
 CLOCK = '/clock'
@@ -50,6 +53,11 @@ GET_MODEL_STATE = 'get_model_state'     # service gazebo_msgs/GetModelState
 GET_MODEL_PROPERTIES = 'get_model_properties'  # service gazebo_msgs/GetModelProperties
 MODEL_STATES = 'model_states'           # topic gazebo_msgs/ModelStates
 CONTACTS = 'contacts'                   # topic std_msgs/String (JSON contact events; the kinematic world)
+
+
+def pid_topic(name, namespace=PID_NAMESPACE):
+    """A topic of the distributed PID framework (``name`` relative to its namespace), e.g. 'pid/pid_enable'."""
+    return '%s/%s' % (namespace.rstrip('/'), name)
 
 
 def gazebo(name, namespace=GAZEBO_NAMESPACE):

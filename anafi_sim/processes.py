@@ -269,14 +269,15 @@ class _Transport(xmlrpc.client.Transport):
         return conn
 
 
-def _proxy(uri, timeout=10.0):
+def xmlrpc_proxy(uri, timeout=10.0):
+    """An XML-RPC client of ``uri`` whose calls give up after ``timeout`` s (a ROS master or node)."""
     return xmlrpc.client.ServerProxy(uri, transport=_Transport(timeout))
 
 
 def master_pid(master_uri, caller=HARNESS_CALLER):
     """Process id of the ROS master answering at ``master_uri``, or None when none answers."""
     try:
-        code, _, pid = _proxy(master_uri).getPid(caller)
+        code, _, pid = xmlrpc_proxy(master_uri).getPid(caller)
     except (OSError, xmlrpc.client.Error):
         return None
     return pid if code == 1 else None
@@ -287,10 +288,10 @@ def node_pid(name, master_uri=None, caller=HARNESS_CALLER):
     is not registered or does not answer."""
     master_uri = master_uri or os.environ.get('ROS_MASTER_URI', 'http://localhost:11311')
     try:
-        code, _, uri = _proxy(master_uri).lookupNode(caller, name)
+        code, _, uri = xmlrpc_proxy(master_uri).lookupNode(caller, name)
         if code != 1:
             return None
-        code, _, pid = _proxy(uri).getPid(caller)
+        code, _, pid = xmlrpc_proxy(uri).getPid(caller)
     except (OSError, xmlrpc.client.Error):
         return None
     return pid if code == 1 else None

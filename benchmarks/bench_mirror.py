@@ -204,30 +204,12 @@ def table(results):
     return '\n'.join(rows)
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    parser.add_argument('--duration', type=float, default=30.0, help='measured seconds per mode (all rounds)')
-    parser.add_argument('--rounds', type=int, default=6, help='rounds; each runs every mode in turn')
-    parser.add_argument('--warmup', type=float, default=1.5, help='seconds per segment before measuring')
-    parser.add_argument('--rate', type=float, default=100.0, help='ground-truth and mirror rate [Hz]')
-    parser.add_argument('--world-rate', type=float, default=250.0, help='kinematic world rate [Hz]')
-    parser.add_argument('--no-write', action='store_true', help='do not write ' + RESULTS)
-    args = parser.parse_args()
-    try:
-        import rospy
-        from anafi_sim.msg import DroneData  # noqa: F401  (generated messages available?)
-    except ImportError as exc:
-        raise SystemExit('cannot import ROS / the generated messages (%s): source env.bash first' % exc)
-    if shutil.which('roscore') is None:
-        raise SystemExit('roscore not found on PATH: source env.bash first')
-
-    def log(text):
-        print('[bench_mirror] %s' % text, flush=True)
-
+def measure(args, log):
+    """Every mode in ``args.rounds`` interleaved rounds on a private master: the aggregated figures per mode."""
+    import rospy
     tmp = tempfile.mkdtemp(prefix='bench_mirror_')
     procs = Processes(tmp)
     source = None
-    results = []
     try:
         uri, env = private_master(procs, tmp, join=True)
         log('roscore at %s (logs in %s)' % (uri, tmp))
@@ -250,23 +232,23 @@ def main():
                     round_ + 1, label, seg['seen'] / seg['wall'],
                     1e3 * np.percentile(seg['lags'], 99) if seg['lags'] else float('nan')))
                 time.sleep(0.5)
-        results = [aggregate(label, segments[label]) for label, _ in MODES]
+        return [aggregate(label, segments[label]) for label, _ in MODES]
     finally:
         if source is not None:
             source.running = False
         procs.stop_all()
 
-    text = table(results)
+
+def ratio_lines(results):
+    """Each mode against the topic stream (the first mode): rate, lag p99, mirror and world CPU."""
     topic = results[0]
-    ratios = []
-    for r in results[1:]:
-        ratios.append('- %s vs topic: rate x%.2f, lag p99 x%.1f, mirror CPU x%.2f, world CPU x%.2f' % (
-            r['mode'], r['world_rate'] / topic['world_rate'], r['lag_p99'] / topic['lag_p99'],
-            r['mirror_cpu'] / topic['mirror_cpu'], r['world_cpu'] / topic['world_cpu']))
-    print(text)
-    print('\n'.join(ratios))
-    if args.no_write:
-        return
+    return ['- %s vs topic: rate x%.2f, lag p99 x%.1f, mirror CPU x%.2f, world CPU x%.2f' % (
+        r['mode'], r['world_rate'] / topic['world_rate'], r['lag_p99'] / topic['lag_p99'],
+        r['mirror_cpu'] / topic['mirror_cpu'], r['world_cpu'] / topic['world_cpu']) for r in results[1:]]
+
+
+def report(args, text, ratios):
+    """The Markdown of benchmarks/results/mirror.md around the table ``text`` and the ``ratios`` lines."""
     body = [
         '# Gazebo mirror: topic stream vs per-cycle service call',
         '',
@@ -299,9 +281,39 @@ def main():
         'round trip is likely longer (not measured here: no Gazebo on this machine).',
         '',
     ]
+    return '\n'.join(body)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--duration', type=float, default=30.0, help='measured seconds per mode (all rounds)')
+    parser.add_argument('--rounds', type=int, default=6, help='rounds; each runs every mode in turn')
+    parser.add_argument('--warmup', type=float, default=1.5, help='seconds per segment before measuring')
+    parser.add_argument('--rate', type=float, default=100.0, help='ground-truth and mirror rate [Hz]')
+    parser.add_argument('--world-rate', type=float, default=250.0, help='kinematic world rate [Hz]')
+    parser.add_argument('--no-write', action='store_true', help='do not write ' + RESULTS)
+    args = parser.parse_args()
+    try:
+        import rospy  # noqa: F401
+        from anafi_sim.msg import DroneData  # noqa: F401  (generated messages available?)
+    except ImportError as exc:
+        raise SystemExit('cannot import ROS / the generated messages (%s): source env.bash first' % exc)
+    if shutil.which('roscore') is None:
+        raise SystemExit('roscore not found on PATH: source env.bash first')
+
+    def log(text):
+        print('[bench_mirror] %s' % text, flush=True)
+
+    results = measure(args, log)
+    text = table(results)
+    ratios = ratio_lines(results)
+    print(text)
+    print('\n'.join(ratios))
+    if args.no_write:
+        return
     os.makedirs(os.path.dirname(RESULTS), exist_ok=True)
     with open(RESULTS, 'w') as f:
-        f.write('\n'.join(body))
+        f.write(report(args, text, ratios))
     print('wrote %s' % RESULTS)
 
 

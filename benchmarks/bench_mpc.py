@@ -9,8 +9,8 @@ load hits both alike:
 
 * ``setup once``: OSQP set up once, per cycle update(q, l, u) and warm start (the default);
 * ``rebuild``: the whole QP built and set up from scratch every cycle (as the paper's code rebuilt P);
-* ``old numerics``: setup once with the settings before the robustness fix (no polish, no verification,
-  unscaled cumulative errors, ``OLD_NUMERICS``), to show the price of the fix side by side.
+* ``plain numerics``: setup once without the robust settings (no polish, no verification, unscaled
+  cumulative errors, ``PLAIN_NUMERICS``), to show the price of the robust numerics side by side.
 
 Times: ``solve`` = OSQP info.solve_time, ``cycle`` = wall time of CumulativeErrorMpc.solve() (vector
 updates, setup if any, solve, result extraction). Prints a table and writes benchmarks/results/mpc.md.
@@ -30,9 +30,9 @@ import scipy
 from anafi_control.mpc import CumulativeErrorMpc
 from anafi_sim.processes import cpu_model
 
-#: the numerics before the robustness fix (wrong answers after waypoint jumps, see test_mpc.py)
-OLD_NUMERICS = {'polish': False, 'verify': False, 'cum_scale': 1.0, 'accept_inaccurate': False}
-NAMES = ('setup once', 'old numerics', 'rebuild')
+#: the MPC without its robust settings (wrong answers after waypoint jumps, see test_mpc.py)
+PLAIN_NUMERICS = {'polish': False, 'verify': False, 'cum_scale': 1.0, 'accept_inaccurate': False}
+NAMES = ('setup once', 'plain numerics', 'rebuild')
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -126,7 +126,7 @@ def main():
     lines = [HEADER, SEP]
     for i, scenario in enumerate(SCENARIOS):
         loops = {'setup once': Loop(CumulativeErrorMpc(), scenario, seed=i),
-                 'old numerics': Loop(CumulativeErrorMpc(OLD_NUMERICS), scenario, seed=i),
+                 'plain numerics': Loop(CumulativeErrorMpc(PLAIN_NUMERICS), scenario, seed=i),
                  'rebuild': Loop(CumulativeErrorMpc({'rebuild_every_cycle': True}), scenario, seed=i)}
         for _ in range(args.cycles):
             for name in NAMES:
@@ -143,8 +143,8 @@ def main():
                  b['cycle_p50'] / a['cycle_p50'], b['cycle_p99'] / a['cycle_p99'],
                  b['cycle_mean'] / a['cycle_mean'], b['cpu_p50'] / a['cpu_p50'], b['cpu_p99'] / a['cpu_p99'],
                  b['setup_p50']))
-    o = totals['old numerics']
-    ratio += ('\n- setup once (robust numerics) / old numerics: cycle p50 x%.2f, cycle p99 x%.2f, cycle CPU p50 '
+    o = totals['plain numerics']
+    ratio += ('\n- setup once (robust numerics) / plain numerics: cycle p50 x%.2f, cycle p99 x%.2f, cycle CPU p50 '
               'x%.2f, cycle CPU p99 x%.2f' % (a['cycle_p50'] / o['cycle_p50'], a['cycle_p99'] / o['cycle_p99'],
                                              a['cpu_p50'] / o['cpu_p50'], a['cpu_p99'] / o['cpu_p99']))
     target = 'target p99 < 5 ms (cycle, setup once): %s (%.3f ms)' % (

@@ -18,7 +18,6 @@ Writes Markdown to stdout (and DIR/<command>.md with --out).
 """
 import argparse
 import concurrent.futures
-import math
 import os
 import sys
 import time
@@ -27,6 +26,7 @@ import numpy as np
 
 from anafi_lab.engine.engine import Engine
 from anafi_lab.paper import ALL_SCENARIOS
+from anafi_sim.numeric import fmt
 
 MOVING = [s for s in ALL_SCENARIOS if not s.startswith('static')]
 STATIC = [s for s in ALL_SCENARIOS if s.startswith('static')]
@@ -96,10 +96,6 @@ def _pool(jobs, workers):
     return results
 
 
-def _fmt(v, n=3):
-    return '-' if v is None or (isinstance(v, float) and not math.isfinite(v)) else ('%.*f' % (n, v))
-
-
 def cmd_scenarios(args):
     labels = args.labels.split(',')
     jobs = [(s, l, None, None) for s in MOVING + STATIC for l in labels]
@@ -112,21 +108,21 @@ def cmd_scenarios(args):
         cells = []
         for l in labels:
             r = by[(s, l)]
-            cells.append('%s / %s / %s' % (_fmt(r.get('e_mu_truth')), _fmt(r.get('e_mu_ref')),
-                                           _fmt(r.get('e_mu_est'))) if r['ok'] else 'FAILED')
+            cells.append('%s / %s / %s' % (fmt(r.get('e_mu_truth'), 3), fmt(r.get('e_mu_ref'), 3),
+                                           fmt(r.get('e_mu_est'), 3)) if r['ok'] else 'FAILED')
         lines.append('| %s | %s |' % (s, ' | '.join(cells)))
     for key, what in (('e_mu_truth', 'truth vs held waypoint'), ('e_mu_ref', 'truth vs continuous reference')):
         lines.append('| **max %s** | %s |' % (what, ' | '.join(
-            _fmt(max(by[(s, l)].get(key, float('nan')) for s in MOVING)) for l in labels)))
+            fmt(max(by[(s, l)].get(key, float('nan')) for s in MOVING), 3) for l in labels)))
     lines += ['', '## Static waypoints (ground truth): overshoot [m] / settling to 0.1 m [s] / e_mu [m]', '',
               '| scenario | ' + ' | '.join(labels) + ' |', '|---|' + '---|' * len(labels)]
     for s in STATIC:
         lines.append('| %s | %s |' % (s, ' | '.join('%s / %s / %s' % (
-            _fmt(by[(s, l)].get('overshoot')), _fmt(by[(s, l)].get('settling'), 2),
-            _fmt(by[(s, l)].get('e_mu_truth'))) for l in labels)))
+            fmt(by[(s, l)].get('overshoot'), 3), fmt(by[(s, l)].get('settling'), 2),
+            fmt(by[(s, l)].get('e_mu_truth'), 3)) for l in labels)))
     lines += ['', '## Controller CPU per simulated second [s/s], mean over the moving scenarios', '',
               '| ' + ' | '.join(labels) + ' |', '|' + '---|' * len(labels),
-              '| ' + ' | '.join(_fmt(np.mean([by[(s, l)]['cpu'] for s in MOVING if by[(s, l)]['cpu']]), 4)
+              '| ' + ' | '.join(fmt(np.mean([by[(s, l)]['cpu'] for s in MOVING if by[(s, l)]['cpu']]), 4)
                                 for l in labels) + ' |']
     return lines
 
@@ -150,7 +146,7 @@ def cmd_wind(args):
                 continue
             a = [r['e_mu_truth'] for r in ok]
             b = [r['e_mu_ref'] for r in ok]
-            cells.append('%s / %s; %s / %s%s' % (_fmt(np.mean(a)), _fmt(max(a)), _fmt(np.mean(b)), _fmt(max(b)),
+            cells.append('%s / %s; %s / %s%s' % (fmt(np.mean(a), 3), fmt(max(a), 3), fmt(np.mean(b), 3), fmt(max(b), 3),
                                                  '' if len(ok) == len(rs) else ' (%d failed)' % (len(rs) - len(ok))))
         lines.append('| %s | %s |' % (s, ' | '.join(cells)))
     return lines
@@ -166,7 +162,7 @@ def cmd_airship(args):
              '|---|---|---|---|']
     for l in labels:
         r = by[l]
-        lines.append('| %s | %s |' % (l, ' | '.join(_fmt(r.get(k)) for k in ('e_mu_truth', 'e_mu_ref', 'e_mu_est'))
+        lines.append('| %s | %s |' % (l, ' | '.join(fmt(r.get(k), 3) for k in ('e_mu_truth', 'e_mu_ref', 'e_mu_est'))
                                       if r['ok'] else 'FAILED | - | -'))
     return lines
 

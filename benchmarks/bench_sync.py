@@ -27,6 +27,8 @@ import time
 import yaml
 
 from anafi_lab.engine.lockstep import e_mu, lockstep_figures, read_yaml, run_inprocess, run_sync  # noqa: F401
+from anafi_sim.numeric import fmt
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, 'benchmarks', 'results')
 FIGURES = os.path.join(RESULTS, 'sync.yaml')
@@ -109,7 +111,8 @@ def _float(text):
 
 
 def _fmt(v, n=3):
-    return '-' if v is None else ('%.*f' % (n, v) if isinstance(v, float) else str(v))
+    """A float with ``n`` decimals, anything else (counts, labels) as it is; '-' when missing."""
+    return fmt(v, n) if v is None or isinstance(v, float) else str(v)
 
 
 def _ratio(a, b):
@@ -164,7 +167,7 @@ def section(figures):
                              ', target < 2 %' if mode == 'lockstep' else '',
                              ', '.join('%.1f' % w for w in walls['idle']),
                              ', '.join('%.1f' % w for w in walls['busy'])))
-    lines += ['', 'How the lockstep works and what it does not hold: README (Experiments, lockstep) and '
+    lines += ['', 'How the lockstep works and what it does not hold: docs/experiments.md (Lockstep ROS runs) and '
               '`anafi_sim/sim/clock.py` (`Lockstep`, `StartHold`).', SECTION_END, '']
     return '\n'.join(lines)
 

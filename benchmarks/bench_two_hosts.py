@@ -36,7 +36,7 @@ import sys
 import tempfile
 import time
 
-import numpy as np
+from anafi_sim.numeric import fmt, median
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCRIPT = os.path.join(ROOT, 'tools', 'two_hosts.sh')
@@ -68,15 +68,6 @@ def run_mode(flags, args, log_dir):
         return None, 'failed (exit %d): %s' % (proc.returncode, ' / '.join(text[-3:]))
     with open(out) as f:
         return json.load(f), 'ok'
-
-
-def median(values):
-    values = [v for v in values if v is not None]
-    return float(np.median(values)) if values else None
-
-
-def fmt(v, digits=2):
-    return '-' if v is None else ('%.*f' % (digits, v))
 
 
 def runs_text(values, digits=1):

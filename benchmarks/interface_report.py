@@ -6,6 +6,7 @@ import subprocess
 
 import numpy as np
 
+from anafi_sim.numeric import median
 from anafi_sim.processes import cpu_model, psutil
 
 
@@ -47,6 +48,22 @@ def met(ok):
 
 
 def report(args, parser_res, ros_res):
+    """The Markdown of benchmarks/results/interface.md: the parts that ran, each as a section."""
+    L = header(args)
+    if parser_res is not None:
+        L += parser_section(args, parser_res)
+    if ros_res and 'A' in ros_res:
+        L += latency_section(args, ros_res['A'])
+    if ros_res and 'B' in ros_res:
+        L += paper_section(args, ros_res['B'])
+    if ros_res:
+        L.append('Feeder: %d samples published, %d ticks more than 2 ms late; slow clients dropped by the '
+                 'server: %d.' % (ros_res['ticks'], ros_res['late_ticks'], ros_res['slow_drops']))
+        L.append('')
+    return '\n'.join(L)
+
+
+def header(args):
     L = []
     L.append('# Ground-truth interface: parser, latency, CPU, and the paper\'s 24 pipelines side by side')
     L.append('')
@@ -57,113 +74,122 @@ def report(args, parser_res, ros_res):
     L.append('The machine is shared with other jobs: load and the machine-wide busy share are given per window; '
              'side-by-side figures come from one window, so load hits both alike.')
     L.append('')
-    if parser_res is not None:
-        o, n = np.array(parser_res['ours']), np.array(parser_res['naive'])
-        per_s = args.rate * parser_res['lines_per_sample']
-        L.append('## 1. Parser throughput')
-        L.append('')
-        L.append('Lines = `format_sample` of 2000 samples of a simulated flight plus the blank line ending each '
-                 'block (%.0f lines per sample), fed %d lines per round, %d rounds alternating the parsers '
-                 '(both checked to return exactly the formatted samples). Naive = a per-line regex '
-                 '`^\\s*(\\S+)\\s*:\\s*(\\S+)\\s*$` + dict of values, sample when all 24 keys are in.'
-                 % (parser_res['lines_per_sample'], parser_res['n_lines'], parser_res['rounds']))
-        L.append('')
-        L.append('| parser | lines/s median | lines/s best | us/line (median) | one core at %g Hz [%%] |'
-                 % args.rate)
-        L.append('|---|---|---|---|---|')
-        for name, a in (('TelemetryParser.feed_line (ours)', o), ('naive regex', n)):
-            med = np.median(a)
-            L.append('| %s | %.0f | %.0f | %.3f | %.3f |' % (name, med, a.max(), 1e6 / med, 100.0 * per_s / med))
-        L.append('')
-        L.append('- ours / naive: x%.2f (median), x%.2f (best)' % (np.median(o) / np.median(n), o.max() / n.max()))
-        L.append('')
-    if ros_res and 'A' in ros_res:
-        A = ros_res['A']
-        w, r = A['window'], A['ours']
-        L.append('## 2. End-to-end latency at %g Hz (interface alone)' % args.rate)
-        L.append('')
-        L.append('Window %.1f s; load average (1 min) %.2f before, %.2f after; machine busy %.0f %% of all cores; '
-                 'benchmark process (server + feeder + subscriber) %.1f %% of one core; subscriber '
-                 'tcp_nodelay=%s (the ROS default is False).'
-                 % (w.wall, w.load_before[0], w.load_after[0], w.busy, 100.0 * w.bench_cpu / w.wall,
-                    args.tcp_nodelay))
-        L.append('')
-        L.append('| latency [ms] | p50 | p95 | p99 | max | n |')
-        L.append('|---|---|---|---|---|---|')
-        L.append('| generation -> publish (header.stamp - generation) ' + fmt_lat(r['pub']))
-        L.append('| generation -> ROS message received ' + fmt_lat(r['recv']))
-        L.append('')
-        L.append('- published %.2f Hz (generated %.2f Hz); %d messages, %d distinct samples, %d with fields from '
-                 'another sample than their timestamp, %d with an unknown timestamp'
-                 % (r['rate'], r['gen_rate'], r['n'], r['distinct'], r['torn'], r['unknown']))
-        L.append(FEEDER_NOTE % (r['generated'], r['late2ms'], r['late_p99'], r['publishable']))
-        p99 = r['recv']['p99'] if r['recv'] else float('inf')
-        L.append('- target p99 < 10 ms (generation -> received): %s (%.2f ms)' % (met(p99 < 10.0), p99))
-        L.append('')
-        L.append('## 3. CPU share of the interface at %g Hz (same window)' % args.rate)
-        L.append('')
-        L.append('| process | processes | CPU [% of one core] |')
-        L.append('|---|---|---|')
-        for role, label in (('node', 'interface_node.py'), ('CLI', 'tlm_data_logger.py (its child)')):
-            L.append('| %s | %d | %.2f |' % (label, w.count('ours', role), w.share('ours', role)))
-        total = w.share('ours')
-        L.append('| **total** | %d | **%.2f** |' % (w.count('ours'), total))
-        L.append('')
-        L.append('- target < 10 %% of one core: %s (%.2f %%)' % (met(total < 10.0), total))
-        L.append('- per sample the node also builds ground_truth/odom and one /tf message (3 transforms) and '
-                 'publishes /diagnostics at 1 Hz; nothing subscribes to those here, and rospy does not serialise '
-                 'messages of a topic without subscribers.')
-        L.append('')
-    if ros_res and 'B' in ros_res:
-        B = ros_res['B']
-        w = B['window']
-        L.append('## 4. The paper\'s approach side by side (same server, same window)')
-        L.append('')
-        L.append('Ours: one `tlm_data_logger.py -r 0` + `interface_node.py`. Paper (`benchmarks/paper_interface.py`): '
-                 '24 shell pipelines `tlm_data_logger.py -r 0 inet:H:P | grep --line-buffered KEY`, a reader thread '
-                 'per pipe keeping the last value, DroneData published from a %g Hz rospy.Timer. CPU = user+sys of '
-                 'each whole process tree (polled every second; processes ending keep their CPU up to the last '
-                 'poll). Window %.1f s; load average (1 min) %.2f before, %.2f after; machine busy %.0f %% of all '
-                 'cores; %d server clients.' % (args.rate, w.wall, w.load_before[0], w.load_after[0], w.busy,
-                                                B['clients']))
-        L.append('')
-        L.append('| implementation | process | processes | CPU [% of one core] |')
-        L.append('|---|---|---|---|')
-        for role, label in (('node', 'interface_node.py'), ('CLI', 'tlm_data_logger.py')):
-            L.append('| ours | %s | %d | %.2f |' % (label, w.count('ours', role), w.share('ours', role)))
-        L.append('| **ours** | **total** | %d | **%.2f** |' % (w.count('ours'), w.share('ours')))
-        for role, label in (('node', 'paper_interface.py'), ('CLI', 'tlm_data_logger.py'), ('grep', 'grep'),
-                            ('sh', 'sh (pipeline shells)')):
-            L.append('| paper | %s | %d | %.2f |' % (label, w.count('paper', role), w.share('paper', role)))
-        others = [r for r in w.cpu['paper'] if r not in ('node', 'CLI', 'grep', 'sh')]
-        for role in others:
-            L.append('| paper | %s | %d | %.2f |' % (role, w.count('paper', role), w.share('paper', role)))
-        L.append('| **paper** | **total** | %d | **%.2f** |' % (w.count('paper'), w.share('paper')))
-        L.append('')
-        ratio = w.share('paper') / w.share('ours') if w.share('ours') > 0 else float('inf')
-        L.append('- paper / ours CPU: **x%.1f**; target >= x5: %s' % (ratio, met(ratio >= 5.0)))
-        ours_wo = w.share('ours') - w.share('ours', 'CLI')
-        paper_wo = w.share('paper') - w.share('paper', 'CLI')
-        L.append('- without the CLI processes (as if the telemetry CLI cost nothing, e.g. a cheaper native '
-                 'tlm-data-logger): paper %.2f %% / ours %.2f %% = x%.1f'
-                 % (paper_wo, ours_wo, paper_wo / ours_wo if ours_wo > 0 else float('inf')))
-        L.append('- processes that ended during the window: ours %d, paper %d' % (w.ended['ours'], w.ended['paper']))
-        L.append('')
-        L.append('| latency [ms], same window | p50 | p95 | p99 | max | n |')
-        L.append('|---|---|---|---|---|---|')
-        L.append('| ours: generation -> received ' + fmt_lat(B['ours']['recv']))
-        L.append('| paper: generation of its timeStamp -> received ' + fmt_lat(B['paper']['recv']))
-        L.append('')
-        L.append('- window B ' + FEEDER_NOTE[2:] % (B['ours']['generated'], B['ours']['late2ms'], B['ours']['late_p99'],
-                                                 B['ours']['publishable']))
-        for name in ('ours', 'paper'):
-            r = B[name]
-            L.append('- %s: %.2f Hz published, %d messages, %d distinct timestamps, %d (%.1f %%) mixing fields of '
-                     'different samples (lower bound: fields equal in consecutive samples cannot show it)'
-                     % (name, r['rate'], r['n'], r['distinct'], r['torn'], 100.0 * r['torn'] / max(r['n'], 1)))
-        L.append('')
-    if ros_res:
-        L.append('Feeder: %d samples published, %d ticks more than 2 ms late; slow clients dropped by the '
-                 'server: %d.' % (ros_res['ticks'], ros_res['late_ticks'], ros_res['slow_drops']))
-        L.append('')
-    return '\n'.join(L)
+    return L
+
+
+def parser_section(args, parser_res):
+    """1. Parser throughput: ours against a naive regex parser."""
+    L = []
+    o, n = np.array(parser_res['ours']), np.array(parser_res['naive'])
+    per_s = args.rate * parser_res['lines_per_sample']
+    L.append('## 1. Parser throughput')
+    L.append('')
+    L.append('Lines = `format_sample` of 2000 samples of a simulated flight plus the blank line ending each '
+             'block (%.0f lines per sample), fed %d lines per round, %d rounds alternating the parsers '
+             '(both checked to return exactly the formatted samples). Naive = a per-line regex '
+             '`^\\s*(\\S+)\\s*:\\s*(\\S+)\\s*$` + dict of values, sample when all 24 keys are in.'
+             % (parser_res['lines_per_sample'], parser_res['n_lines'], parser_res['rounds']))
+    L.append('')
+    L.append('| parser | lines/s median | lines/s best | us/line (median) | one core at %g Hz [%%] |'
+             % args.rate)
+    L.append('|---|---|---|---|---|')
+    for name, a in (('TelemetryParser.feed_line (ours)', o), ('naive regex', n)):
+        med = median(a)
+        L.append('| %s | %.0f | %.0f | %.3f | %.3f |' % (name, med, a.max(), 1e6 / med, 100.0 * per_s / med))
+    L.append('')
+    L.append('- ours / naive: x%.2f (median), x%.2f (best)' % (median(o) / median(n), o.max() / n.max()))
+    L.append('')
+    return L
+
+
+def latency_section(args, A):
+    """2. End-to-end latency and 3. CPU share of the interface alone (window A)."""
+    L = []
+    w, r = A['window'], A['ours']
+    L.append('## 2. End-to-end latency at %g Hz (interface alone)' % args.rate)
+    L.append('')
+    L.append('Window %.1f s; load average (1 min) %.2f before, %.2f after; machine busy %.0f %% of all cores; '
+             'benchmark process (server + feeder + subscriber) %.1f %% of one core; subscriber '
+             'tcp_nodelay=%s (the ROS default is False).'
+             % (w.wall, w.load_before[0], w.load_after[0], w.busy, 100.0 * w.bench_cpu / w.wall,
+                args.tcp_nodelay))
+    L.append('')
+    L.append('| latency [ms] | p50 | p95 | p99 | max | n |')
+    L.append('|---|---|---|---|---|---|')
+    L.append('| generation -> publish (header.stamp - generation) ' + fmt_lat(r['pub']))
+    L.append('| generation -> ROS message received ' + fmt_lat(r['recv']))
+    L.append('')
+    L.append('- published %.2f Hz (generated %.2f Hz); %d messages, %d distinct samples, %d with fields from '
+             'another sample than their timestamp, %d with an unknown timestamp'
+             % (r['rate'], r['gen_rate'], r['n'], r['distinct'], r['torn'], r['unknown']))
+    L.append(FEEDER_NOTE % (r['generated'], r['late2ms'], r['late_p99'], r['publishable']))
+    p99 = r['recv']['p99'] if r['recv'] else float('inf')
+    L.append('- target p99 < 10 ms (generation -> received): %s (%.2f ms)' % (met(p99 < 10.0), p99))
+    L.append('')
+    L.append('## 3. CPU share of the interface at %g Hz (same window)' % args.rate)
+    L.append('')
+    L.append('| process | processes | CPU [% of one core] |')
+    L.append('|---|---|---|')
+    for role, label in (('node', 'interface_node.py'), ('CLI', 'tlm_data_logger.py (its child)')):
+        L.append('| %s | %d | %.2f |' % (label, w.count('ours', role), w.share('ours', role)))
+    total = w.share('ours')
+    L.append('| **total** | %d | **%.2f** |' % (w.count('ours'), total))
+    L.append('')
+    L.append('- target < 10 %% of one core: %s (%.2f %%)' % (met(total < 10.0), total))
+    L.append('- per sample the node also builds ground_truth/odom and one /tf message (3 transforms) and '
+             'publishes /diagnostics at 1 Hz; nothing subscribes to those here, and rospy does not serialise '
+             'messages of a topic without subscribers.')
+    L.append('')
+    return L
+
+
+def paper_section(args, B):
+    """4. The paper's 24 pipelines against ours in one window (window B): CPU and latency."""
+    L = []
+    w = B['window']
+    L.append('## 4. The paper\'s approach side by side (same server, same window)')
+    L.append('')
+    L.append('Ours: one `tlm_data_logger.py -r 0` + `interface_node.py`. Paper (`benchmarks/paper_interface.py`): '
+             '24 shell pipelines `tlm_data_logger.py -r 0 inet:H:P | grep --line-buffered KEY`, a reader thread '
+             'per pipe keeping the last value, DroneData published from a %g Hz rospy.Timer. CPU = user+sys of '
+             'each whole process tree (polled every second; processes ending keep their CPU up to the last '
+             'poll). Window %.1f s; load average (1 min) %.2f before, %.2f after; machine busy %.0f %% of all '
+             'cores; %d server clients.' % (args.rate, w.wall, w.load_before[0], w.load_after[0], w.busy,
+                                            B['clients']))
+    L.append('')
+    L.append('| implementation | process | processes | CPU [% of one core] |')
+    L.append('|---|---|---|---|')
+    for role, label in (('node', 'interface_node.py'), ('CLI', 'tlm_data_logger.py')):
+        L.append('| ours | %s | %d | %.2f |' % (label, w.count('ours', role), w.share('ours', role)))
+    L.append('| **ours** | **total** | %d | **%.2f** |' % (w.count('ours'), w.share('ours')))
+    for role, label in (('node', 'paper_interface.py'), ('CLI', 'tlm_data_logger.py'), ('grep', 'grep'),
+                        ('sh', 'sh (pipeline shells)')):
+        L.append('| paper | %s | %d | %.2f |' % (label, w.count('paper', role), w.share('paper', role)))
+    others = [r for r in w.cpu['paper'] if r not in ('node', 'CLI', 'grep', 'sh')]
+    for role in others:
+        L.append('| paper | %s | %d | %.2f |' % (role, w.count('paper', role), w.share('paper', role)))
+    L.append('| **paper** | **total** | %d | **%.2f** |' % (w.count('paper'), w.share('paper')))
+    L.append('')
+    ratio = w.share('paper') / w.share('ours') if w.share('ours') > 0 else float('inf')
+    L.append('- paper / ours CPU: **x%.1f**; target >= x5: %s' % (ratio, met(ratio >= 5.0)))
+    ours_wo = w.share('ours') - w.share('ours', 'CLI')
+    paper_wo = w.share('paper') - w.share('paper', 'CLI')
+    L.append('- without the CLI processes (as if the telemetry CLI cost nothing, e.g. a cheaper native '
+             'tlm-data-logger): paper %.2f %% / ours %.2f %% = x%.1f'
+             % (paper_wo, ours_wo, paper_wo / ours_wo if ours_wo > 0 else float('inf')))
+    L.append('- processes that ended during the window: ours %d, paper %d' % (w.ended['ours'], w.ended['paper']))
+    L.append('')
+    L.append('| latency [ms], same window | p50 | p95 | p99 | max | n |')
+    L.append('|---|---|---|---|---|---|')
+    L.append('| ours: generation -> received ' + fmt_lat(B['ours']['recv']))
+    L.append('| paper: generation of its timeStamp -> received ' + fmt_lat(B['paper']['recv']))
+    L.append('')
+    L.append('- window B ' + FEEDER_NOTE[2:] % (B['ours']['generated'], B['ours']['late2ms'], B['ours']['late_p99'],
+                                             B['ours']['publishable']))
+    for name in ('ours', 'paper'):
+        r = B[name]
+        L.append('- %s: %.2f Hz published, %d messages, %d distinct timestamps, %d (%.1f %%) mixing fields of '
+                 'different samples (lower bound: fields equal in consecutive samples cannot show it)'
+                 % (name, r['rate'], r['n'], r['distinct'], r['torn'], 100.0 * r['torn'] / max(r['n'], 1)))
+    L.append('')
+    return L

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Soak benchmark (not a test, issue 14): the demo graph for a long time, sampled every minute.
+"""Soak benchmark (not a test): the demo graph for a long time, sampled every minute.
 
 Graph, on a private ROS master at real time under simulation time (rtf 1): world.launch (kinematic world,
 simulated Anafi, ground-truth interface at 100 Hz, Gazebo mirror) + mpc.launch + the trajectory generator
@@ -29,6 +29,8 @@ import time
 import psutil
 
 from anafi_sim import processes
+from anafi_sim.mission.fleet import launch_document
+from anafi_sim.numeric import fmt
 
 BENCH = os.path.dirname(os.path.abspath(__file__))
 RESULTS = os.path.join(BENCH, 'results')
@@ -39,28 +41,20 @@ RATE_TOPICS = (('ground_truth/odom', 'nav_msgs/Odometry'), ('drone/odom', 'nav_m
                ('drone/rpyt', None), ('position_control/waypoint', 'anafi_sim/Waypoint'))
 BAG_TOPICS = ('position_control/waypoint', 'drone/odom', 'ground_truth/odom', 'drone/rpyt', 'mpc/stats')
 
-LAUNCH = """<launch>
-  <include file="$(find anafi_sim)/anafi_sim/launch/world.launch">
-    <arg name="drone_name" value="{drone}"/>
-    <arg name="rtf" value="1.0"/>
-    <arg name="use_sim_time" value="true"/>
-    <arg name="telemetry_port" value="{telemetry_port}"/>
-  </include>
-  <include file="$(find anafi_sim)/anafi_sim/launch/mpc.launch">
-    <arg name="drone_name" value="{drone}"/>
-    <arg name="output" value="log"/>
-  </include>
-  <group ns="{drone}">
-    <node pkg="anafi_sim" type="trajectory_generator.py" name="trajectory_generator" output="log">
-      <param name="scenario" value="{scenario}"/>
-      <param name="autostart" value="true"/>
-      <param name="wait_for_flying" value="true"/>
-    </node>
-    <node pkg="anafi_sim" type="record_bag.py" name="recorder" output="log"
-          args="-O {bag} {bag_topics}"/>
-  </group>
-</launch>
-"""
+def launch_text(scenario, bag, telemetry_port):
+    """The soak graph: world.launch + mpc.launch, the trajectory generator looping ``scenario``, the recorder."""
+    body = ['  <group ns="%s">' % DRONE,
+            '    <node pkg="anafi_sim" type="trajectory_generator.py" name="trajectory_generator" output="log">',
+            '      <param name="scenario" value="%s"/>' % scenario,
+            '      <param name="autostart" value="true"/>',
+            '      <param name="wait_for_flying" value="true"/>',
+            '    </node>',
+            '    <node pkg="anafi_sim" type="record_bag.py" name="recorder" output="log"',
+            '          args="-O %s %s"/>' % (bag, ' '.join('/%s/%s' % (DRONE, t) for t in BAG_TOPICS)),
+            '  </group>']
+    return launch_document([('world.launch', [('drone_name', DRONE), ('rtf', '1.0'), ('use_sim_time', 'true'),
+                                              ('telemetry_port', telemetry_port)]),
+                            ('mpc.launch', [('drone_name', DRONE), ('output', 'log')])], body)
 
 # interface / controller diagnostic values reported per row (diagnostic key -> column)
 INTERFACE_VALUES = (('samples published', 'gt_published'), ('parse malformed', 'gt_malformed'),
@@ -129,71 +123,89 @@ def value_of(entry, key):
         return None
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    ap.add_argument('--minutes', type=float, default=30.0)
-    ap.add_argument('--period', type=float, default=60.0, help='s wall between rows')
-    ap.add_argument('--scenario', default='circle_r2_v1')
-    ap.add_argument('--out', default=os.path.join(RESULTS, 'soak'), help='output base (.md, .json)')
-    ap.add_argument('--keep', action='store_true', help='keep the work directory (bag, logs)')
-    args = ap.parse_args(argv)
+def start_graph(procs, workdir, scenario, bag):
+    """Private master + the soak graph (``launch_text``); returns the master's URI once every node of NODES is up."""
+    uri, env = processes.private_master(procs, os.path.join(workdir, 'ros_home'), os.path.join(workdir, 'log'),
+                                        join=True)
+    port = int(uri.rsplit(':', 1)[1])
+    launch = os.path.join(workdir, 'soak.launch')
+    with open(launch, 'w') as f:
+        f.write(launch_text(scenario, bag, processes.free_port()))
+    procs.start('roslaunch', ['roslaunch', '--port', str(port), launch], env)
+    if not processes.wait_for(lambda: all(processes.node_pid(n, uri) for n in NODES), 120.0, 0.5):
+        missing = [n for n in NODES if not processes.node_pid(n, uri)]
+        raise SystemExit('nodes did not come up: %s\n%s' % (missing, procs.log_tail('roslaunch', 40)))
+    return uri
 
-    workdir = tempfile.mkdtemp(prefix='anafi_soak_')
-    procs = processes.Processes(workdir, grace=20.0)
-    bag = os.path.join(workdir, 'soak.bag')
-    rows = []
-    started = datetime.datetime.utcnow()
-    watcher = None
-    result = {}
-    try:
-        uri, env = processes.private_master(procs, os.path.join(workdir, 'ros_home'), os.path.join(workdir, 'log'),
-                                          join=True)
-        port = int(uri.rsplit(':', 1)[1])
-        launch = os.path.join(workdir, 'soak.launch')
-        with open(launch, 'w') as f:
-            f.write(LAUNCH.format(drone=DRONE, telemetry_port=processes.free_port(), scenario=args.scenario, bag=bag,
-                                  bag_topics=' '.join('/%s/%s' % (DRONE, t) for t in BAG_TOPICS)))
-        procs.start('roslaunch', ['roslaunch', '--port', str(port), launch], env)
-        if not processes.wait_for(lambda: all(processes.node_pid(n, uri) for n in NODES), 120.0, 0.5):
-            missing = [n for n in NODES if not processes.node_pid(n, uri)]
-            raise SystemExit('nodes did not come up: %s\n%s' % (missing, procs.log_tail('roslaunch', 40)))
-        watcher = Watcher()
-        pids = dict((n, processes.node_pid(n, uri)) for n in NODES)
-        ps = dict((n, psutil.Process(p)) for n, p in pids.items())
-        for p in ps.values():
+
+class Sampler(object):
+    """One row per call of ``row``: per node RSS, CPU and liveness (psutil), topic rates, real-time factor and the
+    interface's and controller's counters since the previous row."""
+
+    def __init__(self, watcher, uri):
+        self.watcher = watcher
+        self.ps = dict((n, psutil.Process(processes.node_pid(n, uri))) for n in NODES)
+        for p in self.ps.values():
             p.cpu_percent(None)
-        counts0, _, _ = watcher.snapshot()
-        sim_prev = watcher.rospy.get_time()
-        t0 = time.time()
-        t_prev = t0
-        end = t0 + 60.0 * args.minutes
+        self.counts, _, _ = watcher.snapshot()
+        self.sim = watcher.rospy.get_time()
+        self.t0 = self.wall = time.time()
+
+    def row(self):
+        now = time.time()
+        counts, diag, laps = self.watcher.snapshot()
+        row = {'t_min': (now - self.t0) / 60.0, 'laps': laps, 'rss_mb': {}, 'cpu_pct': {}, 'alive': {}}
+        for n, p in self.ps.items():
+            try:
+                row['rss_mb'][n] = p.memory_info().rss / 1e6
+                row['cpu_pct'][n] = p.cpu_percent(None)
+                row['alive'][n] = p.is_running() and p.status() != psutil.STATUS_ZOMBIE
+            except psutil.Error:
+                row['rss_mb'][n] = row['cpu_pct'][n] = None
+                row['alive'][n] = False
+        row['rate_hz'] = dict((t, (counts[t] - self.counts[t]) / (now - self.wall)) for t in counts)
+        sim = self.watcher.rospy.get_time()
+        row['rtf'] = (sim - self.sim) / (now - self.wall)     # simulation s per wall s (target 1)
+        self.counts, self.wall, self.sim = counts, now, sim
+        gi = find_diag(diag, '/%s/interface' % DRONE)
+        gc = find_diag(diag, '/%s/mpc_controller' % DRONE)
+        for key, col in INTERFACE_VALUES:
+            row[col] = value_of(gi, key)
+        for key, col in CONTROLLER_VALUES:
+            row[col] = value_of(gc, key)
+        row['gt_level'] = None if gi is None else gi[0]
+        row['mpc_level'] = None if gc is None else gc[0]
+        return row
+
+
+def bag_figures(bag):
+    """(message count per topic, the ground truth's stamp gaps) of the recorded bag; an unreadable bag (one that
+    did not close) is a finding: ({'error': ...}, None)."""
+    try:
+        import rosbag
+        with rosbag.Bag(bag) as b:
+            info = b.get_type_and_topic_info().topics
+            return (dict((t, info[t].message_count) for t in info),
+                    stamp_gaps(b, '/%s/ground_truth/odom' % DRONE, 0.01))
+    except Exception as exc:
+        return {'error': '%s: %s' % (type(exc).__name__, exc)}, None
+
+
+def soak(args, workdir, bag):
+    """Run the graph for ``args.minutes``: (rows, interface samples published at the end, nodes alive at the end)."""
+    procs = processes.Processes(workdir, grace=20.0)
+    rows = []
+    watcher = None
+    try:
+        uri = start_graph(procs, workdir, args.scenario, bag)
+        watcher = Watcher()
+        sampler = Sampler(watcher, uri)
+        end = sampler.t0 + 60.0 * args.minutes
         print('[soak] running %.0f min, a row every %.0f s (work dir %s)' % (args.minutes, args.period, workdir))
         sys.stdout.flush()
         while time.time() < end:
             time.sleep(max(0.0, min(args.period, end - time.time())))
-            now = time.time()
-            counts, diag, laps = watcher.snapshot()
-            row = {'t_min': (now - t0) / 60.0, 'laps': laps, 'rss_mb': {}, 'cpu_pct': {}, 'alive': {}}
-            for n, p in ps.items():
-                try:
-                    row['rss_mb'][n] = p.memory_info().rss / 1e6
-                    row['cpu_pct'][n] = p.cpu_percent(None)
-                    row['alive'][n] = p.is_running() and p.status() != psutil.STATUS_ZOMBIE
-                except psutil.Error:
-                    row['rss_mb'][n] = row['cpu_pct'][n] = None
-                    row['alive'][n] = False
-            row['rate_hz'] = dict((t, (counts[t] - counts0[t]) / (now - t_prev)) for t in counts)
-            sim = watcher.rospy.get_time()
-            row['rtf'] = (sim - sim_prev) / (now - t_prev)     # simulation s per wall s (target 1)
-            counts0, t_prev, sim_prev = counts, now, sim
-            gi = find_diag(diag, '/%s/interface' % DRONE)
-            gc = find_diag(diag, '/%s/mpc_controller' % DRONE)
-            for key, col in INTERFACE_VALUES:
-                row[col] = value_of(gi, key)
-            for key, col in CONTROLLER_VALUES:
-                row[col] = value_of(gc, key)
-            row['gt_level'] = None if gi is None else gi[0]
-            row['mpc_level'] = None if gc is None else gc[0]
+            row = sampler.row()
             rows.append(row)
             print('[soak] %5.1f min  gt %.1f Hz  rpyt %.1f Hz  RSS %s' % (
                 row['t_min'], row['rate_hz']['ground_truth/odom'], row['rate_hz']['drone/rpyt'],
@@ -206,16 +218,22 @@ def main(argv=None):
         if watcher is not None:
             watcher.close()
         procs.stop_all()
-    bag_counts = {}
-    gaps = None
-    try:
-        import rosbag
-        with rosbag.Bag(bag) as b:
-            info = b.get_type_and_topic_info().topics
-            bag_counts = dict((t, info[t].message_count) for t in info)
-            gaps = stamp_gaps(b, '/%s/ground_truth/odom' % DRONE, 0.01)
-    except Exception as exc:   # a bag that did not close is a finding, reported
-        bag_counts = {'error': '%s: %s' % (type(exc).__name__, exc)}
+    return rows, published_end, alive
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--minutes', type=float, default=30.0)
+    ap.add_argument('--period', type=float, default=60.0, help='s wall between rows')
+    ap.add_argument('--scenario', default='circle_r2_v1')
+    ap.add_argument('--out', default=os.path.join(RESULTS, 'soak'), help='output base (.md, .json)')
+    ap.add_argument('--keep', action='store_true', help='keep the work directory (bag, logs)')
+    args = ap.parse_args(argv)
+    workdir = tempfile.mkdtemp(prefix='anafi_soak_')
+    bag = os.path.join(workdir, 'soak.bag')
+    started = datetime.datetime.utcnow()
+    rows, published_end, alive = soak(args, workdir, bag)
+    bag_counts, gaps = bag_figures(bag)
     result = {'date': started.strftime('%Y-%m-%d %H:%M UTC'), 'minutes': args.minutes, 'period_s': args.period,
               'scenario': args.scenario, 'machine': '%s, %d cores' % (platform.machine(), os.cpu_count() or 0),
               'rows': rows, 'bag_counts': bag_counts, 'gaps': gaps, 'published_end': published_end, 'alive_end': alive}
@@ -252,7 +270,7 @@ def markdown(r):
     rows = r['rows']
     nodes = [n for n in NODES if rows and n in rows[0]['rss_mb']]
     short = [n.rsplit('/', 1)[1] for n in nodes]
-    out = ['# Soak: the demo graph for %.0f min (issue 14)' % r['minutes'], '',
+    out = ['# Soak: the demo graph for %.0f min' % r['minutes'], '',
            'Generated by `benchmarks/soak.py` on %s (%s): world.launch (kinematic world, simulated Anafi, '
            'interface at 100 Hz, Gazebo mirror) + mpc.launch + the trajectory generator flying `%s` in a loop '
            '+ rosbag record, real time under simulation time, started with `nice -n 10` on a machine shared with '
@@ -265,16 +283,13 @@ def markdown(r):
         'mpc hold', 'mpc silent']
     out.append('| ' + ' | '.join(head) + ' |')
     out.append('|' + '---|' * len(head))
-
-    def fmt(v, f='%.1f'):
-        return '-' if v is None else f % v
     for row in rows:
         cells = ['%.1f' % row['t_min'], str(row['laps'])]
-        cells += [fmt(row['rss_mb'].get(n), '%.0f') for n in nodes]
-        cells += [fmt(row['cpu_pct'].get(n), '%.0f') for n in nodes]
-        cells += [fmt(row['rtf'], '%.2f')] + [fmt(row['rate_hz'][t]) for t, _ in RATE_TOPICS]
-        cells += [fmt(row[c], '%d') for c in ('gt_published', 'gt_malformed', 'gt_restarts', 'mpc_cycles',
-                                                'mpc_hold', 'mpc_silent')]
+        cells += [fmt(row['rss_mb'].get(n), 0) for n in nodes]
+        cells += [fmt(row['cpu_pct'].get(n), 0) for n in nodes]
+        cells += [fmt(row['rtf'], 2)] + [fmt(row['rate_hz'][t], 1) for t, _ in RATE_TOPICS]
+        cells += [fmt(row[c], 0) for c in ('gt_published', 'gt_malformed', 'gt_restarts', 'mpc_cycles',
+                                           'mpc_hold', 'mpc_silent')]
         out.append('| ' + ' | '.join(cells) + ' |')
     out += ['', '## Summary', '']
     if len(rows) >= 2:

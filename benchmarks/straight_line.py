@@ -26,7 +26,6 @@ straight_line_run.py (private master + launch files), the flying and measuring s
 """
 import argparse
 import datetime
-import math
 import os
 import platform
 import sys
@@ -34,13 +33,10 @@ import tempfile
 import time
 
 from anafi_lab.paper import PAPER_TABLE3
+from anafi_sim.numeric import fmt
 from straight_line_run import RESULTS, ROOT, controller_launch_path, run_speed
 
 PAPER_SPEEDS = (1.0, 2.0, 3.0, 4.0, 5.0)
-
-
-def fmt(x, digits=2):
-    return '-' if x is None or (isinstance(x, float) and math.isnan(x)) else ('%.*f' % (digits, x))
 
 
 def report(args, results):

@@ -11,6 +11,7 @@ import sys
 import time
 
 from anafi_sim import processes
+from anafi_sim.mission.fleet import launch_document
 
 BENCH = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(BENCH)
@@ -18,20 +19,6 @@ RESULTS = os.path.join(BENCH, 'results')
 WORKER = os.path.join(BENCH, 'straight_line_worker.py')
 MASTER_PORTS = (11400, 11900)   # private masters' ports, away from the OS's ephemeral range
 
-LAUNCH_TEMPLATE = """<launch>
-  <include file="$(find anafi_sim)/anafi_sim/launch/sim.launch">
-    <arg name="drone_name" value="{drone}"/>
-    <arg name="use_sim_time" value="{sim_time}"/>
-    <arg name="rtf" value="{rtf}"/>
-    <arg name="telemetry_port" value="{telemetry_port}"/>
-  </include>
-  <include file="{controller_launch}">
-    <arg name="drone_name" value="{drone}"/>
-    <arg name="state_topic" value="{state_topic}"/>
-    <arg name="output" value="log"/>{extra_args}
-  </include>
-</launch>
-"""
 
 
 def controller_launch_path(args):
@@ -78,14 +65,13 @@ class RosRun(object):
 
     def _write_launch(self):
         args = self.args
-        extra = ''.join('\n    <arg name="%s" value="%s"/>' % tuple(a.split(':=', 1)) for a in args.launch_arg)
+        sim = [('drone_name', args.drone), ('use_sim_time', 'true' if not args.wall_clock else 'false'),
+               ('rtf', 1.0 if args.wall_clock else args.rtf), ('telemetry_port', processes.free_port())]
+        controller = [('drone_name', args.drone), ('state_topic', args.state_topic), ('output', 'log')]
+        controller += [tuple(a.split(':=', 1)) for a in args.launch_arg]
         path = os.path.join(self.workdir, 'run_%d.launch' % self.port)
         with open(path, 'w') as f:
-            f.write(LAUNCH_TEMPLATE.format(
-                drone=args.drone, sim_time='true' if not args.wall_clock else 'false',
-                rtf=1.0 if args.wall_clock else args.rtf, telemetry_port=processes.free_port(),
-                controller_launch=controller_launch_path(args), state_topic=args.state_topic,
-                extra_args=extra))
+            f.write(launch_document([('sim.launch', sim), (controller_launch_path(args), controller)]))
         return path
 
     def stop(self):

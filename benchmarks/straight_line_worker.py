@@ -17,6 +17,7 @@ import threading
 import time
 
 from anafi_sim import processes
+from anafi_sim.numeric import summary_stats
 
 ALTITUDE = 7.0
 GARBAGE_LIMIT = 1.0e4      # m: a coordinate beyond this is a logging artefact (cf. z_anafi = 65280)
@@ -24,144 +25,161 @@ CALLER = '/straight_line_benchmark'
 
 
 def stats(values):
-    if not values:
-        return {'n': 0, 'mean': float('nan'), 'max': float('nan'), 'std': float('nan')}
-    mean = sum(values) / len(values)
-    var = sum((v - mean) ** 2 for v in values) / len(values)
-    return {'n': len(values), 'mean': mean, 'max': max(values), 'std': math.sqrt(var)}
+    """{'n', 'mean', 'std', 'min', 'max'} of the values (NaN figures when there are none)."""
+    return summary_stats(values) or {'n': 0, 'mean': float('nan'), 'max': float('nan'), 'std': float('nan')}
+
+
+def pair_with_waypoints(samples, sent, t0, t1):
+    """Rows (stamp, x, y, z, wx, wy, wz, lag): each sample stamped within [t0, t1] against the waypoint
+    published last before its stamp (the sample's simulated time), as the paper's logs pair them."""
+    sent_times = [w[0] for w in sent]
+    rows = []
+    for stamp, x, y, z, lag in samples:
+        i = bisect.bisect_right(sent_times, stamp) - 1
+        if t0 <= stamp <= t1 and i >= 0:
+            rows.append((stamp, x, y, z, sent[i][1], sent[i][2], sent[i][3], lag))
+    return rows
+
+
+def error_figures(rows, speed, t_start):
+    """Statistics of the tracking error of paired rows; ``e_continuous_target`` against the target's exact
+    position at the sample time (not the last 10 Hz waypoint), for reference."""
+    e = [math.sqrt((wx - x) ** 2 + (wy - y) ** 2 + (wz - z) ** 2) for _, x, y, z, wx, wy, wz, _ in rows]
+    e_cont = [math.sqrt((speed * (t - t_start) - x) ** 2 + y ** 2 + (ALTITUDE - z) ** 2)
+              for t, x, y, z, _, _, _, _ in rows]
+    return {'e': stats(e), 'e_continuous_target': stats(e_cont),
+            'ex': stats([wx - x for _, x, _, _, wx, _, _, _ in rows]),
+            'ey': stats([wy - y for _, _, y, _, _, wy, _, _ in rows]),
+            'ez': stats([wz - z for _, _, _, z, _, _, wz, _ in rows]),
+            'delivery_lag': stats([r[7] for r in rows])}
+
+
+class Flight(object):
+    """The rospy side of one run: odometry recorded while ``recording``, the waypoint of ``target`` at 10 Hz."""
+
+    def __init__(self, drone):
+        import rospy
+        from nav_msgs.msg import Odometry
+        from std_msgs.msg import String
+
+        from anafi_sim.msg import Waypoint
+
+        self.rospy, self.Waypoint = rospy, Waypoint
+        self.ns = '/%s/' % drone
+        self.lock = threading.Lock()
+        self.last = {}
+        self.target = None
+        self.sent = []                  # (publish time, x, y, z) of every waypoint sent [sim s, m]
+        self.rec = {'est': [], 'truth': []}
+        self.recording = False
+        self.garbage = {'est': 0, 'truth': 0}
+        self.state = None
+        rospy.Subscriber(self.ns + 'drone/odom', Odometry, self.on_odom, callback_args='est', queue_size=50)
+        rospy.Subscriber(self.ns + 'ground_truth/odom', Odometry, self.on_odom, callback_args='truth',
+                         queue_size=200)
+        rospy.Subscriber(self.ns + 'drone/state', String, lambda m: setattr(self, 'state', m.data))
+        self.pub = rospy.Publisher(self.ns + 'position_control/waypoint', Waypoint, queue_size=5)
+
+    def on_odom(self, msg, key):
+        p = msg.pose.pose.position
+        t = self.rospy.get_time()
+        stamp = msg.header.stamp.to_sec()
+        with self.lock:
+            self.last[key] = (t, p.x, p.y, p.z)
+            if not self.recording:
+                return
+            if not all(math.isfinite(v) and abs(v) < GARBAGE_LIMIT for v in (p.x, p.y, p.z)):
+                self.garbage[key] += 1
+                return
+            self.rec[key].append((stamp, p.x, p.y, p.z, t - stamp))
+
+    def set_target(self, function):
+        with self.lock:
+            self.target = function
+
+    def publish(self, event):
+        rospy = self.rospy
+        t = rospy.get_time()
+        with self.lock:
+            f = self.target
+        wp = None if f is None else f(t)
+        if wp is None:
+            return
+        msg = self.Waypoint()
+        msg.header.stamp = rospy.Time.from_sec(t)
+        msg.header.frame_id = 'world'
+        msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz, msg.yaw = wp
+        try:
+            self.pub.publish(msg)
+        except rospy.ROSException:       # shutting down
+            return
+        with self.lock:
+            self.sent.append((t, wp[0], wp[1], wp[2]))
+
+    def wait_sim(self, seconds):
+        t_end = self.rospy.get_time() + seconds
+        processes.require(lambda: self.rospy.get_time() >= t_end, 60.0 + 3.0 * seconds,
+                          '%.0f s of simulated time' % seconds, step=0.05)
+
+    def start(self):
+        """Wait for the simulator, both odometries, the flying state and the controller; start the waypoints."""
+        rospy = self.rospy
+        for pred, what in ((lambda: rospy.get_time() > 0.0, '/clock (simulator)'),
+                           (lambda: 'est' in self.last and 'truth' in self.last, 'drone/odom and ground_truth/odom'),
+                           (lambda: self.state == 'flying', 'the drone to fly (drone/state)')):
+            processes.require(pred, 120.0, what, step=0.05)
+        check_graph(self.ns)
+        rospy.Timer(rospy.Duration(0.1), self.publish)
+
+    def hover(self, timeout=40.0):
+        """Climb to (0, 0, ALTITUDE) and hover until 2 s within 0.15 m (or ``timeout`` s of simulated time)."""
+        rospy = self.rospy
+        hover = (0.0, 0.0, ALTITUDE, 0.0, 0.0, 0.0, 0.0)
+        self.set_target(lambda t: hover)
+        t_climb = rospy.get_time()
+        settled_since = [None]
+
+        def hovering():
+            with self.lock:
+                _, x, y, z = self.last['est']
+            near = math.sqrt(x * x + y * y + (z - ALTITUDE) ** 2) < 0.15
+            now = rospy.get_time()
+            if not near:
+                settled_since[0] = None
+            elif settled_since[0] is None:
+                settled_since[0] = now
+            return (settled_since[0] is not None and now - settled_since[0] >= 2.0) or now - t_climb > timeout
+
+        processes.require(hovering, 200.0, 'hover at (0, 0, 7)', step=0.05)
 
 
 def worker(opts):
     """Fly the scenario on the running master; write a JSON dict of results to opts.out."""
     import rospy
-    from nav_msgs.msg import Odometry
-    from std_msgs.msg import String
-
-    from anafi_sim.msg import Waypoint
-
     rospy.init_node(CALLER[1:], disable_signals=True)
-    ns = '/%s/' % opts.drone
-    lock = threading.Lock()
-    last = {}
-    wp_state = {'wp': None}
-    sent = []                  # (publish time, x, y, z) of every waypoint sent [sim s, m]
-    rec = {'est': [], 'truth': []}
-    recording = {'on': False}
-    garbage = {'est': 0, 'truth': 0}
-    flight = {'state': None}
-
-    def on_odom(msg, key):
-        p = msg.pose.pose.position
-        t = rospy.get_time()
-        stamp = msg.header.stamp.to_sec()
-        with lock:
-            last[key] = (t, p.x, p.y, p.z)
-            if not recording['on']:
-                return
-            if not all(math.isfinite(v) and abs(v) < GARBAGE_LIMIT for v in (p.x, p.y, p.z)):
-                garbage[key] += 1
-                return
-            rec[key].append((stamp, p.x, p.y, p.z, t - stamp))
-
-    rospy.Subscriber(ns + 'drone/odom', Odometry, on_odom, callback_args='est', queue_size=50)
-    rospy.Subscriber(ns + 'ground_truth/odom', Odometry, on_odom, callback_args='truth', queue_size=200)
-    rospy.Subscriber(ns + 'drone/state', String, lambda m: flight.__setitem__('state', m.data))
-    pub = rospy.Publisher(ns + 'position_control/waypoint', Waypoint, queue_size=5)
-
-    def target(t):
-        with lock:
-            f = wp_state['wp']
-        return None if f is None else f(t)
-
-    def publish(event):
-        t = rospy.get_time()
-        wp = target(t)
-        if wp is None:
-            return
-        msg = Waypoint()
-        msg.header.stamp = rospy.Time.from_sec(t)
-        msg.header.frame_id = 'world'
-        msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz, msg.yaw = wp
-        try:
-            pub.publish(msg)
-        except rospy.ROSException:       # shutting down
-            return
-        with lock:
-            sent.append((t, wp[0], wp[1], wp[2]))
-
-    def wait(pred, what, wall=120.0):
-        processes.require(pred, wall, what, step=0.05)
-
-    def wait_sim(seconds):
-        t_end = rospy.get_time() + seconds
-        wait(lambda: rospy.get_time() >= t_end, '%.0f s of simulated time' % seconds, wall=60.0 + 3.0 * seconds)
-
+    flight = Flight(opts.drone)
     wall0 = time.time()
-    wait(lambda: rospy.get_time() > 0.0, '/clock (simulator)')
-    wait(lambda: 'est' in last and 'truth' in last, 'drone/odom and ground_truth/odom')
-    wait(lambda: flight['state'] == 'flying', 'the drone to fly (drone/state)')
-    check_graph(ns)
-    rospy.Timer(rospy.Duration(0.1), publish)
-
-    # climb to (0, 0, 7) and hover
-    hover = (0.0, 0.0, ALTITUDE, 0.0, 0.0, 0.0, 0.0)
-    with lock:
-        wp_state['wp'] = lambda t: hover
-    t_climb = rospy.get_time()
-    settled_since = [None]
-
-    def hovering():
-        with lock:
-            _, x, y, z = last['est']
-        near = math.sqrt(x * x + y * y + (z - ALTITUDE) ** 2) < 0.15
-        now = rospy.get_time()
-        if not near:
-            settled_since[0] = None
-        elif settled_since[0] is None:
-            settled_since[0] = now
-        return (settled_since[0] is not None and now - settled_since[0] >= 2.0) or now - t_climb > 40.0
-
-    wait(hovering, 'hover at (0, 0, 7)', wall=200.0)
-
-    # the moving target
+    flight.start()
+    flight.hover()
     v = opts.speed
     t_s = rospy.get_time()
-    with lock:
-        wp_state['wp'] = lambda t: (v * (t - t_s), 0.0, ALTITUDE, v, 0.0, 0.0, 0.0)
-    with lock:
-        recording['on'] = True
-    wait_sim(opts.settle)
+    flight.set_target(lambda t: (v * (t - t_s), 0.0, ALTITUDE, v, 0.0, 0.0, 0.0))
+    with flight.lock:
+        flight.recording = True
+    flight.wait_sim(opts.settle)
     cpu0 = processes.cpu_snapshot(node_pids(opts.cpu_nodes)) if opts.cpu_nodes else None
-    t_m0 = rospy.get_time()
-    wall_m0 = time.time()
-    wait_sim(opts.measure)
-    t_m1 = rospy.get_time()
-    wall_m1 = time.time()
+    t_m0, wall_m0 = rospy.get_time(), time.time()
+    flight.wait_sim(opts.measure)
+    t_m1, wall_m1 = rospy.get_time(), time.time()
     cpu1 = processes.cpu_snapshot(node_pids(opts.cpu_nodes)) if opts.cpu_nodes else None
-    wait_sim(1.0)              # samples stamped inside the window that are still in flight
-    with lock:
-        recording['on'] = False
-
+    flight.wait_sim(1.0)              # samples stamped inside the window that are still in flight
+    with flight.lock:
+        flight.recording = False
     result = {'speed': v, 'settle': opts.settle, 'measure_sim': t_m1 - t_m0, 'measure_wall': wall_m1 - wall_m0,
               'rtf_achieved': (t_m1 - t_m0) / max(wall_m1 - wall_m0, 1e-9), 'wall_total': time.time() - wall0,
-              'garbage': garbage}
-    sent_times = [w[0] for w in sent]
+              'garbage': flight.garbage}
     for key in ('est', 'truth'):
-        # each sample (by its header stamp, i.e. the sample's simulated time) against the waypoint
-        # published last before it, as the paper's logs pair them
-        rows = []
-        for stamp, x, y, z, lag in rec[key]:
-            i = bisect.bisect_right(sent_times, stamp) - 1
-            if t_m0 <= stamp <= t_m1 and i >= 0:
-                rows.append((stamp, x, y, z, sent[i][1], sent[i][2], sent[i][3], lag))
-        e = [math.sqrt((wx - x) ** 2 + (wy - y) ** 2 + (wz - z) ** 2) for _, x, y, z, wx, wy, wz, _ in rows]
-        # the target's exact position at the sample time (not the last 10 Hz waypoint), for reference
-        e_cont = [math.sqrt((v * (t - t_s) - x) ** 2 + y ** 2 + (ALTITUDE - z) ** 2) for t, x, y, z, _, _, _, _ in rows]
-        result[key] = {'e': stats(e), 'e_continuous_target': stats(e_cont),
-                       'ex': stats([wx - x for _, x, _, _, wx, _, _, _ in rows]),
-                       'ey': stats([wy - y for _, _, y, _, _, wy, _, _ in rows]),
-                       'ez': stats([wz - z for _, _, _, z, _, _, wz, _ in rows]),
-                       'delivery_lag': stats([r[7] for r in rows])}
+        result[key] = error_figures(pair_with_waypoints(flight.rec[key], flight.sent, t_m0, t_m1), v, t_s)
     if cpu0 is not None:
         result['cpu'] = processes.cpu_delta(cpu0, cpu1)
     rospy.signal_shutdown('done')

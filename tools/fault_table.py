@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Write the fault matrix of the last fault-matrix run into docs/reliability.md (issue 14).
+"""Write the fault matrix of the last fault-matrix run into docs/reliability.md.
 
 Reads test_results/fault_matrix.json (written by test/ros/test_fault_matrix.py: ``rostest anafi_sim
 fault_matrix.test``) and replaces the table between the markers ``<!-- fault-matrix:begin -->`` and

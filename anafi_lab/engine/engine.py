@@ -94,7 +94,7 @@ from anafi_control.pid_framework import DEFAULTS as PID_DEFAULTS, LOOP_NAMES, Pi
     relative_state
 from anafi_control.preview_mpc import DEFAULTS as PREVIEW_DEFAULTS, PredictionModel, PreviewMpc
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler, input_topics, loop_inputs, loop_topics
-from anafi_sim import paths
+from anafi_sim import names, paths
 from anafi_sim.mission.evaluation import LiveEvaluator
 from anafi_sim.mission.monitor import ExperimentMonitor
 from anafi_lab.engine.event_loop import ACTION, PHYSICS, TIMER, EventLoop, NodeClock, Timer, Topic, to_ns, to_s
@@ -342,13 +342,13 @@ class ControllerNode(object):
     def __init__(self, world, core, rate, state_topic, phase, latency, timing, command_rate=None):
         self.world, self.core = world, core
         self.latency = latency
-        self.command = world.topic('drone/rpyt')
+        self.command = world.topic(names.COMMAND)
         self.solve_times = []
         self.silent = 0           # command periods without a command (failsafe SILENT, warming up)
         world.topic(state_topic).subscribe(timing.wrap(self._on_state), world.delay)
-        world.topic('position_control/waypoint').subscribe(timing.wrap(self._on_waypoint), world.delay)
+        world.topic(names.WAYPOINT).subscribe(timing.wrap(self._on_waypoint), world.delay)
         if getattr(core, 'PREVIEW', False):
-            world.topic('command/trajectory').subscribe(timing.wrap(self._on_reference), world.delay)
+            world.topic(names.REFERENCE_PREVIEW).subscribe(timing.wrap(self._on_reference), world.delay)
         world.timer(rate, timing.wrap(self._on_cycle), phase)
         self.command_rate = command_rate
         if command_rate is not None:
@@ -391,13 +391,13 @@ class RelativeStateNode(object):
         s = world.schedule
         self.world = world
         self.gate = InputGate(s['state_timeout'], s['waypoint_timeout'], **limits)
-        self.pubs = dict((name, world.topic('pid/' + name)) for name in input_topics())
-        self.enable = world.topic('pid/pid_enable')
+        self.pubs = dict((name, world.topic(names.pid_topic(name))) for name in input_topics())
+        self.enable = world.topic(names.pid_topic(names.PID_ENABLE))
         self.enabled = None
         self.published_cycles = 0
         self._set_enabled(False)
         world.topic(state_topic).subscribe(timing.wrap(self._on_state), world.delay)
-        world.topic('position_control/waypoint').subscribe(timing.wrap(self._on_waypoint), world.delay)
+        world.topic(names.WAYPOINT).subscribe(timing.wrap(self._on_waypoint), world.delay)
         world.timer(rate, timing.wrap(self._on_timer), phase)
 
     def _set_enabled(self, enabled):
@@ -432,16 +432,16 @@ class PidLoopNode(object):
         self.world = world
         self.pid = PidController(**config)
         topics = loop_topics(loop)
-        self.effort = world.topic('pid/' + topics['topic_from_controller'])
+        self.effort = world.topic(names.pid_topic(topics['topic_from_controller']))
         self.coalesce = world.latency['pid_coalesce']
         self.latency = world.latency['pid_latency']
         self.state = self.setpoint = None
         self.pending = self.scheduled = False
         self.computations = 0
         self._compute_timed = timing.wrap(self._compute)
-        world.topic('pid/' + topics['topic_from_plant']).subscribe(timing.wrap(self._on_state), world.delay)
-        world.topic('pid/' + topics['setpoint_topic']).subscribe(timing.wrap(self._on_setpoint), world.delay)
-        world.topic('pid/' + topics['pid_enable_topic']).subscribe(timing.wrap(self.pid.set_enabled), world.delay)
+        world.topic(names.pid_topic(topics['topic_from_plant'])).subscribe(timing.wrap(self._on_state), world.delay)
+        world.topic(names.pid_topic(topics['setpoint_topic'])).subscribe(timing.wrap(self._on_setpoint), world.delay)
+        world.topic(names.pid_topic(topics['pid_enable_topic'])).subscribe(timing.wrap(self.pid.set_enabled), world.delay)
 
     def _on_state(self, value):
         self.state = value
@@ -478,12 +478,12 @@ class PidCommandNode(object):
     def __init__(self, world, rate, phase, timing):
         self.world = world
         self.assembler = CommandAssembler(world.schedule['effort_timeout'])
-        self.command = world.topic('drone/rpyt')
+        self.command = world.topic(names.COMMAND)
         for field, loop in COMMAND_LOOPS.items():
-            world.topic('pid/%s/control_effort' % loop).subscribe(
+            world.topic(names.pid_topic('%s/control_effort' % loop)).subscribe(
                 timing.wrap(lambda value, field=field: self.assembler.on_effort(field, self.world.clock.now_s(),
                                                                                 value)), world.delay)
-        world.topic('pid/pid_enable').subscribe(timing.wrap(self.assembler.on_enable), world.delay)
+        world.topic(names.pid_topic(names.PID_ENABLE)).subscribe(timing.wrap(self.assembler.on_enable), world.delay)
         world.timer(rate, timing.wrap(self._on_timer), phase)
 
     def _on_timer(self, now):
@@ -526,7 +526,7 @@ class Engine(object):
         self.model_params = model_params if model_params is not None else load_model_params()
         if state_source not in ('estimate', 'truth'):
             raise ValueError("state_source must be 'estimate' or 'truth', got %r" % (state_source,))
-        self.state_topic = 'drone/odom' if state_source == 'estimate' else 'ground_truth/odom'
+        self.state_topic = names.ESTIMATE if state_source == 'estimate' else names.GROUND_TRUTH
         self.controller_params = controller_params
         if callable(controller) and not isinstance(controller, str):
             self._factory = controller
@@ -557,11 +557,11 @@ class Engine(object):
                                   SimClock(s['physics_rate'], 1.0, s['telemetry_rate'], s['estimate_rate']),
                                   server=None, auto_takeoff=True)
         self.interface = GroundTruthInterface(publish_rate=s['truth_rate'])
-        self.estimate_topic = w.topic('drone/odom')
-        self.truth_topic = w.topic('ground_truth/odom')
-        self.state_out = w.topic('drone/state')
-        self.waypoint_topic = w.topic('position_control/waypoint')
-        self.command_topic = w.topic('drone/rpyt')
+        self.estimate_topic = w.topic(names.ESTIMATE)
+        self.truth_topic = w.topic(names.GROUND_TRUTH)
+        self.state_out = w.topic(names.DRONE_STATE)
+        self.waypoint_topic = w.topic(names.WAYPOINT)
+        self.command_topic = w.topic(names.COMMAND)
         self.command_topic.subscribe(self._sim_command, w.delay)
         # the evaluator (evaluator.py), a recorder: stamps only
         self.evaluator = LiveEvaluator(name=self.name)
@@ -573,8 +573,8 @@ class Engine(object):
         self.state_out.subscribe(self.monitor.on_drone_state)
         self.command_topic.subscribe(lambda m: self.monitor.on_command(m.values, m.stamp,
                                                                        hover=(not m.ok) if hasattr(m, 'ok') else None))
-        self.start_topic = w.topic('trajectory_generator/command')
-        self.reference_topic = w.topic('command/trajectory')   # the generator's preview (PREVIEW controllers)
+        self.start_topic = w.topic(names.TRAJECTORY_COMMAND)
+        self.reference_topic = w.topic(names.REFERENCE_PREVIEW)   # the generator's preview (PREVIEW controllers)
         self.hold = self.scenario.waypoint(0.0)
         self.last_hold = None
         w.timer(s['monitor_period'] * s['ros_rtf'], self._monitor_tick, period=True)

@@ -11,11 +11,11 @@ the static waypoints' overshoot and settling from the exported CSV, draws one PN
 (default benchmarks/results/experiments.md, plots under benchmarks/results/plots/) plus the raw
 records (experiments.yaml beside the report; ``--from-records`` re-renders a report from it).
 
-    run_experiments.py [--controllers mpc,pid] [--scenarios all|NAME,...] [--rtf 2] [--jobs 1]
+    python -m anafi_lab.engine.ros_batch [--controllers mpc,pid] [--scenarios all|NAME,...] [--rtf 2] [--jobs 1]
                        [--mirror true|false] [--pid-mode distributed|single] [--runs-dir DIR]
                        [--report PATH] [--no-plots] [--record true|false] [--retries 1]
 
-Run it inside the project's environment (env.bash: ROS, the workspace, the venv); ``make bench``.
+Run it inside the project's environment (env.bash: ROS, the workspace, the venv); ``make bench-ros``.
 Exit code 0 when every run produced a final summary, 1 otherwise.
 """
 import argparse
@@ -31,6 +31,7 @@ from anafi_sim import paths, processes
 from anafi_lab.reports import paper_tables as report
 from anafi_sim.mission import step_response
 from anafi_sim.mission.trajectory import list_scenarios, load_scenario
+from anafi_sim.numeric import fmt
 
 
 
@@ -303,8 +304,8 @@ def main(argv=None):
                     info = rec.get('info') or {}
                     print('[%6.0f s] %-22s %s  e_mu %s e_max %s m  (%.0f s wall, rtf %s)%s' % (
                         time.monotonic() - t_start, run.name, 'ok    ' if rec['ok'] else 'FAILED',
-                        report.fmt(est.get('e_mu')), report.fmt(est.get('e_max')), run.wall_s,
-                        report.fmt(info.get('achieved_rtf')),
+                        fmt(est.get('e_mu')), fmt(est.get('e_max')), run.wall_s,
+                        fmt(info.get('achieved_rtf')),
                         '' if rec['ok'] else '  ' + rec['error']), flush=True)
                     if run.leftovers:
                         print('  WARNING: processes %s did not stop' % run.leftovers)

@@ -33,6 +33,7 @@ from anafi_sim.mission import step_response
 from anafi_lab.engine.engine import Engine
 from anafi_sim.mission.reference_log import write_log
 from anafi_sim.mission.trajectory import load_scenario
+from anafi_sim.numeric import fmt
 
 SYNC_SCHEDULE = collections.OrderedDict([('controller_phase', 0.0), ('generator_phase', 0.005), ('mpc_latency', 0.0)])
 """Engine schedule overrides (``anafi_lab.engine.engine.DEFAULT_SCHEDULE``) of a ROS run in lockstep
@@ -145,12 +146,12 @@ def result_line(record, name=None):
     parts = ['RESULT %s' % (name or summary.get('name') or '%s_%s' % (record.get('scenario'),
                                                                         record.get('controller'))),
              'ok' if record.get('ok') else 'FAILED (%s)' % record.get('error'),
-             'e_mu %s e_max %s e_sigma %s m (estimate)' % tuple(report.fmt(est.get(k), 4)
+             'e_mu %s e_max %s e_sigma %s m (estimate)' % tuple(fmt(est.get(k), 4)
                                                                for k in ('e_mu', 'e_max', 'e_sigma')),
-             'e_mu %s m (truth)' % report.fmt(tru.get('e_mu'), 4),
+             'e_mu %s m (truth)' % fmt(tru.get('e_mu'), 4),
              'samples %s' % summary.get('samples'),
-             'sim %s s in %s s wall (rtf %s)' % (report.fmt(info.get('sim_s'), 1), report.fmt(info.get('wall_s'), 2),
-                                                 report.fmt(info.get('achieved_rtf'), 1))]
+             'sim %s s in %s s wall (rtf %s)' % (fmt(info.get('sim_s'), 1), fmt(info.get('wall_s'), 2),
+                                                 fmt(info.get('achieved_rtf'), 1))]
     return '  '.join(parts)
 
 
@@ -189,7 +190,7 @@ class Progress(object):
         if self.bar is not None:
             est = ((record.get('summary') or {}).get('estimate') or {}).get('e_mu')
             self.bar.set_postfix_str('%s_%s e_mu %s' % (record.get('scenario'), record.get('controller'),
-                                                        report.fmt(est, 3)))
+                                                        fmt(est, 3)))
             self.bar.update(1)
             return
         est = ((record.get('summary') or {}).get('estimate') or {})
@@ -199,8 +200,8 @@ class Progress(object):
             elapsed, eta(elapsed, self.done, self.total), len(str(self.total)), self.done, self.total,
             (record.get('name') or (record.get('summary') or {}).get('name')
              or '%s_%s' % (record.get('scenario'), record.get('controller'))),
-            'ok    ' if record.get('ok') else 'FAILED', report.fmt(est.get('e_mu'), 4),
-            report.fmt(record.get('wall_s'), 2), report.fmt(info.get('achieved_rtf'), 0),
+            'ok    ' if record.get('ok') else 'FAILED', fmt(est.get('e_mu'), 4),
+            fmt(record.get('wall_s'), 2), fmt(info.get('achieved_rtf'), 0),
             '' if record.get('ok') else '  ' + str(record.get('error'))))
         self.stream.flush()
 

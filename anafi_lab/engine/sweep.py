@@ -34,7 +34,6 @@ import csv
 import datetime
 import itertools
 import json
-import math
 import os
 import platform
 import time
@@ -46,6 +45,7 @@ from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import CONTROLLERS, WIND_KEYS, make_schedule, simulator_config, wind_settings
 from anafi_lab.engine.runs import execute, make_task, run_task
 from anafi_sim.mission.trajectory import list_scenarios
+from anafi_sim.numeric import fmt, median, summary_stats
 
 SPEC_KEYS = ('name', 'description', 'scenarios', 'controllers', 'seeds', 'wind', 'schedule', 'state_source',
              'group_by', 'runs')
@@ -328,16 +328,6 @@ def write_csv(table, path):
             writer.writerow(['' if v is None else v for v in row.values()])
 
 
-def _stats(values):
-    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
-    if not v:
-        return None
-    mean = sum(v) / len(v)
-    std = math.sqrt(sum((x - mean) ** 2 for x in v) / len(v))
-    return collections.OrderedDict([('n', len(v)), ('mean', mean), ('std', std), ('min', min(v)),
-                                    ('max', max(v))])
-
-
 def groups(tasks, table, group_by=()):
     """OrderedDict (scenario, controller, extra...) -> rows, in the order of the runs."""
     out = collections.OrderedDict()
@@ -424,14 +414,14 @@ def summary_markdown(spec, tasks, table, meta, plot=None):
     head = ['scenario', 'controller'] + group_by + ['runs', 'e_mu mean', 'std', 'min', 'max', 'e_mu truth mean']
     lines += ['| %s |' % ' | '.join(head), '|%s' % ('---|' * len(head))]
     for key, members in groups(tasks, table, group_by).items():
-        s = _stats([r['e_mu'] for r in members])
-        t = _stats([r['e_mu_truth'] for r in members])
+        s = summary_stats([r['e_mu'] for r in members])
+        t = summary_stats([r['e_mu_truth'] for r in members])
         cells = [str(k) for k in key]
         if s is None:
             cells += [str(len(members)), '-', '-', '-', '-', '-']
         else:
-            cells += [str(s['n']), report.fmt(s['mean'], 3), report.fmt(s['std'], 3), report.fmt(s['min'], 3),
-                      report.fmt(s['max'], 3), report.fmt(t['mean'] if t else None, 3)]
+            cells += [str(s['n']), fmt(s['mean'], 3), fmt(s['std'], 3), fmt(s['min'], 3),
+                      fmt(s['max'], 3), fmt(t['mean'] if t else None, 3)]
         lines.append('| %s |' % ' | '.join(cells))
     failed = [r for r in table if not r['ok']]
     if failed:

@@ -331,10 +331,20 @@ def _param(name, value, indent='      '):
 
 def _include(launch, args, comment=None):
     lines = ['  <!-- %s -->' % comment] if comment else []
-    lines.append('  <include file=%s>' % quoteattr(LAUNCH + launch))
+    path = launch if os.path.isabs(launch) or launch.startswith('$(') else LAUNCH + launch
+    lines.append('  <include file=%s>' % quoteattr(path))
     lines += [_arg(k, v) for k, v in args]
     lines.append('  </include>')
     return lines
+
+
+def launch_document(includes, body=(), head=()):
+    """A roslaunch XML document: the lines ``head``, one ``<include>`` per (launch file, [(arg, value), ...]) of
+    ``includes`` (a bare file name is one of the package's launch files, else a path), then the lines ``body``."""
+    lines = ['<launch>'] + list(head)
+    for launch, args in includes:
+        lines += _include(launch, args)
+    return '\n'.join(lines + list(body) + ['</launch>']) + '\n'
 
 
 def _fmt(v):

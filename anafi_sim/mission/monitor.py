@@ -11,7 +11,7 @@ generator status, evaluator summaries, the simulator's diagnostics) and decides,
   non-zero piloting commands (it is up and engaged: every loop of the distributed PID has its
   input, the MPC solves; a hover command is all zero) and the node reports the recorder /
   evaluator subscribed ('start' action). Meanwhile the node holds the drone at the scenario's
-  start with a waypoint of its own (``hold_waypoint``), so the controller has something to engage
+  start with a waypoint of its own (while ``holding``), so the controller has something to engage
   on. This keeps a simulator that runs faster than real time from flying the scenario's first
   phases while the other nodes are still starting;
 - failures: not ready within ``ready_timeout`` s of wall time, the scenario not ending within its
@@ -26,6 +26,8 @@ controller CPU time) for the batch report.
 """
 import math
 
+from anafi_sim.numeric import fmt, summary_stats
+
 WAITING, STARTED, MEASURING, MEASURED, FINAL, FAILED = (
     'waiting', 'started', 'measuring', 'measured', 'final', 'failed')
 
@@ -37,20 +39,16 @@ SIM_OVERRUNS_KEY = 'overruns (steps late by > 1 period)'
 SIM_REANCHOR_PREFIX = 'schedule re-anchors'
 
 
-def _finite(values):
-    return [float(v) for v in values if v is not None and math.isfinite(float(v))]
-
-
 def _stats(values):
     """{'mean', 'max', 'min', 'n'} of the finite values (None entries when there are none)."""
-    v = _finite(values)
-    if not v:
-        return {'mean': None, 'max': None, 'min': None, 'n': 0}
-    return {'mean': sum(v) / len(v), 'max': max(v), 'min': min(v), 'n': len(v)}
+    stats = summary_stats(values)
+    return dict(stats) if stats else {'mean': None, 'max': None, 'min': None, 'n': 0}
 
 
-def _fmt(value, spec='%.2f'):
-    return '-' if value is None or not math.isfinite(value) else spec % value
+def _seconds(value):
+    """A time as a 6-wide column with one decimal ('%6.1f'); '-' when missing."""
+    text = fmt(value, 1)
+    return text if text == '-' else '%6s' % text
 
 
 class ExperimentMonitor(object):
@@ -294,18 +292,18 @@ class ExperimentMonitor(object):
         head = '%s%s' % (label + ' ' if label else '', '[%s]' % self.state)
         if self.state == WAITING:
             return '%s waiting for %s' % (head, self.waiting_for(True) or 'subscriptions')
-        parts = [head, 't %s s' % _fmt(t, '%6.1f'), 'phase %-8s' % (self.phase or '-')]
+        parts = [head, 't %s s' % _seconds(t), 'phase %-8s' % (self.phase or '-')]
         if self.waypoint is not None:
             parts.append('wp (%s)' % ', '.join('%5.2f' % v for v in self.waypoint))
         if self.estimate is not None:
             parts.append('drone (%s)' % ', '.join('%5.2f' % v for v in self.estimate))
-        parts.append('e %s m' % _fmt(self.current_error()))
+        parts.append('e %s m' % fmt(self.current_error()))
         est = (self.summary or {}).get('estimate') if (self.summary or {}).get('state') in ('measuring', 'final',
                                                                                            'ended') else None
         if est:
-            parts.append('measured so far: e_mu %s e_max %s' % (_fmt(est.get('e_mu')), _fmt(est.get('e_max'))))
+            parts.append('measured so far: e_mu %s e_max %s' % (fmt(est.get('e_mu')), fmt(est.get('e_max'))))
         if SIM_RTF_KEY in self.sim:
-            parts.append('rtf %s' % _fmt(self.sim[SIM_RTF_KEY]))
+            parts.append('rtf %s' % fmt(self.sim[SIM_RTF_KEY]))
         return '  '.join(parts)
 
     def run_info(self):
@@ -374,7 +372,7 @@ def summary_lines(summary, label=''):
             lines.append('  %-26s absent' % text)
             continue
         lines.append('  %-26s e_max %s  e_mu %s  e_sigma %s m' % (
-            text, _fmt(res.get('e_max'), '%.3f'), _fmt(res.get('e_mu'), '%.3f'), _fmt(res.get('e_sigma'), '%.3f')))
+            text, fmt(res.get('e_max'), 3), fmt(res.get('e_mu'), 3), fmt(res.get('e_sigma'), 3)))
     for g in summary.get('garbage') or []:
         lines.append('  GARBAGE (excluded): %s' % g)
     for w in summary.get('warnings') or []:

@@ -9,7 +9,7 @@ Diagnostics: ``diagnostic_status`` builds one DiagnosticStatus (values stored as
 ``LEVELS``; ``start_diagnostics_thread`` publishes them every period of WALL time (1 s in most nodes),
 so a node still reports when /clock stops.
 
-Master restart (issue 14): rospy cannot re-register a running node with a new ROS master (publishers,
+Master restart: rospy cannot re-register a running node with a new ROS master (publishers,
 subscribers, services and parameters are lost and never come back), so ``run_node`` watches the master
 (``MasterWatch``: its pid and ``/run_id``, polled every ``MASTER_POLL`` s of wall time from a daemon thread).
 When a different master answers at the same URI the node puts its private parameters (and
@@ -35,7 +35,7 @@ import rospy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from anafi_sim.interface import ground_truth
-from anafi_sim import names
+from anafi_sim import names, processes
 from anafi_sim.ros.params import ParamReader
 from anafi_sim.sim.clock import aligned_start
 
@@ -182,20 +182,9 @@ class MasterWatch(object):
         return 'pid %s -> %s, run_id %s -> %s' % (p0, p1, r0 or '?', r1 or '?')
 
 
-class _TimeoutTransport(xmlrpc.client.Transport):
-    def __init__(self, timeout):
-        xmlrpc.client.Transport.__init__(self)
-        self.timeout = timeout
-
-    def make_connection(self, host):
-        conn = xmlrpc.client.Transport.make_connection(self, host)
-        conn.timeout = self.timeout
-        return conn
-
-
 def master_identity(uri, caller, timeout=MASTER_TIMEOUT):
     """(pid, run_id) of the ROS master at ``uri`` (run_id None when unset), or None when it does not answer."""
-    proxy = xmlrpc.client.ServerProxy(uri, transport=_TimeoutTransport(timeout))
+    proxy = processes.xmlrpc_proxy(uri, timeout)
     try:
         code, _, pid = proxy.getPid(caller)
         if code != 1:

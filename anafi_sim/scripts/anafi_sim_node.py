@@ -85,15 +85,49 @@ class AnafiSimNode(object):
         prefix = p.string('telemetry_prefix', DEFAULT_PREFIX)
         auto_takeoff = p.flag('auto_takeoff', True)
         publish_state_enu = p.flag('publish_state_enu', True)
+        sync = self._sync_settings(p, publish_clock)
+        model = self._model(p, seed)
+
+        ns = rospy.get_namespace()
+        self.drone = p.string('drone_name', ns.strip('/') or 'anafi')
+        base = '/%s/' % self.drone if ns == '/' else ''
+        self.child_frame = '%s/base_link' % self.drone
+        self._time_base(publish_clock)
+        self._serve_telemetry(host, port, prefix)
+        # lockstep: no catching up after a late step (it would squeeze the graph's hops into less sim time)
+        clock = SimClock(rate, rtf, telemetry_rate, estimate_rate, publish_clock, **({'max_lag': 0.0} if sync else {}))
+        lockstep = Lockstep(sync['period'], 1.0 / rate, sync['timeout'], sync['max_missed']) if sync else None
+        self.start_hold = StartHold(sync['settle'], sync['start_timeout']) if sync else None
+        self.sim = SimulatedAnafi(model, StateEstimate(model.params), clock, server=self.server,
+                                  auto_takeoff=auto_takeoff, lockstep=lockstep)
+        if lockstep is not None:
+            rospy.on_shutdown(lockstep.close)
+        self._connect(base, publish_clock, publish_state_enu)
+        rospy.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz)%s%s',
+                      self.drone, rate, rtf, host, self.server.port, telemetry_rate,
+                      ', publishing /clock' if publish_clock else '',
+                      ', lockstep with the controller every %g s (time-out %g s wall)'
+                      % (sync['period'], sync['timeout']) if sync else '')
+
+    @staticmethod
+    def _sync_settings(p, publish_clock):
+        """The lockstep's settings ({'period', 'timeout', 'max_missed', 'settle', 'start_timeout'}), None without
+        ~sync."""
         sync = p.flag('sync', False)
         d = SYNC_DEFAULTS
-        sync_period = p.positive('sync_period', d['sync_period'])            # s sim, the controller's period
-        sync_timeout = p.positive('sync_timeout', d['sync_timeout'])         # s wall per period
-        sync_max_missed = p.integer('sync_max_missed', d['sync_max_missed'], minimum=1)
-        sync_settle = p.number('sync_settle', d['sync_settle'], minimum=0.0)  # s wall
-        sync_start_timeout = p.positive('sync_start_timeout', d['sync_start_timeout'])
+        settings = {
+            'period': p.positive('sync_period', d['sync_period']),            # s sim, the controller's period
+            'timeout': p.positive('sync_timeout', d['sync_timeout']),         # s wall per period
+            'max_missed': p.integer('sync_max_missed', d['sync_max_missed'], minimum=1),
+            'settle': p.number('sync_settle', d['sync_settle'], minimum=0.0),  # s wall
+            'start_timeout': p.positive('sync_start_timeout', d['sync_start_timeout'])}
         if sync and not publish_clock:
             raise ValueError('~sync needs ~publish_clock true (lockstep holds the simulation clock)')
+        return settings if sync else None
+
+    @staticmethod
+    def _model(p, seed):
+        """The drone model: ~model (a mapping) or ~model_file, the bridge's limits, the model settings."""
         mapping = PilotingMapping(p.positive('max_tilt_deg', MAX_TILT_DEG),
                                   p.positive('max_vertical_speed', MAX_VERTICAL_SPEED),
                                   p.positive('max_yaw_rate_deg', MAX_YAW_RATE_DEG))
@@ -104,14 +138,10 @@ class AnafiSimNode(object):
             model_path = model_file if os.path.isabs(model_file) else paths.config_path(model_file)
             model_params = load_model_params(model_path)
             rospy.loginfo('anafi_sim: model parameters from %s', model_path)
-        model = AnafiModel(model_params, mapping=mapping, seed=seed, settings=settings)
+        return AnafiModel(model_params, mapping=mapping, seed=seed, settings=settings)
 
-        ns = rospy.get_namespace()
-        self.drone = p.string('drone_name', ns.strip('/') or 'anafi')
-        base = '/%s/' % self.drone if ns == '/' else ''
-        self.child_frame = '%s/base_link' % self.drone
-
-        # Time base.
+    def _time_base(self, publish_clock):
+        """Stamps in simulation time when this node publishes /clock; under someone else's /clock, wait for it."""
         use_sim_time = rospy.get_param('/use_sim_time', False)
         self.sim_stamps = bool(use_sim_time) and publish_clock
         if use_sim_time and not publish_clock:
@@ -122,6 +152,7 @@ class AnafiSimNode(object):
                 raise ValueError('/use_sim_time is true but nobody publishes /clock: set ~publish_clock '
                                  'true (this node then provides the simulation clock) or unset /use_sim_time')
 
+    def _serve_telemetry(self, host, port, prefix):
         self.server = TelemetryServer(host, port, prefix)
         try:
             self.server.start()
@@ -129,15 +160,10 @@ class AnafiSimNode(object):
             raise ValueError('cannot serve telemetry on %s:%s: %s' % (host, port, error))
         rospy.on_shutdown(self.server.stop)
         rospy.set_param('~telemetry_bound_port', self.server.port)
-        # lockstep: no catching up after a late step (it would squeeze the graph's hops into less sim time)
-        clock = SimClock(rate, rtf, telemetry_rate, estimate_rate, publish_clock, **({'max_lag': 0.0} if sync else {}))
-        lockstep = Lockstep(sync_period, 1.0 / rate, sync_timeout, sync_max_missed) if sync else None
-        self.start_hold = StartHold(sync_settle, sync_start_timeout) if sync else None
-        self.sim = SimulatedAnafi(model, StateEstimate(model.params), clock, server=self.server,
-                                  auto_takeoff=auto_takeoff, lockstep=lockstep)
-        if lockstep is not None:
-            rospy.on_shutdown(lockstep.close)
 
+    def _connect(self, base, publish_clock, publish_state_enu):
+        """The anafi_ros-like topics (under ``base``; with ``publish_state_enu`` also position_control/state_enu),
+        /clock, /diagnostics and the command subscriptions."""
         pub = rospy.Publisher
         self.pub_clock = pub(names.CLOCK, Clock, queue_size=10) if publish_clock else None
         self.pub_odom = pub(base + names.ESTIMATE, Odometry, queue_size=10)
@@ -153,15 +179,9 @@ class AnafiSimNode(object):
         self.pub_state = pub(base + names.DRONE_STATE, String, queue_size=1, latch=True)
         self.pub_truth = pub(base + names.SIM_TRUTH, Odometry, queue_size=20)
         self.pub_diag = diagnostics_publisher(queue_size=5)
-
         rospy.Subscriber(base + names.COMMAND, piloting_command_class(), self._on_rpyt, queue_size=20)
         rospy.Subscriber(base + names.TAKEOFF, Empty, lambda _: self.sim.on_event('takeoff'), queue_size=5)
         rospy.Subscriber(base + names.LAND, Empty, lambda _: self.sim.on_event('land'), queue_size=5)
-        rospy.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz)%s%s',
-                      self.drone, rate, rtf, host, self.server.port, telemetry_rate,
-                      ', publishing /clock' if publish_clock else '',
-                      ', lockstep with the controller every %g s (time-out %g s wall)' % (sync_period, sync_timeout)
-                      if sync else '')
 
     # ------------------------------------------------------------ callbacks
     def _on_rpyt(self, msg):

@@ -115,6 +115,8 @@ class MpcAdapter(Adapter):
     """The paper's MPC: mpc.yaml parameters, dynamic_reconfigure, mpc/stats and the predicted/reference paths."""
     label = 'mpc_controller'
     controller_class = MpcTracking
+    #: the parameters dynamic_reconfigure sets (cfg/Mpc.cfg)
+    reconfigurable = RECONFIGURABLE
     #: flat MPC parameter names read from ~params (v_max split per axis, as the reconfigure server has them)
     PARAM_NAMES = tuple(k for k in MPC_DEFAULTS if k != 'v_max') + ('v_max_x', 'v_max_y', 'v_max_z')
 
@@ -144,19 +146,19 @@ class MpcAdapter(Adapter):
         rospy.loginfo('%s: N=%d, dt=%.2f s', self.label, core.mpc.N, core.mpc.dt)
 
     def _on_reconfigure(self, config, level):
-        core = self.node.core
+        core, keys = self.node.core, self.reconfigurable
         with self.node.lock:
             try:
                 before = core.config()
-                applied = core.reconfigure(dict((k, config[k]) for k in RECONFIGURABLE))
-                changed = [k for k in RECONFIGURABLE if applied[k] != before[k]]
+                applied = core.reconfigure(dict((k, config[k]) for k in keys))
+                changed = [k for k in keys if applied[k] != before[k]]
                 if changed:
                     rospy.loginfo('%s: reconfigured %s', self.label,
                                   ', '.join('%s=%s' % (k, applied[k]) for k in changed))
             except ValueError as err:
                 rospy.logerr('%s: reconfiguration refused (%s); keeping the current values', self.label, err)
                 applied = core.config()
-        for k in RECONFIGURABLE:
+        for k in keys:
             config[k] = applied[k]
         return config
 
@@ -164,12 +166,18 @@ class MpcAdapter(Adapter):
         core = self.node.core
         return core.counters['cycles'], core.counters['hover'], core.mpc.N, core.mpc.dt
 
+    def paths(self, result):
+        """(predicted, reference) positions of a cycle's result (None when there is none)."""
+        return predicted_positions(result), reference_positions(result)
+
     def after_cycle(self, out, stamp, info, started):
+        """Publish the predicted and reference paths (when subscribed) and the MPC's statistics of the cycle."""
         cycles, hovers, horizon, dt = info
+        predicted, reference = self.paths(out.result)
         if self.pub_pred.get_num_connections():
-            self.pub_pred.publish(self._path(predicted_positions(out.result), stamp, dt))
+            self.pub_pred.publish(self._path(predicted, stamp, dt))
         if self.pub_ref.get_num_connections():
-            self.pub_ref.publish(self._path(reference_positions(out.result), stamp, dt))
+            self.pub_ref.publish(self._path(reference, stamp, dt))
         res = out.result
         s = MpcStats()
         s.header.stamp = stamp
@@ -257,6 +265,7 @@ class PreviewAdapter(MpcAdapter):
     (cfg/PreviewMpc.cfg), preview_mpc/stats (anafi_sim/MpcStats) and preview_mpc/{predicted,reference}_path."""
     label = 'preview_mpc'
     controller_class = PreviewMpc
+    reconfigurable = PREVIEW_RECONFIGURABLE
 
     def build(self, p):
         params = dict((k, rospy.get_param('~' + k)) for k in PREVIEW_DEFAULTS if rospy.has_param('~' + k))
@@ -267,7 +276,7 @@ class PreviewAdapter(MpcAdapter):
                                             p.positive('max_vertical_speed', MAX_VERTICAL_SPEED),
                                             p.positive('max_yaw_rate_deg', MAX_YAW_RATE_DEG))
         self.frame_id = p.ros_name('frame_id', 'world')
-        self.reference_topic = p.ros_name('reference_topic', 'command/trajectory')
+        self.reference_topic = p.ros_name('reference_topic', names.REFERENCE_PREVIEW)
         return PreviewMpc(model, params, limits=waypoint_limits(p))
 
     def setup(self):
@@ -293,44 +302,12 @@ class PreviewAdapter(MpcAdapter):
             rospy.logwarn_throttle(5.0, '%s: unusable preview refused (%d so far)' % (
                 rospy.get_name(), self.node.core.counters['rejected_previews']))
 
-    def _on_reconfigure(self, config, level):
-        core = self.node.core
-        with self.node.lock:
-            try:
-                applied = core.reconfigure(dict((k, config[k]) for k in PREVIEW_RECONFIGURABLE))
-            except ValueError as err:
-                rospy.logerr('%s: reconfiguration refused (%s)', self.label, err)
-                applied = core.config()
-        for k in PREVIEW_RECONFIGURABLE:
-            config[k] = applied[k]
-        return config
-
     def cycle_info(self):
         core = self.node.core
         return core.counters['cycles'], core.counters['hover'], core.N, core.dt
 
-    def after_cycle(self, out, stamp, info, started):
-        cycles, hovers, horizon, dt = info
-        res = out.result
-        if self.pub_pred.get_num_connections():
-            self.pub_pred.publish(self._path(None if res is None else res.predicted, stamp, dt))
-        if self.pub_ref.get_num_connections():
-            self.pub_ref.publish(self._path(None if res is None else res.reference, stamp, dt))
-        s = MpcStats()
-        s.header.stamp = stamp
-        s.header.frame_id = self.frame_id
-        s.ok = out.ok
-        s.status = res.status if (out.ok and res is not None) else out.reason
-        if res is not None:
-            s.iterations = res.iterations
-            s.solve_time = res.solve_time if math.isfinite(res.solve_time) else 0.0
-            s.setup_time, s.run_time = res.setup_time, res.run_time
-            s.acceleration.x, s.acceleration.y, s.acceleration.z = res.u0
-            s.vz_command = res.vz_command
-        s.horizon = horizon
-        s.cycles, s.hover_cycles = cycles, hovers
-        s.cycle_time = time.perf_counter() - started
-        self.pub_stats.publish(s)
+    def paths(self, result):
+        return (None, None) if result is None else (result.predicted, result.reference)
 
     def diagnostic_values(self):
         core = self.node.core

@@ -34,7 +34,7 @@ class PidCommandNode(object):
         p = private_params()
         self.rate = p.positive('rate', 10.0)
         self.assembler = CommandAssembler(p.positive('effort_timeout', 0.5))
-        pid_ns = p.ros_name('pid_namespace', 'pid')
+        pid_ns = p.ros_name('pid_namespace', names.PID_NAMESPACE)
         command_topic = p.ros_name('command_topic', names.COMMAND)
         self.frame_id = p.string('frame_id', '')
         self.lock = threading.Lock()
@@ -45,7 +45,7 @@ class PidCommandNode(object):
         for field, loop in COMMAND_LOOPS.items():
             rospy.Subscriber('%s/%s/control_effort' % (pid_ns, loop), Float64,
                              self._on_effort, callback_args=field, queue_size=10)
-        rospy.Subscriber(pid_ns + '/pid_enable', Bool, self._on_enable, queue_size=5)
+        rospy.Subscriber(names.pid_topic(names.PID_ENABLE, pid_ns), Bool, self._on_enable, queue_size=5)
         self.command_topic = rospy.resolve_name(command_topic)
         rospy.loginfo('%s: efforts from %s/<loop>/control_effort -> %s at %g Hz', rospy.get_name(),
                       rospy.resolve_name(pid_ns), self.command_topic, self.rate)

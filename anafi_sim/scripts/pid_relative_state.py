@@ -52,7 +52,7 @@ class RelativeStateNode(object):
         state_topic = p.ros_name('state_topic', names.ESTIMATE)
         waypoint_topic = p.ros_name('waypoint_topic', names.WAYPOINT)
         waypoint_type = p.choice('waypoint_type', DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES)
-        pid_ns = p.ros_name('pid_namespace', 'pid')
+        pid_ns = p.ros_name('pid_namespace', names.PID_NAMESPACE)
         self.gate = InputGate(p.positive('state_timeout', DEFAULTS['state_timeout']),
                               p.number('waypoint_timeout', DEFAULTS['waypoint_timeout'], minimum=0.0),  # 0: never
                               limits=waypoint_limits(p))
@@ -63,7 +63,7 @@ class RelativeStateNode(object):
         self.pubs = {}
         for topic in input_topics():
             self.pubs[topic] = rospy.Publisher('%s/%s' % (pid_ns, topic), Float64, queue_size=10)
-        self.pub_enable = rospy.Publisher(pid_ns + '/pid_enable', Bool, queue_size=1, latch=True)
+        self.pub_enable = rospy.Publisher(names.pid_topic(names.PID_ENABLE, pid_ns), Bool, queue_size=1, latch=True)
         self.pub_diag = diagnostics_publisher()
         self._set_enabled(False)
         self.state_topic, self.waypoint_topic = subscribe_inputs(self.gate, self.lock, state_topic, waypoint_topic,

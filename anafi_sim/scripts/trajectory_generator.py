@@ -93,7 +93,7 @@ class TrajectoryGeneratorNode(object):
         self.pub_status = rospy.Publisher(names.TRAJECTORY_STATUS, String, queue_size=5, latch=True)
         self.preview_horizon = p.number('preview_horizon', 3.0, minimum=0.0)
         self.preview_step = p.positive('preview_step', 0.05)
-        self.pub_preview = rospy.Publisher(p.string('preview_topic', 'command/trajectory'), MultiDOFJointTrajectory,
+        self.pub_preview = rospy.Publisher(p.string('preview_topic', names.REFERENCE_PREVIEW), MultiDOFJointTrajectory,
                                            queue_size=2)
         rospy.Subscriber(names.DRONE_STATE, String, self._on_state, queue_size=5)
         rospy.Subscriber('~command', String, self._on_command, queue_size=10)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""rostest: the fault matrix (issue 14). Each fault is injected into a running graph with a flying drone.
+"""rostest: the fault matrix. Each fault is injected into a running graph with a flying drone.
 
 The graph runs on a private ROS master of this test (so that the master itself can be restarted, the last
 case): world.launch (simulated Anafi + interface + kinematic Gazebo world + mirror) + mpc.launch whose state comes through this test
@@ -13,7 +13,7 @@ stops (speed < ``STOP_SPEED`` within ``STOP_TIME``, no farther than 1.2 x the fi
 speed -- measured in the first case, the controller killed -- plus the speed x the detection delay), and
 the recovery (time until the node reports OK / tracking again after the fault is removed). The observed
 matrix is written to test_results/fault_matrix.json; ``tools/fault_table.py`` turns it into the table of
-docs/reliability.md (``test/unit/test_fault_glue.py`` checks that the table lists exactly ``FAULTS``).
+docs/reliability.md (``test/unit/sim/test_fault_glue.py`` checks that the table lists exactly ``FAULTS``).
 """
 import json
 import math
@@ -35,6 +35,7 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import String
 
 from anafi_sim import paths, processes
+from anafi_sim.mission.fleet import launch_document
 from anafi_sim.msg import Waypoint
 from anafi_sim.ros import gazebo_types
 from anafi_sim.ros.wire_types import piloting_command_class
@@ -82,26 +83,23 @@ FAULTS = (
      'respawned with its parameters; new publishers reach the controller again'),
 )
 
-LAUNCH = """<launch>
-  <param name="/use_sim_time" value="false"/>
-  <include file="$(find anafi_sim)/anafi_sim/launch/world.launch">
-    <arg name="drone_name" value="{drone}"/>
-    <arg name="telemetry_port" value="{port}"/>
-  </include>
-  <include file="$(find anafi_sim)/anafi_sim/launch/mpc.launch">
-    <arg name="drone_name" value="{drone}"/>
-    <arg name="state_topic" value="fault/odom"/>
-    <arg name="output" value="log"/>
-  </include>
-  <group ns="garbage">
+#: a second interface on a garbage telemetry stream (malformed lines, a 10 kB line, then the real stream)
+GARBAGE_GROUP = """  <group ns="garbage">
     <node pkg="anafi_sim" type="interface_node.py" name="interface" output="log" respawn="true">
       <rosparam command="load" file="$(find anafi_sim)/anafi_sim/config/interface.yaml"/>
       <param name="drone_name" value="garbage"/>
       <param name="telemetry_command" value="sh -c 'printf &quot;garbage line\\nomniscient_anafi.worldPosition.x : 1_000\\n&quot;; head -c 10000 /dev/zero | tr &quot;\\\\0&quot; x; echo; exec $(find anafi_sim)/anafi_sim/scripts/tlm_data_logger.py -r 0 inet:127.0.0.1:{port}'"/>
     </node>
   </group>
-</launch>
 """
+
+
+def launch_text(port):
+    """The graph: world.launch + mpc.launch on the fault relay's state, and the garbage interface."""
+    return launch_document([('world.launch', [('drone_name', DRONE), ('telemetry_port', port)]),
+                            ('mpc.launch', [('drone_name', DRONE), ('state_topic', 'fault/odom'), ('output', 'log')])],
+                           GARBAGE_GROUP.format(port=port).splitlines(),
+                           head=['  <param name="/use_sim_time" value="false"/>'])
 
 
 class Graph(object):
@@ -221,7 +219,7 @@ class TestFaultMatrix(unittest.TestCase):
         cls.port = int(cls.uri.rsplit(':', 1)[1])
         launch = os.path.join(cls.workdir, 'faults.launch')
         with open(launch, 'w') as f:
-            f.write(LAUNCH.format(drone=DRONE, port=processes.free_port()))
+            f.write(launch_text(processes.free_port()))
         cls.procs.start('roslaunch', ['roslaunch', '--port', str(cls.port), launch], cls.env)
         # the controller's state comes through this relay, a process of its own (this one is busy measuring)
         cls.procs.start('relay', [sys.executable, '-c', RELAY.format(drone=DRONE)], cls.env)

@@ -6,7 +6,9 @@ number comes from the fits in ``fit``.
 """
 import numpy as np
 
-from anafi_lab.calibration.fit import GRID_RANGE, MODEL_KEYS, steady_state_pitch, table3
+from anafi_lab.calibration.drag import steady_state_pitch
+from anafi_lab.calibration.estimate import GRID_RANGE
+from anafi_lab.calibration.fit import MODEL_KEYS, table3
 from anafi_sim.mission.reference_log import STATE_NAMES
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF
 
@@ -424,7 +426,7 @@ def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs')
     add('|---|---|---|---|---|---|')
     rows = table3(logs)
     for row in rows:
-        garbage = '; '.join(row.garbage) if row.garbage else '-'
+        garbage = '; '.join(row.garbage.summary()) if row.garbage else '-'
         e3 = 'n/a (all %d samples excluded)' % row.n_excluded if not np.isfinite(row.mean_e) else '%.3f' % row.mean_e
         add('| %s | %d | %.2f | %s | %.3f | %s |' % (row.controller.upper(), row.speed, row.paper, e3,
                                                      row.mean_e_h, garbage))

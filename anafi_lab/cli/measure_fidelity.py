@@ -93,7 +93,7 @@ def parse_args(argv):
 
 def models(args, paths_):
     """(off, on, shipped name, how the fitted dict was found, shipped dict, the calibration's position fusion fit
-    ``fit.PositionFusionFit``)."""
+    ``estimate.PositionFusionFit``)."""
     shipped = load_model_params()
     cal = fit.calibrate([read_log(p) for p in paths_])    # ~15 s: the baseline (every effect off)
     # (paths_: the calibration logs, the shared ones by default: a --logs directory of other scenarios is only

@@ -5,11 +5,12 @@ Usage: calibrate_model.py [--logs DIR] [--out YAML] [--fitted YAML] [--report MD
 Defaults (paths of the package's checkout, found through the ROS package path): logs
 <checkout>/../shared/reference_logs, out anafi_sim/config/anafi_model.yaml (the fidelity effects as
 fit.SHIPPED_EFFECTS says), fitted anafi_sim/config/anafi_model_fitted.yaml (every fitted effect on), report
-docs/calibration.md, context benchmarks/results/calibration.yaml (the report's figures: the report renders
-again from it without the fits), plot docs/calibration_replay.png. The fits are anafi_lab/calibration/ (fit.py
-puts them together), the texts anafi_lab/reports/calibration_report.py and its template
-anafi_lab/reports/templates/calibration.md, the figure anafi_lab/calibration/plot.py; this script only wires
-them to files (the texts each written atomically).
+docs/calibration.md, context benchmarks/results/calibration.yaml (the figures of the report and of both model
+YAMLs: the texts are rendered from it, and render again from it without the fits), plot
+docs/calibration_replay.png. The fits are anafi_lab/calibration/ (fit.py puts them together), the texts
+anafi_lab/reports/calibration_report.py with its templates anafi_lab/reports/templates/calibration.md and
+anafi_model.yaml, the figure anafi_lab/calibration/plot.py; this script only wires them to files (the texts
+each written atomically).
 """
 import argparse
 import glob
@@ -37,7 +38,7 @@ def parse_args(argv):
     parser.add_argument('--report', default=os.path.join(root, 'docs', 'calibration.md'),
                         help='Markdown report to write ("" to skip)')
     parser.add_argument('--context', default=os.path.join(root, 'benchmarks', 'results', 'calibration.yaml'),
-                        help='the report\'s figures as YAML ("" to skip)')
+                        help='the figures of the report and the model YAMLs ("" to skip)')
     parser.add_argument('--plot', default=os.path.join(root, 'docs', 'calibration_replay.png'),
                         help='PNG figure to write ("" to skip)')
     args = parser.parse_args(argv)
@@ -74,22 +75,22 @@ def main(argv=None):
             print('garbage: ' + line)
     print(report.format_summary(cal))
 
-    names = [log.name + '.csv' for log in logs]
-    write(args.out, report.format_model_yaml(cal, names))
-    if args.fitted:
-        write(args.fitted, report.format_model_yaml(cal, names, fitted=True))
     plot_name = None
     if args.plot:
         plot.plot_replay(cal, logs, args.plot)
         print('wrote %s (%d bytes)' % (args.plot, os.path.getsize(args.plot)))
         plot_name = os.path.relpath(args.plot, os.path.dirname(os.path.abspath(args.report or args.plot)))
-    # the report is rendered from its stored figures, as its test renders it again
-    stored = yaml.safe_dump(report.report_context(cal, logs, plot_name=plot_name), default_flow_style=False,
+    # every text is rendered from the stored figures, as the unit test renders them again
+    stored = yaml.safe_dump(report.stored_context(cal, logs, plot_name=plot_name), default_flow_style=False,
                             sort_keys=False)
     if args.context:
         write(args.context, stored)
+    stored = yaml.safe_load(stored)
+    write(args.out, report.render_model_yaml(stored['model']))
+    if args.fitted:
+        write(args.fitted, report.render_model_yaml(stored['model_fitted']))
     if args.report:
-        write(args.report, report.render_report(yaml.safe_load(stored)))
+        write(args.report, report.render_report(stored['report']))
     return 0
 
 

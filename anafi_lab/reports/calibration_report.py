@@ -1,11 +1,12 @@
 """Calibration outputs as text (pure Python, no ROS): the model YAML, the terminal summary, the Markdown report.
 
-Stage: offline, a ``fit.Calibration`` -> ``anafi_sim/config/anafi_model.yaml`` (``format_model_yaml``),
-the console (``format_summary``) and ``docs/calibration.md`` (``format_report``: the template
-``templates/calibration.md`` filled with ``report_context``, the figures as data, which ``calibrate_model.py``
-also stores so that the report can be rendered again without the fits: ``render_report``). Only formatting:
-every number comes from the fits in ``anafi_lab.calibration`` or, for the figures of offline checks the
-report quotes, from ``CHECKS``.
+Stage: offline, a ``fit.Calibration`` -> ``anafi_sim/config/anafi_model.yaml`` (``format_model_yaml``: the
+template ``templates/anafi_model.yaml`` filled with ``model_context``), the console (``format_summary``) and
+``docs/calibration.md`` (``format_report``: the template ``templates/calibration.md`` filled with
+``report_context``). The contexts are the figures as data, which ``calibrate_model.py`` also stores
+(``stored_context``) so that the texts can be rendered again without the fits (``render_model_yaml``,
+``render_report``). Only formatting: every number comes from the fits in ``anafi_lab.calibration`` or, for the
+figures of offline checks the texts quote, from ``CHECKS``.
 """
 import inspect
 import math
@@ -33,85 +34,6 @@ def _fmt(value, digits=6):
     return text
 
 
-def _effect_comments(cal, fitted=False):
-    """{effect key: how it was fitted and its residual} from ``cal.effects`` (the fitted values); ``fitted``: for
-    anafi_model_fitted.yaml (the coupling to the yaw rate is refitted on its tilt-rate limited loop)."""
-    f = cal.effects
-    gy = f.gyroscopic_limited if fitted else f.gyroscopic
-    loop = ('the tilt-rate limited loop\'s tau %.4f s' % cal.fitted['attitude_time_constant'] if fitted
-            else 'the first order\'s tau %.4f s' % cal.params['attitude_time_constant'])
-    tau = cal.fitted['attitude_time_constant'] if fitted else cal.params['attitude_time_constant']
-    fu, de, qu, yw, ts = f.fusion, f.descent, f.quanta, f.yaw, f.tilt_speed
-    lags = f.replay.steady_lag
-    clean_lags = [v for name, v in lags.items() if name in fu.files]
-
-    def quantum(columns):
-        grids = [c for c in columns if c in qu.grids]
-        if grids:
-            return ('grid %s (no power of two): phase concentration %s of the estimate, %s of the truth (2^-22 deg '
-                    'of longitude/latitude at ~48.8 deg)' % ('/'.join('%.5f' % qu.grids[c][0] for c in grids),
-                                                            '/'.join('%.3f' % qu.grids[c][1] for c in grids),
-                                                            '/'.join('%.2f' % qu.grids[c][2] for c in grids)))
-        found = [c for c in columns if qu.steps[c] > 0.0]
-        if not found:
-            return ('none found: %s on no power-of-two grid (on 1/256: %s of the estimate, %s of the truth)'
-                    % ('/'.join(columns), '/'.join('%.2f' % qu.on_grid[c] for c in columns),
-                       '/'.join('%.2f' % qu.truth_on_grid[c] for c in columns)))
-        return ('step 1/%d: %s of the %s estimate on it (truth: %s; where float16 is 4x finer)'
-                % (round(1.0 / qu.steps[found[0]]), '/'.join('%.3f' % qu.on_grid[c] for c in found),
-                   '/'.join(found), '/'.join('%.2f' % qu.truth_on_grid[c] for c in found)))
-
-    return {
-        'estimate_position_fusion': 'position = estimated velocity integrated, corrected toward the truth '
-                                    'delayed by D with gain k (steady lag D x speed, lag-free transients)',
-        'estimate_position_fix_delay': 's, D: effective lag %.3f s minus half a hold period; fit of the logged '
-                                       'position estimate rms %.3f m (delay/smoothing model: %.3f m)'
-                                       % (fu.effective_delay, fu.rms, _mean_rms(fu.baseline)),
-        'estimate_position_fix_gain': '1/s, k, same fit; replayed steady lag %.3f-%.3f s (logged %.3f-%.3f s)'
-                                      % (min(v[2] for v in clean_lags), max(v[2] for v in clean_lags),
-                                         min(v[0] for v in clean_lags), max(v[0] for v in clean_lags)),
-        'tilt_attenuation': 'a: delivered = (1 - a) x the driving part of the commanded roll/pitch above '
-                            'tilt_attenuation_speed_full; '
-                            'straight MPC logs: recomputed MPC command vs delivered pitch, relative to the '
-                            'stand-in\'s replay: gain %.3f at %.2f m/s' % (1.0 - ts.attenuation, ts.speed_full),
-        'tilt_attenuation_speed': 'm/s, v0: none below (relative gain >= %.2f up to this log\'s speed: %s)'
-                                  % (1.0 - ts.tolerance, ', '.join('%.2f' % row[5] for row in ts.rows.values()
-                                                                    if row[0] <= ts.speed + 1e-9)),
-        'tilt_attenuation_speed_full': 'm/s, v1: the fastest log\'s speed (linear ramp v0..v1: no log in between)',
-        'max_descent_speed': 'm/s, truth descent under the saturated -2 m/s command (x_straight_2/3_pid, the '
-                             'only saturated descents): vz replay rms %s m/s'
-                             % ', '.join('%.2f -> %.3f' % de.replay[n] for n in de.files),
-        'tilt_rate_limit': 'rad/s, R: the roll/pitch loop turns the tilt at most this fast (%.1f deg/s; refits '
-                           'attitude_time_constant to %.4f s); PID replay of the steps outside the turns rms %.4f -> '
-                           '%.4f rad' % (np.degrees(f.tilt_rate.rate), f.tilt_rate.time_constant,
-                                         f.tilt_rate.first_order[1], f.tilt_rate.rms),
-        'gyroscopic_coupling': 's, G: while yawing at r the roll/pitch step is multiplied by (I - G r J)^-1 '
-                               '(turned by atan(G r), slowed); fitted with the next two: static steps roll/pitch '
-                               'rms %.4f -> %.4f rad (yaw-180 MPC %.4f -> %.4f, PID %.4f -> %.4f; G alone %.3f: '
-                               '%.4f)' % ((gy.rms_off, gy.rms) + _turn_rms(gy, 'mpc') + _turn_rms(gy, 'pid')
-                                          + tuple(gy.alone)),
-        'yaw_tilt_authority': '1/rad, c: the roll/pitch loop\'s rate 1/tau reduced by c |r| (fitted with %s: the '
-                              'tilt held beyond |r| = 1/(c tau) = %.0f deg/s)'
-                              % (loop, np.degrees(1.0 / (gy.authority * tau) if gy.authority > 0.0 else np.inf)),
-        'yaw_tilt_precession': '-, w: the tilt turns in the body frame at w r (with the yaw for w > 0)',
-        'vertical_acceleration_limit': 'm/s^2, A: the vertical-speed loop ramps at most this fast (refits '
-                                       'vertical_speed_time_constant to %.4f s); PID replay of the climbs rms %.4f '
-                                       '-> %.4f m/s' % (f.vertical.time_constant, f.vertical.first_order[1],
-                                                       f.vertical.rms),
-        'estimate_velocity_error_time_constant': 's, T: the velocity estimate\'s own error decays as exp(-t/T) '
-                                                 '(straight-line logs from their initial error, rms %.4f -> %.4f '
-                                                 'm/s); only a replay from a logged estimate sets one'
-                                                 % (f.velocity_error.rms_zero, f.velocity_error.rms),
-        'estimate_yaw_bias': 'rad, median of the per-log mean yaw_anafi - yaw_sphinx (%.3f..%.3f; MPC logs %.3f, '
-                             'PID logs %.3f)' % (yw.spread[0], yw.spread[1], yw.by_controller.get('mpc', np.nan),
-                                                 yw.by_controller.get('pid', np.nan)),
-        'estimate_quantum_x': 'm, ' + quantum(('x',)),
-        'estimate_quantum_y': 'm, ' + quantum(('y',)),
-        'estimate_quantum_z': 'm, ' + quantum(('z',)),
-        'estimate_quantum_velocity': 'm/s, ' + quantum(('vx', 'vy', 'vz')),
-    }
-
-
 def _turn_rms(gyroscopic, controller):
     """(rms off, rms on) [rad] of the static yaw-180 log of ``controller`` in a ``GyroscopicFit`` (NaN if absent)."""
     for name, figures in gyroscopic.per_file.items():
@@ -126,6 +48,79 @@ def _mean_rms(per_series):
     return float(np.sqrt(np.mean(values ** 2))) if values.size else float('nan')
 
 
+def _angle_exponent(quanta):
+    """n of the 2^n deg of latitude the y position grid is (0 without a grid)."""
+    step = quanta.grids['y'][0] if 'y' in quanta.grids else None
+    return int(round(math.log(step / (math.radians(1.0) * EARTH_RADIUS), 2))) if step else 0
+
+
+def _quantum_figures(qu, columns, unit):
+    """The figures of a quantum key's comment: the grid of the positions, the power-of-two step, or none found."""
+    grids = [c for c in columns if c in qu.grids]
+    found = [c for c in columns if qu.steps[c] > 0.0]
+    shown = grids or found or list(columns)
+    return {'unit': unit, 'columns': shown, 'grid': bool(grids),
+            'steps': [qu.grids[c][0] for c in grids], 'concentration': [qu.grids[c][1] for c in grids],
+            'truth': [qu.grids[c][2] for c in grids] if grids else [qu.truth_on_grid[c] for c in shown],
+            'on_grid': [qu.on_grid[c] for c in shown],
+            'inverse_step': int(round(1.0 / qu.steps[found[0]])) if found and not grids else 0}
+
+
+def _effect_figures(cal, fitted):
+    """The figures of the effect keys' comments; ``fitted``: for anafi_model_fitted.yaml (the coupling to the yaw
+    rate is refitted on its tilt-rate limited loop)."""
+    f = cal.effects
+    gy = f.gyroscopic_limited if fitted else f.gyroscopic
+    tau = cal.fitted['attitude_time_constant'] if fitted else cal.params['attitude_time_constant']
+    fu, de, qu, ts = f.fusion, f.descent, f.quanta, f.tilt_speed
+    clean_lags = [v for name, v in f.replay.steady_lag.items() if name in fu.files]
+    return {
+        'fusion': {'effective_delay': fu.effective_delay, 'rms': fu.rms, 'baseline_rms': _mean_rms(fu.baseline),
+                   'replayed_lag': (min(v[2] for v in clean_lags), max(v[2] for v in clean_lags)),
+                   'logged_lag': (min(v[0] for v in clean_lags), max(v[0] for v in clean_lags))},
+        'tilt': {'gain': 1.0 - ts.attenuation, 'speed_full': ts.speed_full, 'lowest_full': 1.0 - ts.tolerance,
+                 'gains_below': [row[5] for row in ts.rows.values() if row[0] <= ts.speed + 1e-9]},
+        'max_vertical_speed': MAX_VERTICAL_SPEED, 'descent_replay': [de.replay[n] for n in de.files],
+        'tilt_rate': {'rate_deg': np.degrees(f.tilt_rate.rate), 'time_constant': f.tilt_rate.time_constant,
+                      'first_order_rms': f.tilt_rate.first_order[1], 'rms': f.tilt_rate.rms},
+        'gyroscopic': {'rms_off': gy.rms_off, 'rms': gy.rms, 'turn_mpc': _turn_rms(gy, 'mpc'),
+                       'turn_pid': _turn_rms(gy, 'pid'), 'alone': gy.alone, 'limited': bool(fitted), 'tau': tau,
+                       'held_from_deg': _held_from_deg(gy, tau)},
+        'vertical': {'time_constant': f.vertical.time_constant, 'first_order_rms': f.vertical.first_order[1],
+                     'rms': f.vertical.rms},
+        'velocity_error': {'rms_zero': f.velocity_error.rms_zero, 'rms': f.velocity_error.rms},
+        'yaw': {'spread': f.yaw.spread, 'mpc': f.yaw.by_controller.get('mpc'), 'pid': f.yaw.by_controller.get('pid')},
+        'quanta': dict(('estimate_quantum_' + key, _quantum_figures(qu, columns, unit)) for key, columns, unit in
+                       (('x', ('x',), 'm'), ('y', ('y',), 'm'), ('z', ('z',), 'm'),
+                        ('velocity', ('vx', 'vy', 'vz'), 'm/s'))),
+        'angle_exponent': _angle_exponent(qu), 'latitude_deg': CHECKS['latitude_deg'],
+        'float16_margin': CHECKS['float16_margin'], 'quantum_probe': int(round(1.0 / estimate.PROBE_STEP))}
+
+
+def model_context(cal, log_names, fitted=False):
+    """The figures of a model YAML (``templates/anafi_model.yaml``) as YAML-safe data: the header's logs and
+    effects, the values of ``MODEL_KEYS`` and the figures of their comments."""
+    p = cal.fitted if fitted else cal.params
+    d, e, c = cal.drag, cal.estimate, cal.commands
+    figures = _effect_figures(cal, fitted)
+    figures.update({
+        'attitude': _first_order(c.attitude), 'yaw_rms': c.yaw.rms if c.yaw else None, 'vertical_rms': c.vertical.rms,
+        'tilt_rate_rms': cal.effects.tilt_rate.rms if p.get('tilt_rate_limit', 0.0) > 0.0 else None,
+        'vertical_limited_rms': (cal.effects.vertical.rms if p.get('vertical_acceleration_limit', 0.0) > 0.0
+                                 else None),
+        'drag_linear_stderr': d.stderr['drag_linear'], 'drag_quadratic_stderr': d.stderr['drag_quadratic'],
+        'drag_rms': d.rms, 'drag_vertical_fitted': d.drag_vertical_identified and d.drag_vertical >= 0.0,
+        'chain': _first_order(cal.effects.estimate_chain) if p.get('estimate_position_fusion') else None,
+        'effective_delay': e.effective_delay, 'estimate_fit': _first_order(e.fit), 'change_rate': e.change_rate,
+        'log_rate': e.rate, 'float16': e.float16})
+    on = [name for name, keys in EFFECT_GROUPS.items() if any(p[k] != EFFECTS_OFF[k] for k in keys if k in EFFECTS_OFF)]
+    return _plain({'log_names': list(log_names), 'excluded': [name for name, report in cal.garbage.items() if report],
+                   'effects_on': on, 'values': [(key, p[key]) for key in MODEL_KEYS],
+                   'off': dict((key, cal.fitted[key]) for key, off in EFFECTS_OFF.items()
+                               if p[key] == off and cal.fitted[key] != off),
+                   'figures': figures})
+
+
 def format_model_yaml(cal, log_names, fitted=False):
     """Text of a model YAML: a date-free header naming the logs, then exactly ``MODEL_KEYS``.
 
@@ -133,59 +128,7 @@ def format_model_yaml(cal, log_names, fitted=False):
     (anafi_model_fitted.yaml, every effect on). Each effect key's comment gives its fitted value, residual and
     method, also where the effect is off.
     """
-    p = cal.fitted if fitted else cal.params
-    d, e, c = cal.drag, cal.estimate, cal.commands
-    chain = cal.effects.estimate_chain
-    excluded = [name for name, report in cal.garbage.items() if report]
-    comments = {
-        'gravity': 'm/s^2, fixed',
-        'attitude_time_constant': 's, PID replay fit (%d samples, rms %.4f rad, R^2 %.3f)'
-                                  % (c.attitude.n, c.attitude.rms, c.attitude.r2),
-        'attitude_delay': 's, same fit; delays the whole piloting command',
-        'yaw_rate_time_constant': 's, PID replay of the yaw turn with attitude_delay (rms %.3f rad/s)'
-                                  % c.yaw.rms if c.yaw else 'not identified',
-        'vertical_speed_time_constant': 's, PID replay of the climbs with attitude_delay (rms %.3f m/s)'
-                                        % c.vertical.rms,
-        'drag_linear': '1/s, attitude->acceleration least squares (+-%.4f, rms %.3f m/s^2)'
-                       % (d.stderr['drag_linear'], d.rms),
-        'drag_quadratic': '1/m, same fit (+-%.5f)' % d.stderr['drag_quadratic'],
-        'drag_vertical': ('1/s, fitted' if d.drag_vertical_identified and d.drag_vertical >= 0.0
-                          else '1/s, NOT identifiable: set to drag_linear (see docs/calibration.md)'),
-        'estimate_delay': 's, estimate vs truth: effective lag %.3f s minus half a hold period' % e.effective_delay,
-        'estimate_time_constant': 's, same fit (rms %.4f, R^2 %.4f)' % (e.fit.rms, e.fit.r2),
-        'estimate_rate': 'Hz, values change at %.1f Hz in the %.0f Hz logs (cannot show more)'
-                         % (e.change_rate, e.rate),
-        'estimate_float16': 'all logged columns incl. ground truth are float16: log storage, not the estimate'
-                            if not e.float16 else 'only the estimate columns are float16-quantised',
-    }
-    if p.get('estimate_position_fusion'):     # the position has its own model: delay/smoothing of the rest
-        comments['estimate_delay'] = ('s, velocity/roll/pitch estimate vs truth (static logs; the position has the '
-                                      'fusion): effective lag %.3f s minus half a hold period' % chain.delay)
-        comments['estimate_time_constant'] = 's, same fit (rms %.4f, R^2 %.4f)' % (chain.rms, chain.r2)
-    if p.get('tilt_rate_limit', 0.0) > 0.0:               # the small-signal lag of the limited loop
-        comments['attitude_time_constant'] = ('s, with tilt_rate_limit: PID replay of the steps outside the turns '
-                                              '(rms %.4f rad)' % cal.effects.tilt_rate.rms)
-    if p.get('vertical_acceleration_limit', 0.0) > 0.0:   # the small-signal lag of the limited loop
-        comments['vertical_speed_time_constant'] = ('s, with vertical_acceleration_limit: PID replay of the climbs '
-                                                    'with attitude_delay (rms %.3f m/s)' % cal.effects.vertical.rms)
-    effects = _effect_comments(cal, fitted)
-    for key, off in EFFECTS_OFF.items():
-        if p[key] == off and cal.fitted[key] != off:
-            comments[key] = 'OFF (fitted: %s in anafi_model_fitted.yaml; %s)' % (_fmt(cal.fitted[key]), effects[key])
-        else:
-            comments[key] = effects[key]
-    on = [name for name, keys in EFFECT_GROUPS.items() if any(p[k] != EFFECTS_OFF[k] for k in keys if k in EFFECTS_OFF)]
-    lines = ['# Parameters of the simulated Anafi (anafi_sim/sim/drone_model.py, anafi_sim/sim/state_estimate.py).',
-             '# Generated by anafi_lab/cli/calibrate_model.py - do not edit by hand, rerun the script.',
-             '# Fitted on the reference logs (shared/reference_logs): %s.' % ', '.join(log_names)]
-    if excluded:
-        lines.append('# Logs with garbage samples, excluded from the fits: %s.' % ', '.join(excluded))
-    lines.append('# Fidelity effects on: %s.' % (', '.join(on) if on else 'none (anafi_model_fitted.yaml has '
-                                                                      'every fitted one on)'))
-    lines.append('# Method, residuals and what is not identified: docs/calibration.md. SI units.')
-    for key in MODEL_KEYS:
-        lines.append('%s: %s  # %s' % (key, _fmt(p[key]), comments[key]))
-    return '\n'.join(lines) + '\n'
+    return render_model_yaml(model_context(cal, log_names, fitted))
 
 
 def format_summary(cal):
@@ -444,8 +387,7 @@ def _estimate_effects_context(f):
     ve, qu, yw = f.velocity_error, f.quanta, f.yaw
     candidates = estimate.QUANTUM_CANDIDATES
     grid = inspect.signature(estimate.estimate_grid).parameters
-    y_step = qu.grids['y'][0] if 'y' in qu.grids else None
-    exponent = int(round(math.log(y_step / (math.radians(1.0) * EARTH_RADIUS), 2))) if y_step else 0
+    exponent = _angle_exponent(qu)
     degree = math.radians(2.0 ** exponent) * EARTH_RADIUS       # m per 2^exponent deg of latitude
     return {'velocity_error': {'time_constant': ve.time_constant, 'rms': ve.rms, 'rms_zero': ve.rms_zero,
                                'window': ve.window,
@@ -478,6 +420,20 @@ def report_context(cal, logs, plot_name=None, logs_label='shared/reference_logs'
     effects.update(_estimate_effects_context(cal.effects))
     context['effects'] = effects
     return _plain(context)
+
+
+def stored_context(cal, logs, plot_name=None):
+    """Everything ``calibrate_model.py`` writes as text, as figures (what it stores in
+    benchmarks/results/calibration.yaml): {'report': ``report_context``, 'model': ``model_context`` of
+    anafi_model.yaml, 'model_fitted': of anafi_model_fitted.yaml}."""
+    names = [log.name + '.csv' for log in logs]
+    return {'report': report_context(cal, logs, plot_name), 'model': model_context(cal, names),
+            'model_fitted': model_context(cal, names, fitted=True)}
+
+
+def render_model_yaml(context):
+    """The text of a model YAML from its ``model_context`` (e.g. read back from the stored YAML)."""
+    return render('anafi_model.yaml', **context)
 
 
 def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs'):

@@ -1,9 +1,9 @@
-"""docs/calibration.md is its template filled with the calibration's stored figures.
+"""docs/calibration.md and the model YAMLs are their templates filled with the calibration's stored figures.
 
-``make calibrate`` (anafi_lab/cli/calibrate_model.py) stores the report's figures in
-benchmarks/results/calibration.yaml and renders docs/calibration.md from them; rendering them again gives the
-committed report byte for byte (without the fits, which take minutes), every figure in it comes from them, and
-the template's prose has no figure of its own.
+``make calibrate`` (anafi_lab/cli/calibrate_model.py) stores the figures in benchmarks/results/calibration.yaml
+and renders docs/calibration.md, anafi_sim/config/anafi_model.yaml and anafi_model_fitted.yaml from them;
+rendering them again gives the committed files byte for byte (without the fits, which take minutes), every
+figure in them comes from the stored data, and the templates' words have no figure of their own.
 """
 import copy
 import os
@@ -20,18 +20,24 @@ STORED = os.path.join(ROOT, 'benchmarks', 'results', 'calibration.yaml')
 TEMPLATES = os.path.join(ROOT, 'anafi_lab', 'reports', 'templates')
 
 
-def stored_context():
+def stored_context(part='report'):
     with open(STORED) as stream:
-        return yaml.safe_load(stream)
+        return yaml.safe_load(stream)[part]
 
 
-def committed_report():
-    with open(REPORT) as stream:
+def committed(path=REPORT):
+    with open(path) as stream:
         return stream.read()
 
 
 def test_report_renders_byte_identical_from_the_stored_figures():
-    assert report.render_report(stored_context()) == committed_report()
+    assert report.render_report(stored_context()) == committed()
+
+
+def test_model_files_render_byte_identical_from_the_stored_figures():
+    for part, name in (('model', 'anafi_model.yaml'), ('model_fitted', 'anafi_model_fitted.yaml')):
+        path = os.path.join(ROOT, 'anafi_sim', 'config', name)
+        assert report.render_model_yaml(stored_context(part)) == committed(path), name
 
 
 def test_a_stored_figure_changes_the_report_where_it_is_quoted():
@@ -40,9 +46,9 @@ def test_a_stored_figure_changes_the_report_where_it_is_quoted():
     changed['drag']['rms'] = 12.3456
     changed['effects']['gyroscopic']['coupling'] = -9.876
     text = report.render_report(changed)
-    assert text != committed_report()
+    assert text != committed()
     assert 'rms 12.3456 m/s^2, R^2' in text and 'G = -9.876 s' in text
-    assert 'rms %.4f m/s^2, R^2' % context['drag']['rms'] in committed_report()
+    assert 'rms %.4f m/s^2, R^2' % context['drag']['rms'] in committed()
 
 
 # Digits the template's words may hold: names (sections, tables, equations, logs, symbols), units, the 0 and 1
@@ -51,12 +57,12 @@ ALLOWED = re.compile(r"R\^2|\(c-e\)|Table [23]|eq\. \(?15\)?|issue 2|float16|3-D
                      r"1 / \(c tau\)|1/\(c tau\)|\(I - G r J\)\^-1|1 / sqrt\(1 \+ \(G r\)\^2\)|"
                      r"\(1 \+ \(G r\)\^2\)\^\(-p/2\)|m/s\^2|1/s\^2|2 pi i v|k1|k2|b0|v0|v1|x_straight_4_pid|"
                      r"yaw-180|yaw-0|x_straight_2/3_pid|\^-1|2\^|1/|x_pred|\(1 - a r\)|0, 1\)|1 - its gain|"
-                     r"time 0|b = 0|w > 0|of 1 |\(1 \+ c \|v\|\)| 1, as the model|\.0")
+                     r"time 0|b = 0|w > 0|of 1 |\(1 \+ c \|v\|\)| 1, as the model|\.0|\(1 - a\)")
 
 
 def test_template_words_hold_no_figure():
     for name in sorted(os.listdir(TEMPLATES)):
-        if not name.startswith('calibration'):
+        if not name.startswith(('calibration', 'anafi_model')):
             continue
         with open(os.path.join(TEMPLATES, name)) as stream:
             text = stream.read()

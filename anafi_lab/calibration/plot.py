@@ -9,7 +9,12 @@ matplotlib is imported when a figure is drawn (Agg backend).
 """
 import numpy as np
 
-from anafi_lab.calibration import fit
+from anafi_lab.calibration.commands import reconstruct_pid_commands, replay_translation
+from anafi_lab.calibration.drag import steady_state_pitch
+from anafi_lab.calibration.estimate import estimate_model_response, replay_estimate
+from anafi_lab.calibration.fit import table3
+from anafi_lab.calibration.logs import is_clean, measured_yaw_rate
+from anafi_lab.calibration.responses import first_order_response
 
 REPLAY_LOG = 'static_waypoint_yaw_0_pid'
 STEADY_LOG = 'x_straight_5_mpc'
@@ -42,18 +47,30 @@ def plot_replay(cal, logs, path):
     import matplotlib.pyplot as plt
 
     by_name = dict((log.name, log) for log in logs)
-    p = cal.params
     fig, axes = plt.subplots(4, 3, figsize=(15, 14.0))
     log = by_name[REPLAY_LOG]
-    trace = fit.reconstruct_pid_commands(log)
+    trace = reconstruct_pid_commands(log)
+    _translation_panels(axes[0], cal, logs, log, trace)
+    _loop_panels(axes[1], cal, by_name, log, trace)
+    _estimate_panels(axes[2, :2], cal, log, log.t - log.t[trace.start_index])
+    _table3_panel(axes[2, 2], table3(logs))
+    _effect_panels(axes[3], cal, by_name)
+    fig.tight_layout()
+    fig.savefig(path, dpi=62)
+    plt.close(fig)
+
+
+def _translation_panels(axes, cal, logs, log, trace):
+    """Top row: the translational model replaying ``log`` (velocity, position), steady tilt vs speed."""
+    p = cal.params
     t0 = log.t[trace.start_index]
     window = (log.t >= t0 - 1.0) & (log.t <= t0 + 25.0)
     part = log.select(window)                       # its own time starts at 0
     shift = log.t[window][0]                        # log time of part.t == 0
     rel = part.t + shift - t0                       # time since the waypoint step
     trim = (cal.drag.trim_pitch, cal.drag.trim_roll)
-    replay = fit.replay_translation(part, p, trim=trim, vertical_command=(trace.t - shift, trace.vertical_speed))
-    ax = axes[0, 0]
+    replay = replay_translation(part, p, trim=trim, vertical_command=(trace.t - shift, trace.vertical_speed))
+    ax = axes[0]
     ax.plot(rel, part.vx_sphinx, 'k-', lw=1.5, label='vx truth')
     ax.plot(rel, replay['vx'], 'C0--', lw=1.2, label='vx model')
     ax.plot(rel, part.vy_sphinx, color='0.5', lw=1.5, label='vy truth')
@@ -64,30 +81,34 @@ def plot_replay(cal, logs, path):
     ax.set_xlabel(STEP_AXIS)
     ax.set_ylabel('m/s')
     ax.legend(fontsize=7, ncol=2)
-    ax = axes[0, 1]
+    ax = axes[1]
     for name, color in (('x', 'C0'), ('y', 'C1'), ('z', 'C2')):
         ax.plot(rel, part.columns[name + '_sphinx'], 'k-', lw=1.5)
         ax.plot(rel, replay[name], '--', color=color, lw=1.2, label='%s model' % name)
     ax.plot([], [], 'k-', label='truth')
     _label(ax, 'position replay (open-loop integration)', STEP_AXIS, 'm')
-    ax = axes[0, 2]
+    ax = axes[2]
     speeds, tilts = [], []
     for other in logs:
-        if other.name.startswith('x_straight') and fit.is_clean(other):
+        if other.name.startswith('x_straight') and is_clean(other):
             speeds.append(float(np.mean(np.hypot(other.vx_sphinx, other.vy_sphinx))))
             tilts.append(float(np.mean(other.pitch_sphinx)) + cal.drag.trim_pitch)
     v = np.linspace(0.0, 5.5, 50)
-    ax.plot(v, [fit.steady_state_pitch(s, p['drag_linear'], p['drag_quadratic']) for s in v], 'C3-',
+    ax.plot(v, [steady_state_pitch(s, p['drag_linear'], p['drag_quadratic']) for s in v], 'C3-',
             label='fit: atan((%.3f + %.4f v) v / g)' % (p['drag_linear'], p['drag_quadratic']))
     ax.plot(speeds, tilts, 'ko', ms=4, label='straight-line logs (mean pitch + trim)')
     _label(ax, 'steady level flight: tilt vs speed', 'speed [m/s]', 'tilt [rad]')
 
+
+def _loop_panels(axes, cal, by_name, log, trace):
+    """Second row: the firmware loops (attitude, vertical speed, yaw rate) fed the replayed PID commands."""
     c = cal.commands
+    t0 = log.t[trace.start_index]
     rel_log = log.t - t0
     show = (rel_log >= -1.0) & (rel_log <= 8.0)
-    ax = axes[1, 0]
+    ax = axes[0]
     for name, u, color in (('pitch', trace.pitch, 'C0'), ('roll', trace.roll, 'C1')):
-        model = fit.first_order_response(trace.t, u, c.attitude.time_constant, c.attitude.delay, log.t)
+        model = first_order_response(trace.t, u, c.attitude.time_constant, c.attitude.delay, log.t)
         ax.step(trace.t - t0, u, where='post', color=color, lw=0.8, alpha=0.6, label='%s command (replay)' % name)
         ax.plot(rel_log[show], log.columns[name + '_sphinx'][show], 'k-', lw=1.5)
         ax.plot(rel_log[show], model[show], '--', color=color, lw=1.2, label='%s model' % name)
@@ -95,40 +116,39 @@ def plot_replay(cal, logs, path):
     ax.set_xlim(-1.0, 8.0)
     _label(ax, 'attitude: tau %.3f s, delay %.3f s (rms %.4f rad)'
            % (c.attitude.time_constant, c.attitude.delay, c.attitude.rms), STEP_AXIS, 'rad')
-    model = fit.first_order_response(trace.t, trace.vertical_speed, c.vertical.time_constant, c.vertical.delay,
-                                     log.t)
-    _loop_panel(axes[1, 1], trace.t - t0, trace.vertical_speed, rel_log[show], log.vz_sphinx[show], model[show],
+    model = first_order_response(trace.t, trace.vertical_speed, c.vertical.time_constant, c.vertical.delay,
+                                 log.t)
+    _loop_panel(axes[1], trace.t - t0, trace.vertical_speed, rel_log[show], log.vz_sphinx[show], model[show],
                 'C2', 'vz command (replay)', 'vertical speed: tau %.3f s, delay %.3f s (rms %.3f m/s)'
                 % (c.vertical.time_constant, c.vertical.delay, c.vertical.rms), 'm/s')
     if c.yaw is not None and YAW_LOG in by_name:
         ylog = by_name[YAW_LOG]
-        ytrace = fit.reconstruct_pid_commands(ylog)
+        ytrace = reconstruct_pid_commands(ylog)
         yt0 = ylog.t[ytrace.start_index]
         yrel = ylog.t - yt0
         yshow = (yrel >= -1.0) & (yrel <= 8.0)
-        model = fit.first_order_response(ytrace.t, ytrace.yaw_rate, c.yaw.time_constant, c.yaw.delay, ylog.t)
-        _loop_panel(axes[1, 2], ytrace.t - yt0, ytrace.yaw_rate, yrel[yshow], fit.measured_yaw_rate(ylog)[yshow],
+        model = first_order_response(ytrace.t, ytrace.yaw_rate, c.yaw.time_constant, c.yaw.delay, ylog.t)
+        _loop_panel(axes[2], ytrace.t - yt0, ytrace.yaw_rate, yrel[yshow], measured_yaw_rate(ylog)[yshow],
                     model[yshow], 'C4', 'yaw rate command (replay)',
                     '%s yaw rate: tau %.3f s (rms %.3f rad/s)' % (YAW_LOG, c.yaw.time_constant, c.yaw.rms), 'rad/s')
 
-    e = cal.estimate
-    for ax, name, unit in ((axes[2, 0], 'vx', 'm/s'), (axes[2, 1], 'pitch', 'rad')):
+
+def _estimate_panels(axes, cal, log, rel_log):
+    """Third row, first two panels: the estimate model on the truth against the logged estimate (vx, pitch);
+    ``rel_log``: the log's time since the waypoint step [s]."""
+    p = cal.params
+    for ax, name, unit in ((axes[0], 'vx', 'm/s'), (axes[1], 'pitch', 'rad')):
         truth = log.columns[name + '_sphinx']
-        est_model = fit.estimate_model_response(log.t, truth, p['estimate_delay'], p['estimate_time_constant'],
-                                                p['estimate_rate'])
+        est_model = estimate_model_response(log.t, truth, p['estimate_delay'], p['estimate_time_constant'],
+                                            p['estimate_rate'])
         zoom = (rel_log >= -0.3) & (rel_log <= 2.0)
         ax.plot(rel_log[zoom], truth[zoom], 'k.-', lw=1.0, ms=3, label='%s truth' % name)
         ax.plot(rel_log[zoom], log.columns[name + '_anafi'][zoom], 'C3o-', lw=1.0, ms=3,
                 label='%s estimate (logged)' % name)
         ax.plot(rel_log[zoom], est_model[zoom], 'C0s--', lw=1.0, ms=3, mfc='none', label='estimate model on truth')
         _label(ax, 'estimate: delay %.3f s + hold at %.0f Hz, tau %.3f s (effective lag %.3f s)'
-               % (p['estimate_delay'], p['estimate_rate'], p['estimate_time_constant'], e.effective_delay),
+               % (p['estimate_delay'], p['estimate_rate'], p['estimate_time_constant'], cal.estimate.effective_delay),
                STEP_AXIS, unit)
-    _table3_panel(axes[2, 2], fit.table3(logs))
-    _effect_panels(axes[3], cal, by_name)
-    fig.tight_layout()
-    fig.savefig(path, dpi=62)
-    plt.close(fig)
 
 
 def _effect_panels(axes, cal, by_name):
@@ -142,8 +162,8 @@ def _effect_panels(axes, cal, by_name):
         if name not in by_name:
             continue
         log = by_name[name]
-        off = fit.replay_estimate(log, before)
-        on = fit.replay_estimate(log, cal.fitted)
+        off = replay_estimate(log, before)
+        on = replay_estimate(log, cal.fitted)
         ax.plot(log.t, log.x_sphinx - log.x_anafi, 'k-', lw=1.5, label='logged')
         ax.plot(log.t, log.x_sphinx - off['x'], 'C0--', lw=1.2, label='model, effects off')
         ax.plot(log.t, log.x_sphinx - on['x'], 'C3--', lw=1.2, label='model, fusion on')
@@ -154,14 +174,14 @@ def _effect_panels(axes, cal, by_name):
     de = cal.effects.descent
     if DESCENT_LOG in by_name and de.max_descent_speed > 0.0:
         log = by_name[DESCENT_LOG]
-        trace = fit.reconstruct_pid_commands(log)
+        trace = reconstruct_pid_commands(log)
         c = cal.commands.vertical
         ax.step(trace.t, trace.vertical_speed, where='post', color='C2', lw=0.8, alpha=0.6,
                 label='vz command (replay)')
         ax.plot(log.t, log.vz_sphinx, 'k-', lw=1.5, label='truth')
         for cap, style, text in ((None, 'C0--', 'model, no limit'), (de.max_descent_speed, 'C3--', 'model, limit')):
             u = trace.vertical_speed if cap is None else np.maximum(trace.vertical_speed, -cap)
-            ax.plot(log.t, fit.first_order_response(trace.t, u, c.time_constant, c.delay, log.t,
+            ax.plot(log.t, first_order_response(trace.t, u, c.time_constant, c.delay, log.t,
                                                     initial=log.vz_sphinx[0]), style, lw=1.2, label=text)
         _label(ax, '%s: descent limit %.2f m/s (truth valid, z estimate garbage)'
                % (DESCENT_LOG, de.max_descent_speed), 'log time [s]', 'm/s')

@@ -1,17 +1,24 @@
 #!/usr/bin/env python3
 """Fit the simulated Anafi's parameters to reference logs; write the YAML, a report and a replay figure.
 
-Usage: calibrate_model.py [--logs DIR] [--out YAML] [--fitted YAML] [--report MD] [--plot PNG]
+Usage: calibrate_model.py [--logs DIR] [--out YAML] [--fitted YAML] [--report MD] [--context YAML] [--plot PNG]
 Defaults (paths of the package's checkout, found through the ROS package path): logs
 <checkout>/../shared/reference_logs, out anafi_sim/config/anafi_model.yaml (the fidelity effects as
 fit.SHIPPED_EFFECTS says), fitted anafi_sim/config/anafi_model_fitted.yaml (every fitted effect on), report
-docs/calibration.md, plot docs/calibration_replay.png. The fits are anafi_lab/calibration/fit.py, the texts
-report.py, the figure plot.py; this script only wires them to files.
+docs/calibration.md, context benchmarks/results/calibration.yaml (the figures of the report and of both model
+YAMLs: the texts are rendered from it, and render again from it without the fits), plot
+docs/calibration_replay.png. The fits are anafi_lab/calibration/ (fit.py puts them together), the texts
+anafi_lab/reports/calibration_report.py with its templates anafi_lab/reports/templates/calibration.md and
+anafi_model.yaml, the figure anafi_lab/calibration/plot.py; this script only wires them to files (the texts
+each written atomically).
 """
 import argparse
 import glob
 import os
 import sys
+import tempfile
+
+import yaml
 
 from anafi_sim import paths
 from anafi_lab.calibration import fit, plot
@@ -30,6 +37,8 @@ def parse_args(argv):
                         help='model YAML with every fitted fidelity effect on ("" to skip)')
     parser.add_argument('--report', default=os.path.join(root, 'docs', 'calibration.md'),
                         help='Markdown report to write ("" to skip)')
+    parser.add_argument('--context', default=os.path.join(root, 'benchmarks', 'results', 'calibration.yaml'),
+                        help='the figures of the report and the model YAMLs ("" to skip)')
     parser.add_argument('--plot', default=os.path.join(root, 'docs', 'calibration_replay.png'),
                         help='PNG figure to write ("" to skip)')
     args = parser.parse_args(argv)
@@ -40,8 +49,17 @@ def parse_args(argv):
 
 
 def write(path, text):
-    with open(path, 'w') as stream:
-        stream.write(text)
+    """Write ``text`` to ``path`` atomically (a temporary file beside it, then renamed)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    handle, temporary = tempfile.mkstemp(dir=folder, prefix='.' + os.path.basename(path) + '.')
+    try:
+        with os.fdopen(handle, 'w') as stream:
+            stream.write(text)
+        os.chmod(temporary, 0o644)
+        os.replace(temporary, path)
+    except BaseException:
+        os.unlink(temporary)
+        raise
     print('wrote %s' % path)
 
 
@@ -57,17 +75,22 @@ def main(argv=None):
             print('garbage: ' + line)
     print(report.format_summary(cal))
 
-    names = [log.name + '.csv' for log in logs]
-    write(args.out, report.format_model_yaml(cal, names))
-    if args.fitted:
-        write(args.fitted, report.format_model_yaml(cal, names, fitted=True))
     plot_name = None
     if args.plot:
         plot.plot_replay(cal, logs, args.plot)
         print('wrote %s (%d bytes)' % (args.plot, os.path.getsize(args.plot)))
         plot_name = os.path.relpath(args.plot, os.path.dirname(os.path.abspath(args.report or args.plot)))
+    # every text is rendered from the stored figures, as the unit test renders them again
+    stored = yaml.safe_dump(report.stored_context(cal, logs, plot_name=plot_name), default_flow_style=False,
+                            sort_keys=False)
+    if args.context:
+        write(args.context, stored)
+    stored = yaml.safe_load(stored)
+    write(args.out, report.render_model_yaml(stored['model']))
+    if args.fitted:
+        write(args.fitted, report.render_model_yaml(stored['model_fitted']))
     if args.report:
-        write(args.report, report.format_report(cal, logs, plot_name=plot_name))
+        write(args.report, report.render_report(stored['report']))
     return 0
 
 

@@ -22,7 +22,7 @@ the report re-rendered):
   held-out cells of Tables 4 and 5 (``fidelity.held_out_bounds``);
 - ``fusion_gain``: the shipped model with the position fusion's gain k (and its delay refitted) at the fits of
   the static-waypoint logs alone and of the straight-line logs alone, and at ``fidelity.FUSION_GAIN_PROBES``
-  beyond them: how well the logs allow each k (``fit.fusion_profile``), the shared-log replays and the
+  beyond them: how well the logs allow each k (``estimate.fusion_profile``), the shared-log replays and the
   held-out scenarios with it;
 - ``self_replay``: the replay method on the stand-in's own runs of every paper scenario (``F.self_replay_runs``):
   recorded as the paper's logger recorded Sphinx, replayed, compared (ratio 1 = the method adds nothing).
@@ -45,7 +45,7 @@ import time
 import yaml
 
 from anafi_sim import paths
-from anafi_lab.calibration import fit
+from anafi_lab.calibration import estimate, fit
 from anafi_lab.fidelity import replay as F
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, mpc_config
@@ -93,7 +93,7 @@ def parse_args(argv):
 
 def models(args, paths_):
     """(off, on, shipped name, how the fitted dict was found, shipped dict, the calibration's position fusion fit
-    ``fit.PositionFusionFit``)."""
+    ``estimate.PositionFusionFit``)."""
     shipped = load_model_params()
     cal = fit.calibrate([read_log(p) for p in paths_])    # ~15 s: the baseline (every effect off)
     # (paths_: the calibration logs, the shared ones by default: a --logs directory of other scenarios is only
@@ -111,11 +111,11 @@ def models(args, paths_):
 
 
 def fusion_gain_entries(fusion, shipped, logs):
-    """[(role, label, ``fit.FusionProfileRow``, variant name)] of the ``fusion_gain`` step (roles
+    """[(role, label, ``estimate.FusionProfileRow``, variant name)] of the ``fusion_gain`` step (roles
     ``F.FUSION_GAIN_ROLES``): the fix gain k fitted on the static-waypoint logs alone, the shipped model's (its
     own delay: the ``shipped`` runs of the other steps), the one fitted on the straight-line logs alone, and
     ``F.FUSION_GAIN_PROBES``; the others with the delay refitted for their k on every clean log
-    (``fit.fusion_profile``). ``fusion``: the calibration's ``PositionFusionFit`` (a subset without static or
+    (``estimate.fusion_profile``). ``fusion``: the calibration's ``PositionFusionFit`` (a subset without static or
     straight logs has no fit of its own: left out)."""
     rate = shipped['estimate_rate']
     gains = [('static', 'static-waypoint logs alone', (fusion.groups.get('static') or (None,))[0], None),
@@ -124,7 +124,7 @@ def fusion_gain_entries(fusion, shipped, logs):
              ('straight', 'straight-line logs alone', (fusion.groups.get('straight') or (None,))[0], None)]
     gains += [('probe', 'probe beyond the fits', g, None) for g in F.FUSION_GAIN_PROBES]
     gains = [g for g in gains if g[2] is not None]
-    rows = fit.fusion_profile(logs, [g[2] for g in gains], rate, [g[3] for g in gains])
+    rows = estimate.fusion_profile(logs, [g[2] for g in gains], rate, [g[3] for g in gains])
     return [(role, label, row, 'shipped' if role == 'shipped' else F.gain_name('shipped', row.fix_gain))
             for (role, label, _, _), row in zip(gains, rows)]
 
@@ -228,7 +228,8 @@ def main(argv=None):
     t3 = collections.OrderedDict(((r['variant'], r['controller'], int(r['scenario'].rsplit('_', 1)[1])), r)
                                  for r in store.get('table3', []))
     scen = F.scenario_records(store.get('scenarios', []))
-    gains = [(g['role'], g['label'], fit.FusionProfileRow(*[g[f] for f in fit.FusionProfileRow._fields]), g['name'])
+    profile_row = estimate.FusionProfileRow
+    gains = [(g['role'], g['label'], profile_row(*[g[f] for f in profile_row._fields]), g['name'])
              for g in store.get('fusion_gain', []) if 'role' in g]
     if 'fusion_gain' in args.steps:
         gains = fusion_gain_entries(fusion, shipped_model, [read_log(p) for p in calibration_paths])

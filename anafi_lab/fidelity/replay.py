@@ -1322,7 +1322,7 @@ def gain_name(name, gain):
 
 
 def fusion_gain_variants(variant, rows):
-    """``variant`` with the fusion's fix gain and fix delay of each ``fit.FusionProfileRow`` in ``rows`` (the
+    """``variant`` with the fusion's fix gain and fix delay of each ``estimate.FusionProfileRow`` in ``rows`` (the
     delay refitted for that gain), one per row: names ``gain_name`` (ValueError when two gains share one)."""
     out = []
     for row in rows:
@@ -1339,14 +1339,14 @@ def fusion_gain_variants(variant, rows):
 
 FusionGainRow = collections.namedtuple('FusionGainRow', 'role label profile shared held fast truth')
 FusionGainRow.__doc__ = (
-    'One gain of the fusion-gain table: role (``FUSION_GAIN_ROLES``), label, ``fit.FusionProfileRow``, the '
+    'One gain of the fusion-gain table: role (``FUSION_GAIN_ROLES``), label, ``estimate.FusionProfileRow``, the '
     'shared-log ``score`` of its replays, its ``held_out_score`` (None when its held-out runs are incomplete), '
     '{scenario: held-out middle} of the fast MPC circles against the estimate and of the MPC circles against '
     'ground truth.')
 
 
 def fusion_gain_rows(records, scen, entries, logs):
-    """``FusionGainRow`` per ``entries`` item (role, label, ``fit.FusionProfileRow``, variant name): that
+    """``FusionGainRow`` per ``entries`` item (role, label, ``estimate.FusionProfileRow``, variant name): that
     variant's replays of ``logs`` (``records``) and held-out runs (``scen``, ``scenario_runs`` records)."""
     out = []
     for role, label, row, name in entries:

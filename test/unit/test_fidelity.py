@@ -400,7 +400,7 @@ def test_held_out_score_and_table_count_the_middles():
 
 
 def _profile_row(k, d=0.2, rms=(0.05, 0.04, 0.06)):
-    from anafi_lab.calibration.fit import FusionProfileRow
+    from anafi_lab.calibration.estimate import FusionProfileRow
     return FusionProfileRow(k, d + 0.025, d, *rms)
 
 

@@ -15,10 +15,21 @@ from scipy.signal import lfilter
 
 from anafi_control import frames
 from anafi_sim import paths
-from anafi_lab.calibration import fit as cal
+from anafi_lab.calibration.commands import reconstruct_mpc_commands, reconstruct_pid_commands, replay_translation
+from anafi_lab.calibration.drag import fit_drag, steady_state_pitch
+from anafi_lab.calibration.estimate import (estimate_change_rate, estimate_grid, estimate_model_response,
+                                            estimate_quantum, fit_estimate, fit_position_fusion, fit_velocity_error,
+                                            float16_fraction, fused_position_response, fusion_profile,
+                                            grid_concentration, lag_along_motion, quantum_fraction)
+from anafi_lab.calibration.fit import MODEL_KEYS, SHIPPED_EFFECTS, calibrate
+from anafi_lab.calibration.logs import is_clean, thrust_axis
+from anafi_lab.calibration.responses import (evaluate_first_order_delay, first_order_response, fit_attitude_response,
+                                             fit_first_order_delay, gyroscopic_tilt_response, rate_limited_response,
+                                             rate_limited_tilt_response)
 from anafi_lab.calibration import plot
 from anafi_lab.reports import calibration_report as report
 from anafi_sim.mission.reference_log import COLUMNS, STATE_NAMES, ReferenceLog, read_log
+from anafi_sim.sim.drone_model import EFFECT_GROUPS
 
 REPO = paths.checkout()
 LOG_DIR = paths.reference_logs_dir()
@@ -71,13 +82,13 @@ def test_first_order_delay_fit_recovers_time_constant_delay_and_offset():
     u = np.repeat(rng.uniform(-0.4, 0.4, len(t_cmd) // 10), 10)  # steps held for 1 s
     t_y = np.arange(0.0, 20.0, 0.05) + 0.013                   # 20 Hz measurements, other phase
     y = euler_first_order(t_cmd, u, 0.18, 0.12, t_y) + 0.004 + rng.normal(0, 0.002, len(t_y))
-    fit = cal.fit_attitude_response(t_cmd, u, y, t_measured=t_y)
+    fit = fit_attitude_response(t_cmd, u, y, t_measured=t_y)
     assert fit.time_constant == pytest.approx(0.18, abs=0.01)
     assert fit.delay == pytest.approx(0.12, abs=0.01)
     assert fit.offsets[0] == pytest.approx(0.004, abs=0.001)
     assert fit.rms < 0.004 and fit.r2 > 0.99
     # A wrong fixed delay leaves a clearly larger residual (the fit is sensitive to what it claims).
-    worse = cal.evaluate_first_order_delay([(t_cmd, u, t_y, y)], 0.18, 0.0)
+    worse = evaluate_first_order_delay([(t_cmd, u, t_y, y)], 0.18, 0.0)
     assert worse.rms > 5 * fit.rms
 
 
@@ -90,11 +101,11 @@ def test_first_order_fit_with_gain_and_shared_parameters():
         t_y = np.arange(0.0, 15.0, 0.05)
         y = gain * euler_first_order(t_cmd, u, 0.3, 0.2, t_y)
         series.append((t_cmd, u, t_y, y))
-    fit = cal.fit_first_order_delay(series, fit_gain=True, fit_offset=False)
+    fit = fit_first_order_delay(series, fit_gain=True, fit_offset=False)
     assert fit.time_constant == pytest.approx(0.3, abs=0.01)
     assert fit.delay == pytest.approx(0.2, abs=0.01)
     assert fit.gains == pytest.approx((0.8, 1.3), abs=0.01)
-    fixed = cal.fit_first_order_delay(series, fit_gain=True, fit_offset=False, delay=0.2)
+    fixed = fit_first_order_delay(series, fit_gain=True, fit_offset=False, delay=0.2)
     assert fixed.delay == 0.2 and fixed.time_constant == pytest.approx(0.3, abs=0.01)
 
 
@@ -102,7 +113,7 @@ def test_first_order_response_matches_independent_integration():
     t_cmd = np.array([0.0, 1.0, 2.5])
     u = np.array([0.0, 1.0, -0.5])
     t_out = np.linspace(0.0, 4.0, 81)
-    ours = cal.first_order_response(t_cmd, u, 0.25, 0.1, t_out, hold=True, step=0.001)
+    ours = first_order_response(t_cmd, u, 0.25, 0.1, t_out, hold=True, step=0.001)
     ref = euler_first_order(t_cmd, u, 0.25, 0.1, t_out, h=1e-4)
     assert np.max(np.abs(ours - ref)) < 0.01
     assert ours[-1] == pytest.approx(-0.5, abs=0.01)
@@ -132,11 +143,11 @@ def test_rate_limited_response_is_the_simulators_vertical_loop():
             t_out.append(t)
             vz.append(drone.vz)
         u = gaz_pct / 100.0 * 2.0
-        model = cal.rate_limited_response([0.0, 1.0], [u, u], 0.1, 3.0, 0.0, np.array(t_out), step=dt)
+        model = rate_limited_response([0.0, 1.0], [u, u], 0.1, 3.0, 0.0, np.array(t_out), step=dt)
         assert np.max(np.abs(model - np.array(vz))) < 0.01 * u + 1e-3, gaz_pct
     t = np.linspace(0.0, 2.0, 81)
-    first = cal.first_order_response([0.0, 0.5, 1.0], [1.0, -0.5, 0.3], 0.15, 0.1, t, hold=True, initial=0.0)
-    assert np.max(np.abs(cal.rate_limited_response([0.0, 0.5, 1.0], [1.0, -0.5, 0.3], 0.15, 0.0, 0.1, t,
+    first = first_order_response([0.0, 0.5, 1.0], [1.0, -0.5, 0.3], 0.15, 0.1, t, hold=True, initial=0.0)
+    assert np.max(np.abs(rate_limited_response([0.0, 0.5, 1.0], [1.0, -0.5, 0.3], 0.15, 0.0, 0.1, t,
                                                    step=0.002) - first)) < 0.01
 
 
@@ -164,7 +175,7 @@ def test_rate_limited_tilt_response_is_the_simulators_attitude_loop():
             t_out.append(t)
             att.append((drone.roll, drone.pitch))
         roll_sp, pitch_sp = mapping.pcmd_to_setpoints(pcmd[0], pcmd[1], 0, 0)[:2]
-        r, p = cal.rate_limited_tilt_response([0.0, 1.0], [roll_sp] * 2, [pitch_sp] * 2, 0.12, 1.2, 0.0,
+        r, p = rate_limited_tilt_response([0.0, 1.0], [roll_sp] * 2, [pitch_sp] * 2, 0.12, 1.2, 0.0,
                                               np.array(t_out), step=dt)
         err = np.max(np.hypot(r - np.array(att)[:, 0], p - np.array(att)[:, 1]))
         assert err < 0.01 * math.hypot(roll_sp, pitch_sp) + 1e-4, pcmd
@@ -199,7 +210,7 @@ def test_gyroscopic_tilt_response_is_the_simulators_attitude_loop(terms):
     t_r = np.array(t_out) - dt                                       # rate[k] holds over the step from t_out - dt
     c, w = terms.get('yaw_tilt_authority', 0.0), terms.get('yaw_tilt_precession', 0.0)
     for g, close in ((-1.0, True), (1.0, False)):
-        r, p = cal.gyroscopic_tilt_response([0.0, 0.5, 2.0], [0.0, roll_sp, roll_sp], [0.0, pitch_sp, pitch_sp],
+        r, p = gyroscopic_tilt_response([0.0, 0.5, 2.0], [0.0, roll_sp, roll_sp], [0.0, pitch_sp, pitch_sp],
                                             t_r, np.array(rate), 0.18, g, 0.0, np.array(t_out), step=dt,
                                             authority=c, precession=w * math.copysign(1.0, -g))
         err = np.max(np.hypot(r - np.array(att)[:, 0], p - np.array(att)[:, 1]))
@@ -250,7 +261,7 @@ def drag_log():
 def test_drag_fit_recovers_drag_and_trim(drag_log):
     speed = np.hypot(drag_log.vx_sphinx, drag_log.vy_sphinx)
     assert speed.max() > 3.0                                # the data span a useful speed range
-    fit = cal.fit_drag([drag_log])
+    fit = fit_drag([drag_log])
     assert fit.drag_linear == pytest.approx(0.2, rel=0.03)
     assert fit.drag_quadratic == pytest.approx(0.025, rel=0.05)
     assert fit.trim_pitch == pytest.approx(0.005, abs=0.0005)
@@ -262,18 +273,18 @@ def test_drag_fit_recovers_drag_and_trim(drag_log):
 def test_replay_of_synthetic_log_follows_truth(drag_log):
     params = {'gravity': G, 'drag_linear': 0.2, 'drag_quadratic': 0.025, 'drag_vertical': 0.3,
               'vertical_speed_time_constant': 0.1, 'attitude_delay': 0.0}
-    replay = cal.replay_translation(drag_log, params, trim=(0.005, 0.0))
+    replay = replay_translation(drag_log, params, trim=(0.005, 0.0))
     assert np.sqrt(np.mean((replay['vx'] - drag_log.vx_sphinx) ** 2)) < 0.03
     assert np.sqrt(np.mean((replay['vy'] - drag_log.vy_sphinx) ** 2)) < 0.03
-    wrong = cal.replay_translation(drag_log, dict(params, drag_linear=0.4))
+    wrong = replay_translation(drag_log, dict(params, drag_linear=0.4))
     assert np.sqrt(np.mean((wrong['vx'] - drag_log.vx_sphinx) ** 2)) > 0.1
 
 
 def test_thrust_axis_is_third_column_of_shared_rotation():
     for rpy in ((0.1, -0.2, 0.3), (-0.4, 0.3, 2.5)):
-        assert np.array(cal.thrust_axis(*rpy)) == pytest.approx(frames.rotation_matrix(*rpy)[:, 2])
-    assert cal.steady_state_pitch(0.0, 0.2, 0.02) == 0.0
-    assert cal.steady_state_pitch(3.0, 0.2, 0.02) == pytest.approx(math.atan((0.2 + 0.06) * 3.0 / G))
+        assert np.array(thrust_axis(*rpy)) == pytest.approx(frames.rotation_matrix(*rpy)[:, 2])
+    assert steady_state_pitch(0.0, 0.2, 0.02) == 0.0
+    assert steady_state_pitch(3.0, 0.2, 0.02) == pytest.approx(math.atan((0.2 + 0.06) * 3.0 / G))
 
 
 # ----------------------------------------------------------------------------------------- estimate
@@ -300,7 +311,7 @@ def synthetic_estimate_log(delay, tau, rate, log_phase, half_float_estimate=True
 
 def test_estimate_fit_recovers_delay_smoothing_rate_and_float16():
     log = synthetic_estimate_log(delay=0.06, tau=0.03, rate=20.0, log_phase=0.025)
-    fit = cal.fit_estimate([log])
+    fit = fit_estimate([log])
     # The logger sees the held value 0.025 s after it was taken: effective lag = delay + 0.025.
     assert fit.effective_delay == pytest.approx(0.085, abs=0.01)
     assert fit.delay == pytest.approx(0.06, abs=0.01)
@@ -315,23 +326,23 @@ def test_estimate_fit_recovers_delay_smoothing_rate_and_float16():
 
 def test_estimate_change_rate_sees_slower_updates():
     log = synthetic_estimate_log(delay=0.0, tau=0.01, rate=10.0, log_phase=0.025, duration=30.0)
-    rate, fraction, samples = cal.estimate_change_rate([log])
+    rate, fraction, samples = estimate_change_rate([log])
     assert samples > 100
     assert rate == pytest.approx(10.0, abs=1.0) and fraction == pytest.approx(0.5, abs=0.05)
 
 
 def test_float16_detection():
     values = np.array([0.123456, 1.0 / 3.0, 48.81, -2.7182818, 65280.0])
-    assert cal.float16_fraction(values) == pytest.approx(0.2)     # only 65280 is a half float as written
+    assert float16_fraction(values) == pytest.approx(0.2)     # only 65280 is a half float as written
     halves = np.array([float(str(np.float16(v))) for v in values])
-    assert cal.float16_fraction(halves) == 1.0
-    assert cal.quantum_fraction(np.array([1 / 256.0, 3 / 256.0, 0.1]), 1 / 256.0) == pytest.approx(2 / 3.0)
+    assert float16_fraction(halves) == 1.0
+    assert quantum_fraction(np.array([1 / 256.0, 3 / 256.0, 0.1]), 1 / 256.0) == pytest.approx(2 / 3.0)
 
 
 def test_estimate_model_response_holds_and_delays():
     t = np.arange(0.0, 2.0, 0.001)
     truth = t.copy()                                            # a ramp
-    out = cal.estimate_model_response(t, truth, 0.1, 0.0, 10.0, t_out=np.array([0.55, 0.65, 0.99]))
+    out = estimate_model_response(t, truth, 0.1, 0.0, 10.0, t_out=np.array([0.55, 0.65, 0.99]))
     # Held at 0.5 / 0.6 / 0.9 s, delayed by 0.1 s.
     assert out == pytest.approx([0.4, 0.5, 0.8], abs=1e-3)
 
@@ -375,7 +386,7 @@ def synthetic_fusion_log(name, fix_delay, gain, seed, cruise=0.0, duration=30.0)
 def test_position_fusion_fit_recovers_gain_and_delay():
     logs = [synthetic_fusion_log('static_fusion_a', 0.2, 0.4, seed=11),
             synthetic_fusion_log('x_straight_fusion', 0.2, 0.4, seed=12, cruise=3.0)]
-    fit = cal.fit_position_fusion(logs, 20.0, 0.01, 0.01)
+    fit = fit_position_fusion(logs, 20.0, 0.01, 0.01)
     assert fit.effective_delay == pytest.approx(0.2, abs=0.01)
     assert fit.fix_delay == pytest.approx(0.2 - 0.5 / 20.0, abs=0.01)
     assert fit.fix_gain == pytest.approx(0.4, rel=0.1)
@@ -389,7 +400,7 @@ def test_position_fusion_fit_recovers_gain_and_delay():
 def test_fusion_profile_holds_the_gain_and_refits_the_delay():
     logs = [synthetic_fusion_log('static_fusion_a', 0.2, 0.4, seed=11),
             synthetic_fusion_log('x_straight_fusion', 0.2, 0.4, seed=12, cruise=3.0)]
-    rows = cal.fusion_profile(logs, (0.1, 0.4, 1.6), 20.0)
+    rows = fusion_profile(logs, (0.1, 0.4, 1.6), 20.0)
     assert [r.fix_gain for r in rows] == [0.1, 0.4, 1.6]
     true = rows[1]
     # at the true gain: the true delay and a residual as small as the free fit's
@@ -401,23 +412,23 @@ def test_fusion_profile_holds_the_gain_and_refits_the_delay():
         assert other.rms > 3.0 * true.rms
         assert other.rms_static > true.rms_static and other.rms_straight > true.rms_straight
     # the delay is refitted for a wrong gain: better than the true delay at that gain; or held when given
-    held = cal.fusion_profile(logs, (1.6, 1.6), 20.0, (None, 0.2))
+    held = fusion_profile(logs, (1.6, 1.6), 20.0, (None, 0.2))
     assert held[1].effective_delay == 0.2 and abs(held[0].effective_delay - 0.2) > 0.005
     assert held[0].rms < held[1].rms
     with pytest.raises(ValueError):
-        cal.fusion_profile([], (0.4,), 20.0)
+        fusion_profile([], (0.4,), 20.0)
     with pytest.raises(ValueError):
-        cal.fusion_profile(logs, (0.4, 0.5), 20.0, (None,))
+        fusion_profile(logs, (0.4, 0.5), 20.0, (None,))
 
 
 def test_fused_position_response_matches_independent_integration():
     t = np.arange(0.0, 10.0, 0.05)
     truth = 2.0 * t + np.sin(t)
     velocity = 2.0 + np.cos(t)
-    ours = cal.fused_position_response(t, truth, velocity, 0.25, 0.5, 0.3, step=0.001)
+    ours = fused_position_response(t, truth, velocity, 0.25, 0.5, 0.3, step=0.001)
     ref = fused_by_euler(t, truth, velocity, 0.25, 0.5, 0.3, h=1e-4)
     assert np.max(np.abs(ours - ref)) < 2e-3
-    ramp = cal.fused_position_response(t, 2.0 * t, np.full_like(t, 2.0), 0.25, 0.5, 0.3)
+    ramp = fused_position_response(t, 2.0 * t, np.full_like(t, 2.0), 0.25, 0.5, 0.3)
     assert ramp[-1] == pytest.approx(2.0 * t[-1] - 0.25 * 2.0, abs=0.01)          # steady: D x speed behind
 
 
@@ -435,20 +446,20 @@ def test_velocity_error_fit_recovers_the_decay():
         for axis, b in zip(('vx', 'vy'), b0):
             est[axis] = np.round((truth[axis] + b * np.exp(-t / 3.0)) * 256.0) / 256.0
         logs.append(make_log(t + 10.0, truth, est, name=name))
-    fit = cal.fit_velocity_error(logs)
+    fit = fit_velocity_error(logs)
     assert fit.time_constant == pytest.approx(3.0, rel=0.05)
     assert fit.files == ('x_straight_a_mpc', 'x_straight_b_pid')
     assert fit.per_series[('x_straight_b_pid', 'y')][0] == pytest.approx(-0.10, abs=0.005)
     assert fit.rms < 0.2 * fit.rms_zero
-    assert cal.fit_velocity_error(logs[2:]).time_constant == 0.0           # no straight line: not identified
+    assert fit_velocity_error(logs[2:]).time_constant == 0.0           # no straight line: not identified
 
 
 def test_lag_along_motion():
     t = np.arange(0.0, 5.0, 0.05)
     v = np.column_stack((np.full_like(t, 2.0), np.zeros_like(t)))
     truth = np.column_stack((2.0 * t, np.zeros_like(t)))
-    assert cal.lag_along_motion(t, truth, truth - 0.3 * v, v) == pytest.approx(0.3)
-    assert math.isnan(cal.lag_along_motion(t, truth, truth, 0.0 * v))
+    assert lag_along_motion(t, truth, truth - 0.3 * v, v) == pytest.approx(0.3)
+    assert math.isnan(lag_along_motion(t, truth, truth, 0.0 * v))
 
 
 def test_quantum_detection_finds_the_grid_and_not_float16_noise():
@@ -456,21 +467,21 @@ def test_quantum_detection_finds_the_grid_and_not_float16_noise():
     raw = rng.uniform(-1.9, 1.9, 2000)
     quantised = np.round(raw * 256.0) / 256.0
     as_logged = np.array([float(str(v)) for v in np.float16(quantised)])        # as logged: shortest repr
-    assert cal.estimate_quantum(as_logged) == 1.0 / 256.0
-    assert cal.estimate_quantum(np.float16(np.round(raw * 64.0) / 64.0).astype(float)) == 1.0 / 64.0
-    assert cal.estimate_quantum(np.float16(raw).astype(float)) == 0.0            # float16 alone: no grid
-    assert cal.estimate_quantum(np.float16(raw[:20]).astype(float)) == 0.0       # too few values to tell
+    assert estimate_quantum(as_logged) == 1.0 / 256.0
+    assert estimate_quantum(np.float16(np.round(raw * 64.0) / 64.0).astype(float)) == 1.0 / 64.0
+    assert estimate_quantum(np.float16(raw).astype(float)) == 0.0            # float16 alone: no grid
+    assert estimate_quantum(np.float16(raw[:20]).astype(float)) == 0.0       # too few values to tell
 
 
 def test_estimate_grid_finds_a_grid_of_any_step_and_offset_and_not_in_noise():
     rng = np.random.default_rng(4)
     step = 0.0213
     series = [offset + step * np.round(rng.uniform(-1.5, 2.5, 400) / step) for offset in (0.0, 0.0071, -0.013)]
-    found, conc = cal.estimate_grid(series)
+    found, conc = estimate_grid(series)
     assert found == pytest.approx(step, abs=2e-5) and conc > 0.99          # the coarsest, not step / 2
     noise = [rng.uniform(-1.5, 2.5, 400) for _ in range(3)]
-    assert cal.estimate_grid(noise)[0] == 0.0
-    assert cal.grid_concentration(noise, step) < 0.3
+    assert estimate_grid(noise)[0] == 0.0
+    assert grid_concentration(noise, step) < 0.3
 
 
 # ----------------------------------------------------------------------------------------- PID replay
@@ -483,7 +494,7 @@ def test_reconstructed_pid_commands_have_the_bridge_signs():
     step = t >= 1.0
     wp['wp_x'][step], wp['wp_y'][step], wp['wp_z'][step] = 3.0, 2.0, 5.0
     log = make_log(t, truth, waypoint=wp, name='static_waypoint_synthetic_pid')
-    trace = cal.reconstruct_pid_commands(log)
+    trace = reconstruct_pid_commands(log)
     assert trace.start_index == int(np.argmax(step))
     before = trace.t < 1.0
     assert np.all(trace.pitch[before] == 0.0) and np.all(trace.vertical_speed[before] == 0.0)
@@ -505,7 +516,7 @@ def test_reconstructed_mpc_commands_have_the_bridge_signs_and_none_at_the_waypoi
     step = t >= 1.0
     wp['wp_x'][step], wp['wp_y'][step] = 3.0, 2.0
     log = make_log(t, truth, waypoint=wp, name='static_waypoint_synthetic_mpc')
-    trace = cal.reconstruct_mpc_commands(log)
+    trace = reconstruct_mpc_commands(log)
     assert trace.start_index == int(np.argmax(step))
     assert np.all(np.diff(trace.t) == pytest.approx(0.1))      # one solve per 10 Hz cycle
     before, late = trace.t < 0.95, trace.t > 1.05
@@ -523,13 +534,13 @@ def real():
     if not os.path.isdir(LOG_DIR):
         pytest.skip('reference logs not found at %s (shared/ is beside the repo in CI)' % LOG_DIR)
     logs = [read_log(os.path.join(LOG_DIR, name)) for name in sorted(os.listdir(LOG_DIR)) if name.endswith('.csv')]
-    return logs, cal.calibrate(logs)
+    return logs, calibrate(logs)
 
 
 def test_real_logs_give_plausible_parameters(real):
     _, result = real
     p = result.params
-    assert list(p) == list(cal.MODEL_KEYS)
+    assert list(p) == list(MODEL_KEYS)
     for key, value in p.items():
         assert isinstance(value, bool) if key == 'estimate_float16' else math.isfinite(value), key
     assert p['gravity'] == 9.81
@@ -553,10 +564,10 @@ def test_real_log_residuals_within_bounds(real):
     # Steady straight flight: the fitted drag predicts the logged mean tilt (+ trim) to 0.003 rad.
     logs, _ = real
     for log in logs:
-        if log.name.startswith('x_straight') and cal.is_clean(log):
+        if log.name.startswith('x_straight') and is_clean(log):
             speed = float(np.mean(np.hypot(log.vx_sphinx, log.vy_sphinx)))
             tilt = float(np.mean(log.pitch_sphinx)) + d.trim_pitch
-            assert cal.steady_state_pitch(speed, d.drag_linear, d.drag_quadratic) == pytest.approx(tilt, abs=0.003)
+            assert steady_state_pitch(speed, d.drag_linear, d.drag_quadratic) == pytest.approx(tilt, abs=0.003)
     # Estimate: the delay/smoothing model explains > 99 % of the variance; attitude to 0.005 rad.
     assert e.fit.r2 > 0.99 and e.groups['attitude'].rms < 0.005 and e.groups['velocity'].rms < 0.05
     # Firmware loops: attitude within 0.02 rad (~4 PCMD percents), vertical speed within 4 % of the 2 m/s
@@ -573,10 +584,10 @@ def test_yaml_text_has_exactly_the_model_keys_and_validates(real):
     for fitted in (False, True):
         text = report.format_model_yaml(result, names, fitted=fitted)
         data = yaml.safe_load(text)
-        assert set(data) == set(MODEL_KEYS) and list(data) == list(cal.MODEL_KEYS)
+        assert set(data) == set(MODEL_KEYS) and list(data) == list(MODEL_KEYS)
         expected = result.fitted if fitted else result.params
         clean = validate_model_params(data)
-        for key in cal.MODEL_KEYS:
+        for key in MODEL_KEYS:
             assert clean[key] == pytest.approx(expected[key], rel=1e-5), key
         assert 'Generated by anafi_lab/cli/calibrate_model.py' in text
         assert not re.search(r'\d{4}-\d{2}-\d{2}', text)          # date-free: reruns are reproducible
@@ -586,7 +597,7 @@ def test_yaml_text_has_exactly_the_model_keys_and_validates(real):
             assert len(comments[key].strip()) > 20, key
     shipped = yaml.safe_load(report.format_model_yaml(result, names))
     on_own_loop = {'gyroscopic_coupling': result.effects.gyroscopic}     # refitted on the fitted file's loop
-    for name, keys in cal.EFFECT_GROUPS.items():       # the shipped groups have the fitted values, the others are off
+    for name, keys in EFFECT_GROUPS.items():       # the shipped groups have the fitted values, the others are off
         for key in keys:
             if name in on_own_loop and 'tilt_rate_limit' not in result.effects_on:
                 value = on_own_loop[name][keys.index(key)]          # (G, c, w): the first-order loop's fit
@@ -603,7 +614,7 @@ def test_committed_config_is_this_fit(real):
     for name, expected in (('anafi_model.yaml', result.params), ('anafi_model_fitted.yaml', result.fitted)):
         with open(os.path.join(REPO, 'anafi_sim', 'config', name)) as stream:
             committed = yaml.safe_load(stream)
-        for key in cal.MODEL_KEYS:
+        for key in MODEL_KEYS:
             if isinstance(expected[key], bool):
                 assert committed[key] is expected[key], (name, key)
             else:
@@ -614,7 +625,7 @@ def test_real_log_effects(real):
     """Every effect is found in the shared logs with its documented value and helps where it should."""
     logs, result = real
     f, p = result.effects, result.fitted
-    assert result.effects_on == tuple(cal.SHIPPED_EFFECTS)
+    assert result.effects_on == tuple(SHIPPED_EFFECTS)
     # fusion: steady lag of the replayed estimate within 0.03 s of the logged one, transients well below it
     fusion = f.fusion
     assert 0.15 < fusion.fix_delay < 0.3 and 0.05 < fusion.fix_gain < 1.0
@@ -744,4 +755,4 @@ def test_replay_figure_is_written(real, tmp_path):
 def test_summary_lists_every_model_key(real):
     _, result = real
     text = report.format_summary(result)
-    assert all(key in text for key in cal.MODEL_KEYS) and 'Residuals:' in text
+    assert all(key in text for key in MODEL_KEYS) and 'Residuals:' in text

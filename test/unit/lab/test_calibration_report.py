@@ -1,0 +1,77 @@
+"""docs/calibration.md and the model YAMLs are their templates filled with the calibration's stored figures.
+
+``make calibrate`` (anafi_lab/cli/calibrate_model.py) stores the figures in benchmarks/results/calibration.yaml
+and renders docs/calibration.md, anafi_sim/config/anafi_model.yaml and anafi_model_fitted.yaml from them;
+rendering them again gives the committed files byte for byte (without the fits, which take minutes), every
+figure in them comes from the stored data, and the templates' words have no figure of their own.
+"""
+import copy
+import os
+import re
+
+import yaml
+
+from anafi_sim import paths
+from anafi_lab.reports import calibration_report as report
+
+ROOT = paths.checkout()
+REPORT = os.path.join(ROOT, 'docs', 'calibration.md')
+STORED = os.path.join(ROOT, 'benchmarks', 'results', 'calibration.yaml')
+TEMPLATES = os.path.join(ROOT, 'anafi_lab', 'reports', 'templates')
+
+
+def stored_context(part='report'):
+    with open(STORED) as stream:
+        return yaml.safe_load(stream)[part]
+
+
+def committed(path=REPORT):
+    with open(path) as stream:
+        return stream.read()
+
+
+def test_report_renders_byte_identical_from_the_stored_figures():
+    assert report.render_report(stored_context()) == committed()
+
+
+def test_model_files_render_byte_identical_from_the_stored_figures():
+    for part, name in (('model', 'anafi_model.yaml'), ('model_fitted', 'anafi_model_fitted.yaml')):
+        path = os.path.join(ROOT, 'anafi_sim', 'config', name)
+        assert report.render_model_yaml(stored_context(part)) == committed(path), name
+
+
+def test_a_stored_figure_changes_the_report_where_it_is_quoted():
+    context = stored_context()
+    changed = copy.deepcopy(context)
+    changed['drag']['rms'] = 12.3456
+    changed['effects']['gyroscopic']['coupling'] = -9.876
+    text = report.render_report(changed)
+    assert text != committed()
+    assert 'rms 12.3456 m/s^2, R^2' in text and 'G = -9.876 s' in text
+    assert 'rms %.4f m/s^2, R^2' % context['drag']['rms'] in committed()
+
+
+# Digits the template's words may hold: names (sections, tables, equations, logs, symbols), units, the 0 and 1
+# of formulas and definitions, and the YAML scalar's ".0".
+ALLOWED = re.compile(r"R\^2|\(c-e\)|Table [23]|eq\. \(?15\)?|issue 2|float16|3-D|1/k|1 / tau|1/\(2 rate\)|"
+                     r"1 / \(c tau\)|1/\(c tau\)|\(I - G r J\)\^-1|1 / sqrt\(1 \+ \(G r\)\^2\)|"
+                     r"\(1 \+ \(G r\)\^2\)\^\(-p/2\)|m/s\^2|1/s\^2|2 pi i v|k1|k2|b0|v0|v1|x_straight_4_pid|"
+                     r"yaw-180|yaw-0|x_straight_2/3_pid|\^-1|2\^|1/|x_pred|\(1 - a r\)|0, 1\)|1 - its gain|"
+                     r"time 0|b = 0|w > 0|of 1 |\(1 \+ c \|v\|\)| 1, as the model|\.0|\(1 - a\)")
+
+
+def test_template_words_hold_no_figure():
+    for name in sorted(os.listdir(TEMPLATES)):
+        if not name.startswith(('calibration', 'anafi_model')):
+            continue
+        with open(os.path.join(TEMPLATES, name)) as stream:
+            text = stream.read()
+        words = re.sub(r'\{\{.*?\}\}|\{%.*?%\}|\{#.*?#\}', ' ', text, flags=re.S)
+        for line in words.split('\n'):
+            left = ALLOWED.sub(' ', line)
+            assert not re.search(r'\d', left), '%s: a figure typed into the words: %r' % (name, line.strip()[:200])
+
+
+def test_the_allowed_words_do_not_hide_a_figure():
+    for typed in ('rms 0.35 rad', 'at 20 Hz', '~94 % of the command', 'k2 ~ 0.07 1/s^2', 'R 84.7 deg/s'):
+        assert re.search(r'\d', ALLOWED.sub(' ', typed)), typed

@@ -2,10 +2,12 @@
 
 A report is a template plus a context of figures: no figure is typed into the prose and no prose is built by
 string concatenation in Python. ``render(name, **context)`` fills ``templates/<name>``; the filters every template
-has are ``fmt`` (``anafi_sim.numeric.fmt``: digits, '-' when missing), ``pct`` (a ratio as a signed percent) and
+has are ``fmt`` (``anafi_sim.numeric.fmt``: digits, '-' when missing), ``pct`` (a ratio as a signed percent),
+``paragraph`` (``{% filter paragraph %}``: a paragraph wrapped in the template as one line of the report) and
 ``join`` (Jinja2's own).
 """
 import functools
+import re
 
 import jinja2
 
@@ -20,6 +22,12 @@ def pct(ratio, digits=0):
     return ('%s %%' % text) if text.startswith('-') else ('+%s %%' % text)
 
 
+def paragraph(text):
+    """A paragraph wrapped over several lines of a template as one line (every run of white space one space),
+    followed by a line break."""
+    return re.sub(r'\s+', ' ', text.strip()) + '\n'
+
+
 @functools.lru_cache(maxsize=None)
 def environment():
     """The Jinja2 environment of the report templates (found through the package: devel and install spaces)."""
@@ -28,6 +36,7 @@ def environment():
                              keep_trailing_newline=True, autoescape=False)
     env.filters['fmt'] = fmt
     env.filters['pct'] = pct
+    env.filters['paragraph'] = paragraph
     return env
 
 

@@ -30,7 +30,8 @@ rerun alone and the report re-rendered: ``--steps ,`` measures nothing and re-re
 
 Logs of other scenarios (e.g. Sphinx's runs of Tables 4 and 5, in the shared logs' format, named
 ``<scenario>_<pid|mpc>.csv``) are replayed alike: ``--logs DIR --steps replay`` (with ``--out`` / ``--figures`` /
-``--store`` elsewhere); the models are calibrated on ``--calibration-logs`` (default the shared logs) whatever ``--logs`` is.
+``--store`` elsewhere); the models are calibrated on ``--calibration-logs`` (default the shared logs) whatever
+``--logs`` is.
 
     python anafi_lab/cli/measure_fidelity.py [--steps replay,...,self_replay] [--workers 2]
 """
@@ -226,8 +227,8 @@ def run_step(step, args, plan, measured):
         measured.t3.update(V.table3_runs([v for v in plan.run_variants if v.name not in V.METHODS],
                                          workers=args.workers))
     elif step == 'scenarios':
-        measured.scen.update(V.scenario_runs([v for v in plan.scen_variants if not plan.chosen or v.name in plan.chosen],
-                                             workers=args.workers))
+        chosen = [v for v in plan.scen_variants if not plan.chosen or v.name in plan.chosen]
+        measured.scen.update(V.scenario_runs(chosen, workers=args.workers))
     elif step == 'self_replay':
         measured.selfrep.clear()
         measured.selfrep.update(V.self_replay_runs([v for v in plan.scen_variants if v.name == 'shipped'],

@@ -684,7 +684,8 @@ def test_the_report_rerenders_byte_identical_from_the_stored_figures():
                                              'benchmarks/results/fidelity.yaml')
     with open(os.path.join(repo, 'docs', 'fidelity.md')) as stream:
         committed = stream.read()
-    assert text == committed, 'docs/fidelity.md differs from its re-render: python anafi_lab/cli/measure_fidelity.py --steps ,'
+    assert text == committed, ('docs/fidelity.md differs from its re-render: '
+                               'python anafi_lab/cli/measure_fidelity.py --steps ,')
 
 
 def _store(best, ratio_best=1.02, ratio_other=1.3):

@@ -19,7 +19,7 @@ rerun alone and the report re-rendered: ``--steps ,`` measures nothing and re-re
 - ``table3``: the paper's straight-line scenarios (Table 3) on the engine for each configuration;
 - ``scenarios``: every paper scenario (static waypoints, Tables 3-5) on the engine with the shipped model and
   the fitted one, the MPC with both timings (``paper_timing`` false / true) and, for the shipped model, with
-  the waypoint 5 / 30 / 55 / 80 ms old at its cycle; with what the issue's comparison implies for the
+  the waypoint 5 / 30 / 55 / 80 ms old at its cycle; with what the comparison with Sphinx's runs implies for the
   held-out cells of Tables 4 and 5 (``held_out.held_out_bounds``);
 - ``fusion_gain``: the shipped model with the position fusion's gain k (and its delay refitted) at the fits of
   the static-waypoint logs alone and of the straight-line logs alone, and at ``variants.FUSION_GAIN_PROBES``

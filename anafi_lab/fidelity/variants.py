@@ -230,11 +230,11 @@ def main_variants(off, on, timing, shipped=None):
                         controllers=('mpc',))]
         for v in out[1:4]:     # the default runs state the timing explicitly (mpc.yaml may change its default)
             out[out.index(v)] = v._replace(controller_params={'mpc': {'paper_timing': False}})
-    # the replay method before the initial state (the same model): every log starts settled on its line
+    # the same model replayed without the log's initial state: every log starts settled on its line
     out.append(Variant('settled', 'shipped, settled start', shipped, plan={'initial_state': False}))
-    # the same model, the replay not holding the estimate where the log's estimate stream stalled (before)
+    # the same model, the replay not holding the estimate where the log's estimate stream stalled
     out.append(Variant('nostalls', 'shipped, without the logs\' estimate stalls', shipped, plan={'stalls': False}))
-    # the measurement before the storage (the same runs): the stand-in's columns unrounded
+    # the same runs measured without the logger's storage: the stand-in's columns unrounded
     out.append(Variant('unstored', 'shipped, unrounded columns', shipped, plan={'stored': False}))
     return out
 

@@ -144,10 +144,12 @@ def supports_paper_timing():
 
 
 def strip(rec):
+    """A replay record without its plotted series (the store keeps the figures, not the histories)."""
     return dict((k, v) for k, v in rec.items() if k != 'series')
 
 
 def load_store(path):
+    """The store of measured figures at ``path`` ({} when there is none yet)."""
     if os.path.isfile(path):
         with open(path) as stream:
             return yaml.safe_load(stream) or {}

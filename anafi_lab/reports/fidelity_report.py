@@ -75,6 +75,7 @@ def _counts(records, logs, variant):
 
 
 def _score(records, logs, mpc_v, pid_v):
+    """{inside, cells, mean} of one configuration: cells within +-10 %, cells with a ratio, mean |ln ratio|."""
     k, n, m = S.score(S.combined(records, logs, mpc_v, pid_v))
     return dict(inside=k, cells=n, mean=m)
 

@@ -169,10 +169,13 @@ def write_atomic(path, text):
 
 
 def render(args):
-    """Re-render the report from the store (nothing measured)."""
+    """Re-render the report from the store (nothing measured); exits when the store has no measured figures."""
+    store = load_store(args.store)
+    if not store.get('meta') or not store.get('replays'):
+        sys.exit('no measured figures in %s: run a step first (--steps replay)' % args.store)
     out_dir = os.path.dirname(os.path.abspath(args.out))
     store_name = os.path.relpath(os.path.abspath(args.store), paths.checkout())
-    text = report.report_from_store(load_store(args.store), os.path.relpath(args.figures, out_dir),
+    text = report.report_from_store(store, os.path.relpath(args.figures, out_dir),
                                     os.path.relpath(args.store, out_dir), store_name)
     write_atomic(args.out, text)
 

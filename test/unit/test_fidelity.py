@@ -724,6 +724,14 @@ def test_a_rerender_measures_nothing_and_keeps_the_measuring_run(tmp_path):
     assert '- all off: 0 / 8, ' in text and '- yaw_bias alone: 0 / 8, ' in text
 
 
+def test_a_rerender_without_measured_figures_stops_with_a_message(tmp_path):
+    from anafi_lab.cli import measure_fidelity as bench
+    out = tmp_path / 'fidelity.md'
+    with pytest.raises(SystemExit) as stop:
+        bench.main(['--steps', ',', '--store', str(tmp_path / 'none.yaml'), '--out', str(out)])
+    assert 'no measured figures' in str(stop.value) and not out.exists()
+
+
 def test_the_ranking_and_the_recommendation_include_the_shipped_defaults():
     """The shipped defaults are ranked with the other configurations (not only the replay methods are left
     out): best when they score best, and quoted beside the best otherwise."""

@@ -5,6 +5,9 @@ anafi_lab/cli/measure_fidelity.py) and renders the template; the template holds 
 import collections
 import math
 
+import numpy as np
+import yaml
+
 from anafi_lab.calibration.fit import FusionProfileRow
 from anafi_lab.fidelity import held_out as H
 from anafi_lab.fidelity import replay as R
@@ -15,7 +18,7 @@ from anafi_lab.reports import paper_tables as report
 from anafi_lab.reports.render import render
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, mpc_config
 from anafi_sim.numeric import fmt
-from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF
+from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF, load_model_params
 
 COMMAND = 'python anafi_lab/cli/measure_fidelity.py'
 
@@ -269,10 +272,23 @@ def schedule_context():
                 ages_ms=[round(a * 1e3) for a in V.AGES])
 
 
-def render_report(measured, logs, ablation, figures_dir, store_path, store_name):
+def half_float_grid(lows=(64, 128)):
+    """[{step, low, high}]: the spacing [m] of half floats (the logs' storage) between each of ``lows`` and twice
+    it."""
+    return [dict(step=float(np.spacing(np.float16(low))), low=low, high=2 * low) for low in lows]
+
+
+def load_log_facts(path):
+    """The facts of the shared logs the report quotes (benchmarks/results/fidelity_log_facts.yaml)."""
+    with open(path) as stream:
+        return yaml.safe_load(stream)
+
+
+def render_report(measured, logs, ablation, figures_dir, store_path, store_name, facts):
     """The text of docs/fidelity.md from the ``Measured`` figures: ``logs`` (every log name, in order),
     ``ablation`` (the variants of that step, in order), ``figures_dir`` and ``store_path`` (as the report links
-    them: relative to the report's directory), ``store_name`` (the store as its commands name it)."""
+    them: relative to the report's directory), ``store_name`` (the store as its commands name it), ``facts``
+    (``load_log_facts``)."""
     m = measured
     timing = m.meta['paper_timing_supported']
     cols = columns(timing)
@@ -281,7 +297,8 @@ def render_report(measured, logs, ablation, figures_dir, store_path, store_name)
         'fidelity.md', command=COMMAND, meta=m.meta, figures=figures_dir, store=store_path,
         store_from_root=store_name, timing=timing,
         lead=R.DEFAULT_LEAD, initial_ahead=R.INITIAL_AHEAD, late=R.LATE, rate=R.DEFAULT_RATE,
-        stall_samples=R.STALL_SAMPLES, stall_caught_up=R.STALL_CAUGHT_UP,
+        stall_samples=R.STALL_SAMPLES, facts=facts, grid=half_float_grid(),
+        estimate_rate='%g' % load_model_params()['estimate_rate'],
         fitted_model=('`%s`' % m.meta['fitted_model'] if m.meta['fitted_model'].endswith('.yaml')
                       else m.meta['fitted_model']),
         paper_timing=str(mpc_config()[0].get('paper_timing', False)).lower() if timing else 'n/a',
@@ -324,12 +341,13 @@ def store_from_measured(measured):
             'self_replay': list(m.selfrep.values())}
 
 
-def report_from_store(store, figures_dir, store_path, store_name):
+def report_from_store(store, figures_dir, store_path, store_name, facts):
     """docs/fidelity.md from a store alone (nothing measured): the logs, the ablation's effects and the timer
     phases are the ones its replays have. ``figures_dir`` / ``store_path``: as the report links them (relative to
-    its directory); ``store_name``: the store as the report's commands name it (relative to the checkout)."""
+    its directory); ``store_name``: the store as the report's commands name it (relative to the checkout);
+    ``facts``: the facts of the logs it quotes (``load_log_facts``)."""
     measured = measured_from_store(store)
     logs = sorted(set(log for log, _ in measured.records))
     names = set(v for _, v in measured.records)
     ablation = [R.Variant('only_%s' % k, k) for k in EFFECT_GROUPS if 'only_%s' % k in names]
-    return render_report(measured, logs, ablation, figures_dir, store_path, store_name)
+    return render_report(measured, logs, ablation, figures_dir, store_path, store_name, facts)

@@ -680,8 +680,9 @@ def test_the_report_rerenders_byte_identical_from_the_stored_figures():
     repo = paths.checkout()
     with open(os.path.join(repo, 'benchmarks', 'results', 'fidelity.yaml')) as stream:
         store = yaml.load(stream, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))
+    facts = fidelity_report.load_log_facts(os.path.join(repo, 'benchmarks', 'results', 'fidelity_log_facts.yaml'))
     text = fidelity_report.report_from_store(store, 'fidelity', '../benchmarks/results/fidelity.yaml',
-                                             'benchmarks/results/fidelity.yaml')
+                                             'benchmarks/results/fidelity.yaml', facts)
     with open(os.path.join(repo, 'docs', 'fidelity.md')) as stream:
         committed = stream.read()
     assert text == committed, ('docs/fidelity.md differs from its re-render: '
@@ -707,6 +708,19 @@ def _store(best, ratio_best=1.02, ratio_other=1.3):
             'table3': [], 'scenarios': [], 'fusion_gain': [], 'self_replay': []}
 
 
+def _facts():
+    """Facts of the logs for a synthetic report (the report quotes them; their values do not matter here)."""
+    return {'logger': {'rate_hz': 20, 'sphinx_estimate_rate_hz': 19.5, 'static_pid_hover_m': 1, 'repr_error_m': 0.025},
+            'storage': {'sample_s': 1.0, 'stored_text': '1', 'half_float': 1.0, 'ahead_m': 0.1, 'line_speed_m_s': 1,
+                        'move_per_sample_m': 0.05, 'waypoint_step_m': 0.1, 'waypoint_period_s': 0.1,
+                        'x_straight_5_x_m': [1, 2]},
+            'stalls': {'logs': ['a_mpc', 'b_mpc'], 'held_rows': 4, 'start_s': [1.0, 2.0], 'caught_up_rows': [5, 4],
+                       'caught_up_s': [0.25, 0.2], 'fifth_row_moved_m': [0.1, 0.1], 'fifth_row_share': ['a', 'b'],
+                       'window_s': 0.8, 'sphinx_pitch_rise_deg': [1.0, 2.0], 'sphinx_vx_rise_m_s': [0.1, 0.1],
+                       'standin_pitch_rise_deg': [1.0, 2.0], 'standin_vx_rise_m_s': [0.1, 0.1],
+                       'standin_without_stall_deg': 0.2}}
+
+
 def test_a_rerender_measures_nothing_and_keeps_the_measuring_run(tmp_path):
     """``--steps ,`` re-renders from the store alone: the store is not rewritten, and the report names the
     command and date of the run that measured the figures."""
@@ -716,7 +730,10 @@ def test_a_rerender_measures_nothing_and_keeps_the_measuring_run(tmp_path):
     store.write_text(yaml.safe_dump(_store('shipped'), sort_keys=False))
     before = store.read_bytes()
     out = tmp_path / 'report' / 'fidelity.md'
-    bench.main(['--steps', ',', '--store', str(store), '--out', str(out), '--figures', str(tmp_path / 'figures')])
+    facts = tmp_path / 'facts.yaml'
+    facts.write_text(yaml.safe_dump(_facts()))
+    bench.main(['--steps', ',', '--store', str(store), '--out', str(out), '--figures', str(tmp_path / 'figures'),
+                '--facts', str(facts)])
     assert store.read_bytes() == before
     text = out.read_text()
     assert '(last: `the measuring command`, 2000-01-02 03:04, a machine;' in text
@@ -736,13 +753,13 @@ def test_the_ranking_and_the_recommendation_include_the_shipped_defaults():
     """The shipped defaults are ranked with the other configurations (not only the replay methods are left
     out): best when they score best, and quoted beside the best otherwise."""
     from anafi_lab.reports import fidelity_report
-    text = fidelity_report.report_from_store(_store('shipped'), 'f', 's.yaml', 's.yaml')
+    text = fidelity_report.report_from_store(_store('shipped'), 'f', 's.yaml', 's.yaml', _facts())
     assert 'on the shared logs (most cells within +-10 %, then mean |ln ratio|): **shipped defaults**' in text
     assert 'By these measurements the shipped defaults score best (8 / 8 shared-log cells' in text
-    text = fidelity_report.report_from_store(_store('on'), 'f', 's.yaml', 's.yaml')
+    text = fidelity_report.report_from_store(_store('on'), 'f', 's.yaml', 's.yaml', _facts())
     assert 'then mean |ln ratio|): **effects on**' in text
     assert 'By these measurements: **effects on** (8 / 8 shared-log cells within +-10 %' in text
     assert 'the shipped defaults score 0 / 8, ' in text
     # a replay method scoring best is no configuration: not recommended
-    text = fidelity_report.report_from_store(_store('settled'), 'f', 's.yaml', 's.yaml')
+    text = fidelity_report.report_from_store(_store('settled'), 'f', 's.yaml', 's.yaml', _facts())
     assert '**shipped, settled start**' not in text.split('## Recommendation')[1].split('\n\n')[1]

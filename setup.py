@@ -16,5 +16,7 @@ ROOTS = ('anafi_sim', 'anafi_control', 'anafi_lab')
 setup(**generate_distutils_setup(
     packages=sorted(find_packages(HERE, include=[p for r in ROOTS for p in (r, r + '.*')])),
     package_dir={'': '.'},
-    package_data={'anafi_lab.reports': ['templates/*.md', 'templates/*.yaml']},   # the report templates (installed)
+    # the report templates and the fidelity room's data files (installed with the package)
+    package_data={'anafi_lab.reports': ['templates/*.md', 'templates/*.yaml', 'templates/*/*.md'],
+                  'anafi_lab.fidelity': ['*.yaml']},
 ))

@@ -2,10 +2,12 @@
 
 A report is a template plus a context of figures: no figure is typed into the prose and no prose is built by
 string concatenation in Python. ``render(name, **context)`` fills ``templates/<name>``; the filters every template
-has are ``fmt`` (``anafi_sim.numeric.fmt``: digits, '-' when missing), ``pct`` (a ratio as a signed percent) and
+has are ``fmt`` (``anafi_sim.numeric.fmt``: digits, '-' when missing), ``pct`` (a ratio as a signed percent),
+``paragraph`` (``{% filter paragraph %}``: a paragraph wrapped in the template as one line of the report) and
 Jinja2's own; ``table(header, rows)`` draws a Markdown table.
 """
 import functools
+import re
 
 import jinja2
 
@@ -31,6 +33,12 @@ def table(header, rows):
     return '\n'.join(markdown_table(header, rows))
 
 
+def paragraph(text):
+    """A paragraph wrapped over several lines of a template as one line (every run of white space one space),
+    followed by a line break."""
+    return re.sub(r'\s+', ' ', text.strip()) + '\n'
+
+
 @functools.lru_cache(maxsize=None)
 def environment():
     """The Jinja2 environment of the report templates (found through the package: devel and install spaces)."""
@@ -40,6 +48,7 @@ def environment():
     env.filters['fmt'] = fmt
     env.filters['pct'] = pct
     env.globals['table'] = table
+    env.filters['paragraph'] = paragraph
     return env
 
 

@@ -15,7 +15,9 @@ Publishes: drone/odom (nav_msgs/Odometry of the estimate, world ->
 zero), drone/pose_enu, drone/attitude, drone/speed (world ENU), drone/altitude,
 drone/rpy (deg), camera/attitude, drone/state (latched), sim/truth (ground
 truth Odometry stamped at its sample's time), /diagnostics (1 Hz wall),
-/clock when ~publish_clock. Parameters: see anafi_sim/config/sim.yaml; the
+/clock when ~publish_clock. Sets ~telemetry_bound_port (the port it serves on: ~telemetry_port, or a free
+one for 0) and ~telemetry_stream_id (a new random id per start, printed in every telemetry sample) for the
+interface (its ~simulator_node). Parameters: see anafi_sim/config/sim.yaml; the
 fitted model dict is ~model if set, else read from ~model_file (default anafi_model.yaml, a name in
 anafi_sim/config such as anafi_model_fitted.yaml, or an absolute path).
 ~sync (with ~publish_clock): lockstep with the controller
@@ -45,7 +47,7 @@ from anafi_sim.sim.clock import SYNC_DEFAULTS, Lockstep, SimClock, StartHold
 from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
 from anafi_sim.sim.simulator import SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
-from anafi_sim.telemetry.protocol import DEFAULT_PREFIX
+from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, new_stream_id
 from anafi_sim.telemetry.server import TelemetryServer
 
 
@@ -72,7 +74,7 @@ class AnafiSimNode(object):
         telemetry_rate = p.positive('telemetry_rate', 100.0)
         estimate_rate = p.positive('estimate_publish_rate', 30.0)
         host = p.string('telemetry_host', '127.0.0.1')
-        port = p.integer('telemetry_port', 9060, minimum=0, maximum=65535)   # 0 = any free port
+        port = p.integer('telemetry_port', 0, minimum=0, maximum=65535)   # 0 = any free port
         prefix = p.string('telemetry_prefix', DEFAULT_PREFIX)
         auto_takeoff = p.flag('auto_takeoff', True)
         sync = p.flag('sync', False)
@@ -112,12 +114,18 @@ class AnafiSimNode(object):
                 raise ValueError('/use_sim_time is true but nobody publishes /clock: set ~publish_clock '
                                  'true (this node then provides the simulation clock) or unset /use_sim_time')
 
-        self.server = TelemetryServer(host, port, prefix)
+        # Every start gets a new stream id; the interface reads it (and the bound port) from these parameters
+        # and refuses a stream with another id (another simulator's drone, a stale port).
+        self.stream_id = new_stream_id()
+        self.server = TelemetryServer(host, port, prefix, stream_id=self.stream_id)
         try:
             self.server.start()
         except OSError as error:
-            raise ValueError('cannot serve telemetry on %s:%s: %s' % (host, port, error))
+            raise ValueError('cannot serve telemetry on %s:%s (~telemetry_port): %s%s' % (
+                host, port, error, '; another simulator uses it: give another port, or 0 for any free one'
+                if port else ''))
         rospy.on_shutdown(self.server.stop)
+        rospy.set_param('~telemetry_stream_id', self.stream_id)
         rospy.set_param('~telemetry_bound_port', self.server.port)
         # lockstep: no catching up after a late step (it would squeeze the graph's hops into less sim time)
         clock = SimClock(rate, rtf, telemetry_rate, estimate_rate, publish_clock, **({'max_lag': 0.0} if sync else {}))
@@ -144,8 +152,8 @@ class AnafiSimNode(object):
         rospy.Subscriber(base + topics.COMMAND, piloting_command_class(), self._on_rpyt, queue_size=20)
         rospy.Subscriber(base + topics.TAKEOFF, Empty, lambda _: self.sim.on_event('takeoff'), queue_size=5)
         rospy.Subscriber(base + topics.LAND, Empty, lambda _: self.sim.on_event('land'), queue_size=5)
-        rospy.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz)%s%s',
-                      self.drone, rate, rtf, host, self.server.port, telemetry_rate,
+        rospy.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz, stream id %d)%s%s',
+                      self.drone, rate, rtf, host, self.server.port, telemetry_rate, self.stream_id,
                       ', publishing /clock' if publish_clock else '',
                       ', lockstep with the controller every %g s (time-out %g s wall)' % (sync_period, sync_timeout)
                       if sync else '')

@@ -23,6 +23,12 @@ queued, so ROS I/O never blocks the reader):
   restarting) and after a restart until samples flow again; the restart note stays in
   the message.
 
+With ~simulator_node (our simulator, e.g. anafi_sim in the same namespace) the port of the command's
+inet:HOST:PORT argument is the one that node serves on (its ~telemetry_bound_port, read before each start:
+telemetry_port 0 works) and only samples with its stream id (~telemetry_stream_id) are published; a
+stream with another id or none (another drone, a stale port) is refused: ERROR, nothing published, the
+telemetry process restarted after ~restart_timeout (anafi_sim.interface.telemetry_source).
+
 The telemetry process is restarted when it exits, prints no byte or no complete sample
 for ~restart_timeout s; lines longer than MAX_LINE bytes are dropped and counted
 (process oversize lines). Restart warnings are throttled (10 s) with running counts.
@@ -31,6 +37,7 @@ Namespace /<drone> (default drone name: the namespace's last part; in the
 root namespace the topics go under /<~drone_name>/). Parameters: see
 anafi_sim/config/interface.yaml. Bad parameters: logfatal and exit code 2.
 """
+import shlex
 import threading
 import time
 
@@ -41,6 +48,7 @@ from nav_msgs.msg import Odometry
 
 from anafi_sim.interface import ground_truth as gt
 from anafi_sim.interface.supervisor import ProcessSupervisor
+from anafi_sim.interface.telemetry_source import SimulatorSource, with_port
 
 #: [bytes] longest telemetry line taken (a Sphinx line is < 100 bytes); longer ones are dropped and counted
 MAX_LINE = 4096
@@ -71,6 +79,7 @@ def read_params():
     namespace = rospy.get_namespace().strip('/')
     p['drone_name'] = reader.base_name('drone_name', namespace.split('/')[-1] if namespace else 'anafi')
     p['stamp_with_sample_time'] = reader.flag('stamp_with_sample_time', False)
+    p['simulator_node'] = reader.string('simulator_node', '')
     p['topic_base'] = '' if namespace else p['drone_name'] + '/'
     return p
 
@@ -110,10 +119,16 @@ class InterfaceNode(object):
         self.static_tf.sendTransform(_transform(rospy.Time(0), self.camera, drone + '/camera_optical',
                                                 (0.0, 0.0, 0.0), gt.CAMERA_OPTICAL_ROTATION))
         self.diag_name = '%s: ground truth interface' % rospy.get_name()
+        self.source = None
+        if params['simulator_node']:     # our simulator: its bound port and stream id, read before each start
+            self.source = SimulatorSource(params['simulator_node'], lambda name: rospy.get_param(name, None))
+            with_port(shlex.split(params['telemetry_command']) if isinstance(params['telemetry_command'], str)
+                      else params['telemetry_command'], 1)    # ValueError now if it has no inet:HOST:PORT
         self.supervisor = ProcessSupervisor(   # ValueError for a command string shlex cannot split
             params['telemetry_command'], self.on_line, restart_timeout=params['restart_timeout'],
             backoff_initial=params['backoff_initial'], backoff_max=params['backoff_max'],
-            on_event=self.on_event, sample_timeout=params['restart_timeout'], max_line=MAX_LINE)
+            on_event=self.on_event, sample_timeout=params['restart_timeout'], max_line=MAX_LINE,
+            prepare=self._prepare if self.source is not None else None)
 
     def run(self):
         rospy.loginfo('interface: running %r, publishing %s at %.0f Hz', self.supervisor.argv,
@@ -125,10 +140,20 @@ class InterfaceNode(object):
         self.supervisor.stop()
 
     # -- supervisor callbacks (supervisor threads) ---------------------------------------
+    def _prepare(self, argv):
+        argv = self.source.prepare(argv)
+        with self.lock:
+            if self.core.expected_stream_id != self.source.stream_id:
+                rospy.loginfo('interface: reading the telemetry of %s on port %d, stream id %d',
+                              self.source.node, self.source.port, self.source.stream_id)
+            self.core.expected_stream_id = self.source.stream_id
+        return argv
+
     def on_event(self, kind, info):
         if kind == 'start':
             with self.lock:
                 self.parser.reset()  # a sample cut by the previous process must not be completed by this one
+                self.parser.stream_id = None
                 self.core.on_process_start()   # ERROR until samples flow again
             rospy.loginfo('interface: telemetry process started (pid %s)', info.get('pid'))
         elif kind == 'exit':     # throttled: a simulator that is down makes the tool exit again and again
@@ -155,8 +180,15 @@ class InterfaceNode(object):
             sample = self.parser.feed_line(line, line.endswith('\n'))
             if sample is None:
                 return False
-            out = self.core.on_sample(sample, wall_time)
+            refused = self.core.foreign_samples
+            out = self.core.on_sample(sample, wall_time, self.parser.stream_id)
+            refused = self.core.foreign_samples > refused
             restarted = self.core.restarted
+        if refused:
+            rospy.logerr_throttle(5.0, 'interface: refusing the telemetry of another drone (stream id %s, expected '
+                                  '%s; %d samples refused): nothing published' % (
+                                      self.parser.stream_id, self.core.expected_stream_id, self.core.foreign_samples))
+            return False    # not our sample: after restart_timeout the supervisor restarts (re-reads the port)
         if restarted:
             rospy.logwarn('interface: simulator restart detected (timestamp jumped back to %.3f s); state reset',
                           sample.timestamp)

@@ -39,6 +39,7 @@ ALLOWED_IMPORTS = {
     _CTL: set(),
     _PATHS: set(),
     'anafi_sim.harness': set(),
+    'anafi_sim.run_files': set(),
     _TLM: {_PATHS},
     _SIM: {_TLM, _CTL, _PATHS},
     _IF: {_TLM, _CTL, _PATHS},

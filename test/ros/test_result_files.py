@@ -1,0 +1,150 @@
+#!/usr/bin/env python3
+"""rostest (result_files.test): a full disk and a SIGKILLed rerun leave honest files.
+
+Each case runs ``roslaunch anafi_sim experiment.launch`` (test scenario experiment_short.yaml, MPC, rtf 2,
+no mirror) on a private ROS master of its own, like test_experiment.py.
+
+- full disk: out_dir on a 200 kB tmpfs (mounted by this test when it runs as root and may mount; otherwise
+  every process of the launch gets RLIMIT_FSIZE 64 kB, so each larger file fails with EFBIG): the run ends
+  FAILED with the reason (RESULT ... FAILED), roslaunch's required node exits 1, no file named RUN.yaml /
+  RUN.csv / RUN.png / RUN.run.yaml is left (a cut file would carry a final name), every file left is
+  RUN.FAILED.* or a temporary-free partial bag.
+- SIGKILLed rerun (unique:=false, the same out_dir and run name): the first run ends ok; the rerun is
+  SIGKILLed (every process of it) once its bag is being recorded: none of the first run's final files is
+  left next to the rerun's partial bag, and RUN.FAILED.run.yaml says state running.
+"""
+import os
+import re
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+import psutil
+import rostest
+import yaml
+
+from anafi_sim import harness, paths
+
+SCENARIO = os.path.join(paths.package_dir(), 'test', 'ros', 'experiment_short.yaml')
+NAME = 'short_mpc'
+RUN_TIMEOUT = 150.0
+FINAL_NAMES = ('.yaml', '.csv', '.png', '.run.yaml', '.bag')
+
+
+def launch(out, extra=(), log=None, **popen):
+    port = harness.free_port()
+    env = dict(os.environ, ROS_MASTER_URI='http://127.0.0.1:%d' % port,
+               ROS_HOME=os.path.join(tempfile.gettempdir(), 'result_files_ros_home_%d' % port))
+    harness.add_module_paths(env, 'osqp')
+    cmd = ['roslaunch', '-p', str(port), 'anafi_sim', 'experiment.launch', 'controller:=mpc',
+           'scenario:=experiment_short', 'scenario_file:=' + SCENARIO, 'rtf:=2.0', 'mirror:=false',
+           'record:=true', 'out_dir:=' + out, 'run_name:=' + NAME, 'unique:=false', 'plot:=true',
+           'progress_period:=0'] + list(extra)
+    return harness.start(cmd, env=env, log=log, **popen)
+
+
+def wait(proc, predicate, timeout):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and proc.poll() is None:
+        if predicate():
+            return True
+        time.sleep(0.2)
+    return predicate()
+
+
+def read(path):
+    try:
+        with open(path) as f:
+            return yaml.safe_load(f)
+    except (IOError, OSError, yaml.YAMLError):
+        return None
+
+
+def mount_tmpfs(path, size):
+    """Mount a tmpfs of ``size`` bytes on ``path``; False when not allowed."""
+    if os.geteuid() != 0 or shutil.which('mount') is None:
+        return False
+    return subprocess.call(['mount', '-t', 'tmpfs', '-o', 'size=%d' % size, 'tmpfs', path],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) == 0
+
+
+class TestResultFiles(unittest.TestCase):
+    def test_full_disk_ends_failed_with_marked_files(self):
+        root = tempfile.mkdtemp(prefix='result_files_disk_')
+        out = os.path.join(root, 'out')
+        os.makedirs(out)
+        mounted = mount_tmpfs(out, 200 * 1024)
+        popen = {}
+        if not mounted:     # no permission to mount: cap every file of the launch instead
+            popen['preexec_fn'] = lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (64 * 1024, 64 * 1024))
+        log = os.path.join(root, 'launch.log')
+        proc = launch(out, log=log, **popen)
+        try:
+            wait(proc, lambda: 'RESULT' in open(log, errors='replace').read() and
+                 os.path.exists(os.path.join(out, NAME + '.FAILED.run.yaml')) and
+                 not os.path.exists(os.path.join(out, NAME + '.bag.active')), RUN_TIMEOUT)
+            time.sleep(2.0)
+            text = open(log, errors='replace').read()
+            files = sorted(os.listdir(out))
+        finally:
+            harness.stop(proc, grace=20.0)
+            if mounted:
+                subprocess.call(['umount', out])
+        try:
+            result = re.search(r'RESULT %s\s+\((.*)\)' % NAME, text)
+            self.assertIsNotNone(result, text[-3000:])
+            self.assertTrue(result.group(1).startswith('FAILED'), result.group(0))
+            self.assertRegex(result.group(1), r'not written|cannot write|No space|too large', result.group(0))
+            self.assertRegex(text, r'experiment_monitor-\d+\] process has died \[pid \d+, exit code 1', text[-3000:])
+            for ext in FINAL_NAMES:
+                self.assertNotIn(NAME + ext, files, 'a file with a final name on a full disk: %s' % files)
+            self.assertFalse([f for f in files if '.tmp-' in f], files)
+            self.assertTrue(all('.FAILED' in f for f in files), files)
+            sys.stdout.write('full disk (%s): %s; files %s\n' % (
+                'tmpfs 200 kB' if mounted else 'RLIMIT_FSIZE 64 kB', result.group(0), files))
+        finally:
+            shutil.rmtree(root, ignore_errors=True)
+
+    def test_a_sigkilled_rerun_never_leaves_the_previous_final_files(self):
+        out = tempfile.mkdtemp(prefix='result_files_rerun_')
+        base = os.path.join(out, NAME)
+        try:
+            first = launch(out, log=os.path.join(out, 'first.log'))
+            try:
+                self.assertTrue(wait(first, lambda: (read(base + '.run.yaml') or {}).get('state') == 'final'
+                                     and os.path.exists(base + '.bag'), RUN_TIMEOUT),
+                                open(os.path.join(out, 'first.log'), errors='replace').read()[-3000:])
+            finally:
+                harness.stop(first, grace=20.0)
+            self.assertEqual(read(base + '.yaml')['state'], 'final')
+            rerun = launch(out, log=os.path.join(out, 'rerun.log'))
+            try:
+                self.assertTrue(wait(rerun, lambda: os.path.exists(base + '.bag.active') and
+                                     os.path.exists(base + '.FAILED.run.yaml'), RUN_TIMEOUT))
+                time.sleep(3.0)        # mid-run
+                tree = [psutil.Process(rerun.pid)] + harness.descendants(rerun.pid)
+                for p in tree:         # the whole run at once, as a power cut would
+                    try:
+                        p.send_signal(signal.SIGKILL)
+                    except psutil.Error:
+                        pass
+                psutil.wait_procs(tree, timeout=5.0)
+            finally:
+                harness.stop(rerun, grace=1.0)
+            files = sorted(os.listdir(out))
+            for ext in FINAL_NAMES:
+                self.assertNotIn(NAME + ext, files, 'the previous run\'s final file next to the rerun: %s' % files)
+            self.assertIn(NAME + '.bag.active', files)
+            self.assertEqual(read(base + '.FAILED.run.yaml')['state'], 'running')
+            sys.stdout.write('SIGKILLed rerun leaves %s\n' % files)
+        finally:
+            shutil.rmtree(out, ignore_errors=True)
+
+
+if __name__ == '__main__':
+    rostest.rosrun('anafi_sim', 'result_files', TestResultFiles, sys.argv)

@@ -689,7 +689,7 @@ class TestFaultMatrix(unittest.TestCase):
         self.assertEqual(rospy.get_param('/%s/anafi_sim/telemetry_stream_id' % DRONE), own_id)
         self.assertEqual(ok[0][3]['expected stream id'], str(own_id))
         self.record('taken_port', 'second simulator exit code %d after %.1f s: "%s"; the first interface OK "%s", '
-                    'stream id unchanged' % (rc, took, fatal[-1].split('] ')[-1][:200], ok[0][2]),
+                    'stream id unchanged' % (rc, took, fatal[-1].split('bad parameters: ')[-1][:200], ok[0][2]),
                     'not needed (nothing else changes)', None)
 
     def _mirror(self, since=0.0):

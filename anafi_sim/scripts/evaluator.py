@@ -20,7 +20,9 @@ the final summary is printed, published, written to ~summary_file ('' =
 none; *.md = Markdown, else YAML) and the rows of ~csv_window ('measured'
 or 'all') to ~csv_file in the reference-log format ('' = none); with
 ~exit_when_done the node then shuts down. On shutdown before that, an
-'incomplete' summary is written, its files named RUN.FAILED.yaml / RUN.FAILED.csv. Every file is
+'incomplete' summary is written (with ~mark_incomplete, as experiment.launch sets it: named
+RUN.FAILED.yaml / RUN.FAILED.csv; a fleet's or formation's evaluators, which end with Ctrl-C, keep the
+names). Every file is
 written to a temporary name and renamed when complete (anafi_sim.run_files): a full disk leaves no
 file, never a cut one. Sample times are the header stamps
 (~use_header_stamp, true; else the receive time). ~min_altitude [m] (-1):
@@ -54,6 +56,7 @@ class EvaluatorNode(object):
         self.summary_file = p.string('summary_file', '')
         self.csv_file = p.string('csv_file', '')
         self.csv_window = p.choice('csv_window', 'measured', ('measured', 'all'))
+        self.mark_incomplete = p.flag('mark_incomplete', False)
         self.name = p.text('name')
         self.core = LiveEvaluator(name=self.name, min_altitude=self.min_altitude,
                                   max_samples=p.integer('max_samples', 500000, minimum=1))
@@ -157,9 +160,9 @@ class EvaluatorNode(object):
         return result
 
     def write(self, result, d):
-        """Each file written to a temporary name and renamed when complete; an unfinished evaluation's files
-        carry .FAILED in their names (RUN.FAILED.yaml, state incomplete)."""
-        final = d.get('state') == 'final'
+        """Each file written to a temporary name and renamed when complete; with ~mark_incomplete an unfinished
+        evaluation's files carry .FAILED in their names (RUN.FAILED.yaml, state incomplete)."""
+        final = d.get('state') == 'final' or not self.mark_incomplete
         if self.summary_file:
             path = self.summary_file if final else run_files.failed_name(self.summary_file)
             text = summary_markdown(d) if path.endswith('.md') else yaml.safe_dump(

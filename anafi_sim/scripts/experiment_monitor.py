@@ -332,8 +332,11 @@ class ExperimentMonitorNode(object):
                                               else 'unreadable or not final'))
         if self.files['csv'] and not os.path.isfile(self.files['csv']):
             out.append('CSV %s not written' % self.files['csv'])
+        bag = self.files['bag']
+        if bag and not os.path.exists(bag + '.active') and not os.path.exists(bag):
+            out.append('bag %s not being recorded (rosbag stopped)' % bag)
         if out:
-            out[-1] += ' (see the evaluator\'s log: a full disk?)'
+            out[-1] += ' (a full disk? see the nodes\' logs)'
         return out
 
     def _publish_hold(self):

@@ -13,6 +13,7 @@ no mirror) on a private ROS master of its own, like test_experiment.py.
   SIGKILLed (every process of it) once its bag is being recorded: none of the first run's final files is
   left next to the rerun's partial bag, and RUN.FAILED.run.yaml says state running.
 """
+import json
 import os
 import re
 import resource
@@ -34,6 +35,17 @@ SCENARIO = os.path.join(paths.package_dir(), 'test', 'ros', 'experiment_short.ya
 NAME = 'short_mpc'
 RUN_TIMEOUT = 150.0
 FINAL_NAMES = ('.yaml', '.csv', '.png', '.run.yaml', '.bag')
+RESULTS = os.path.join(paths.package_dir(), 'test_results', 'result_files.json')
+
+#: (name, fault injected, expected): rows of the fault table of docs/reliability.md (tools/fault_table.py)
+FAULTS = (
+    ('full_disk', 'experiment.launch with its output folder on a full disk (a 200 kB tmpfs; RLIMIT_FSIZE 64 kB '
+     'where the test may not mount)', 'the run ends FAILED naming what was not written, exit code 1; no file with '
+     'a final name (RUN.yaml, .csv, .png, .run.yaml, .bag), no temporary left: only RUN.FAILED.*'),
+    ('sigkilled_rerun', 'a run into out_dir, then a rerun into the same names (unique:=false) SIGKILLed (every '
+     'process) while it records', 'none of the first run\'s final files left next to the rerun\'s partial bag '
+     '(RUN.bag.active); RUN.FAILED.run.yaml says state running'),
+)
 
 
 def launch(out, extra=(), log=None, **popen):
@@ -74,6 +86,18 @@ def mount_tmpfs(path, size):
 
 
 class TestResultFiles(unittest.TestCase):
+    rows = []
+
+    @classmethod
+    def tearDownClass(cls):
+        os.makedirs(os.path.dirname(RESULTS), exist_ok=True)
+        with open(RESULTS, 'w') as f:
+            json.dump({'faults': [name for name, _, _ in FAULTS], 'rows': cls.rows,
+                       'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, f, indent=1)
+
+    def record(self, name, observed, stop='-', recovery=None):
+        TestResultFiles.rows.append({'name': name, 'observed': observed, 'stop': stop, 'recovery': recovery,
+                                     'ok': True})
     def test_full_disk_ends_failed_with_marked_files(self):
         root = tempfile.mkdtemp(prefix='result_files_disk_')
         out = os.path.join(root, 'out')
@@ -103,8 +127,10 @@ class TestResultFiles(unittest.TestCase):
                 self.assertNotIn(NAME + ext, files, 'a file with a final name on a full disk: %s' % files)
             self.assertFalse([f for f in files if '.tmp-' in f], files)
             self.assertTrue(all('.FAILED' in f for f in files), files)
-            sys.stdout.write('full disk (%s): %s; files %s\n' % (
-                'tmpfs 200 kB' if mounted else 'RLIMIT_FSIZE 64 kB', result.group(0), files))
+            observed = '%s: "%s", monitor exit code 1; files left %s' % (
+                'tmpfs 200 kB' if mounted else 'RLIMIT_FSIZE 64 kB', result.group(0), ', '.join(files))
+            sys.stdout.write(observed + '\n')
+            self.record('full_disk', observed, 'not needed (the run ends)')
         finally:
             shutil.rmtree(root, ignore_errors=True)
 
@@ -139,7 +165,10 @@ class TestResultFiles(unittest.TestCase):
                 self.assertNotIn(NAME + ext, files, 'the previous run\'s final file next to the rerun: %s' % files)
             self.assertIn(NAME + '.bag.active', files)
             self.assertEqual(read(base + '.FAILED.run.yaml')['state'], 'running')
-            sys.stdout.write('SIGKILLed rerun leaves %s\n' % files)
+            observed = 'the rerun leaves %s (state running); the first run\'s %s gone' % (
+                ', '.join(f for f in files if f.startswith(NAME)), ', '.join(NAME + e for e in FINAL_NAMES))
+            sys.stdout.write(observed + '\n')
+            self.record('sigkilled_rerun', observed, 'not needed')
         finally:
             shutil.rmtree(out, ignore_errors=True)
 

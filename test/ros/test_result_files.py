@@ -9,6 +9,9 @@ no mirror) on a private ROS master of its own, like test_experiment.py.
   FAILED with the reason (RESULT ... FAILED), roslaunch's required node exits 1, no file named RUN.yaml /
   RUN.csv / RUN.png / RUN.run.yaml is left (a cut file would carry a final name), every file left is
   RUN.FAILED.* or a temporary-free partial bag.
+- no ground truth: once the interface runs, the simulator's port parameter is pointed at a closed port and the
+  telemetry CLI killed: the interface never reads a sample, the drone flies on its estimate, the run ends
+  FAILED "no ground truth", exit 1, files RUN.FAILED.*.
 - SIGKILLed rerun (unique:=false, the same out_dir and run name): the first run ends ok; the rerun is
   SIGKILLed (every process of it) once its bag is being recorded: none of the first run's final files is
   left next to the rerun's partial bag, and RUN.FAILED.run.yaml says state running.
@@ -42,14 +45,18 @@ FAULTS = (
     ('full_disk', 'experiment.launch with its output folder on a full disk (a 200 kB tmpfs; RLIMIT_FSIZE 64 kB '
      'where the test may not mount)', 'the run ends FAILED naming what was not written, exit code 1; no file with '
      'a final name (RUN.yaml, .csv, .png, .run.yaml, .bag), no temporary left: only RUN.FAILED.*'),
+    ('no_ground_truth', 'the interface gets no telemetry for the whole run (the simulator\'s port parameter pointed '
+     'at a closed port, the telemetry CLI killed) while the drone flies the scenario on its estimate',
+     'the evaluator\'s summary has no ground truth: the run ends FAILED "no ground truth", exit code 1, files '
+     'RUN.FAILED.*'),
     ('sigkilled_rerun', 'a run into out_dir, then a rerun into the same names (unique:=false) SIGKILLed (every '
      'process) while it records', 'none of the first run\'s final files left next to the rerun\'s partial bag '
      '(RUN.bag.active); RUN.FAILED.run.yaml says state running'),
 )
 
 
-def launch(out, extra=(), log=None, **popen):
-    port = harness.free_port()
+def launch(out, extra=(), log=None, port=None, **popen):
+    port = port or harness.free_port()
     env = dict(os.environ, ROS_MASTER_URI='http://127.0.0.1:%d' % port,
                ROS_HOME=os.path.join(tempfile.gettempdir(), 'result_files_ros_home_%d' % port))
     harness.add_module_paths(env, 'osqp')
@@ -133,6 +140,47 @@ class TestResultFiles(unittest.TestCase):
             self.record('full_disk', observed, 'not needed (the run ends)')
         finally:
             shutil.rmtree(root, ignore_errors=True)
+
+    def test_no_ground_truth_ends_failed(self):
+        out = tempfile.mkdtemp(prefix='result_files_truth_')
+        port = harness.free_port()
+        uri = 'http://127.0.0.1:%d' % port
+        log = os.path.join(out, 'launch.log')
+        proc = launch(out, log=log, port=port)
+        env = dict(os.environ, ROS_MASTER_URI=uri)
+        try:
+            cli = [None]
+
+            def telemetry_cli():
+                pid = harness.node_pid('/anafi/interface', uri)
+                kids = harness.descendants(pid) if pid else []
+                cli[0] = kids[0] if kids else None
+                return cli[0] is not None
+            self.assertTrue(wait(proc, telemetry_cli, 60.0), open(log, errors='replace').read()[-3000:])
+            closed = harness.free_port()      # nobody serves there
+            subprocess.check_call(['rosparam', 'set', '/anafi/anafi_sim/telemetry_bound_port', str(closed)], env=env)
+            cli[0].kill()
+            wait(proc, lambda: False, RUN_TIMEOUT)
+            time.sleep(1.0)
+            text = open(log, errors='replace').read()
+            files = sorted(f for f in os.listdir(out) if f.startswith(NAME))
+        finally:
+            harness.stop(proc, grace=20.0)
+        try:
+            result = re.search(r'RESULT %s\s+\((.*)\)' % NAME, text)
+            self.assertIsNotNone(result, text[-3000:])
+            self.assertTrue(result.group(1).startswith('FAILED: no ground truth'), result.group(0))
+            self.assertRegex(text, r'process has died \[pid \d+, exit code 1, cmd \S+experiment_monitor', text[-3000:])
+            for ext in FINAL_NAMES:
+                self.assertNotIn(NAME + ext, files, files)
+            self.assertIn(NAME + '.FAILED.yaml', files)
+            truth = read(os.path.join(out, NAME + '.FAILED.yaml')).get('truth')
+            self.assertTrue(truth is None or truth.get('e_mu') is None, truth)
+            observed = '"%s", monitor exit code 1; files left %s' % (result.group(0), ', '.join(files))
+            sys.stdout.write(observed + '\n')
+            self.record('no_ground_truth', observed, 'not needed (the drone flew on its estimate)')
+        finally:
+            shutil.rmtree(out, ignore_errors=True)
 
     def test_a_sigkilled_rerun_never_leaves_the_previous_final_files(self):
         out = tempfile.mkdtemp(prefix='result_files_rerun_')

@@ -3,10 +3,11 @@
 
 Reads test_results/fault_matrix.json (written by test/ros/test_fault_matrix.py: ``rostest anafi_sim
 fault_matrix.test``) and test_results/result_files.json (test/ros/test_result_files.py: ``rostest anafi_sim
-result_files.test``: full disk, SIGKILLed rerun) and replaces the table between the markers ``<!-- fault-matrix:begin -->`` and
-``<!-- fault-matrix:end -->`` of docs/reliability.md: one row per fault of the tests' ``FAULTS`` (fault,
-expected, observed, stop, recovery time). A fault the run did not record (its test failed) shows as
-"FAILED (see the test output)". ``--check``: exit 1 when the doc's table lists other faults than the test.
+result_files.test``: full disk, no ground truth, SIGKILLed rerun) and replaces the table between the markers
+``<!-- fault-matrix:begin -->`` and ``<!-- fault-matrix:end -->`` of docs/reliability.md: one row per fault
+of the tests' ``FAULTS`` (fault, expected, observed, stop, recovery time). A fault the run did not record (its
+test failed) shows as "FAILED (see the test output)". ``--check``: exit 1 when the doc's table lists other
+faults than the tests.
 
 Run (inside env.bash): python tools/fault_table.py [--results PATH] [--doc PATH] [--check]
 """

@@ -4,7 +4,7 @@
 Each case runs ``roslaunch anafi_sim experiment.launch`` (test scenario experiment_short.yaml, MPC, rtf 2,
 no mirror) on a private ROS master of its own, like test_experiment.py.
 
-- full disk: out_dir on a 200 kB tmpfs (mounted by this test when it runs as root and may mount; otherwise
+- full disk: out_dir on a 64 kB tmpfs (mounted by this test when it runs as root and may mount; otherwise
   every process of the launch gets RLIMIT_FSIZE 64 kB, so each larger file fails with EFBIG): the run ends
   FAILED with the reason (RESULT ... FAILED), roslaunch's required node exits 1, no file named RUN.yaml /
   RUN.csv / RUN.png / RUN.run.yaml is left (a cut file would carry a final name), every file left is
@@ -42,7 +42,7 @@ RESULTS = os.path.join(paths.package_dir(), 'test_results', 'result_files.json')
 
 #: (name, fault injected, expected): rows of the fault table of docs/reliability.md (tools/fault_table.py)
 FAULTS = (
-    ('full_disk', 'experiment.launch with its output folder on a full disk (a 200 kB tmpfs; RLIMIT_FSIZE 64 kB '
+    ('full_disk', 'experiment.launch with its output folder on a full disk (a 64 kB tmpfs; RLIMIT_FSIZE 64 kB '
      'where the test may not mount)', 'the run ends FAILED naming what was not written, exit code 1; no file with '
      'a final name (RUN.yaml, .csv, .png, .run.yaml, .bag), no temporary left: only RUN.FAILED.*'),
     ('no_ground_truth', 'the interface gets no telemetry for the whole run (the simulator\'s port parameter pointed '
@@ -109,7 +109,7 @@ class TestResultFiles(unittest.TestCase):
         root = tempfile.mkdtemp(prefix='result_files_disk_')
         out = os.path.join(root, 'out')
         os.makedirs(out)
-        mounted = mount_tmpfs(out, 200 * 1024)
+        mounted = mount_tmpfs(out, 64 * 1024)
         popen = {}
         if not mounted:     # no permission to mount: cap every file of the launch instead
             popen['preexec_fn'] = lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (64 * 1024, 64 * 1024))
@@ -128,14 +128,15 @@ class TestResultFiles(unittest.TestCase):
             result = re.search(r'RESULT %s\s+\((.*)\)' % NAME, text)
             self.assertIsNotNone(result, text[-3000:])
             self.assertTrue(result.group(1).startswith('FAILED'), result.group(0))
-            self.assertRegex(result.group(1), r'not written|cannot write|No space|too large', result.group(0))
+            self.assertRegex(result.group(1), r'not written|cannot write|No space|too large|not being recorded',
+                             result.group(0))
             self.assertRegex(text, r'process has died \[pid \d+, exit code 1, cmd \S+experiment_monitor', text[-3000:])
             for ext in FINAL_NAMES:
                 self.assertNotIn(NAME + ext, files, 'a file with a final name on a full disk: %s' % files)
             self.assertFalse([f for f in files if '.tmp-' in f], files)
             self.assertTrue(all('.FAILED' in f for f in files), files)
             observed = '%s: "%s", monitor exit code 1; files left %s' % (
-                'tmpfs 200 kB' if mounted else 'RLIMIT_FSIZE 64 kB', result.group(0), ', '.join(files))
+                'tmpfs 64 kB' if mounted else 'RLIMIT_FSIZE 64 kB', result.group(0), ', '.join(files))
             sys.stdout.write(observed + '\n')
             self.record('full_disk', observed, 'not needed (the run ends)')
         finally:

@@ -9,6 +9,8 @@ argument gets the bound port, and the interface core refuses samples of any othe
 the real Sphinx there is no simulator node: the command runs as given and any stream is read.
 """
 
+#: start of the message of ``SimulatorSource.read`` while the simulator has not set its parameters yet
+WAITING_FOR_SIMULATOR = 'waiting for the simulator'
 BOUND_PORT_PARAM = 'telemetry_bound_port'
 STREAM_ID_PARAM = 'telemetry_stream_id'
 
@@ -45,8 +47,8 @@ class SimulatorSource(object):
         port = self._read(BOUND_PORT_PARAM)      # before the id: the simulator sets the id first
         stream_id = self._read(STREAM_ID_PARAM)
         if port is None or stream_id is None:
-            raise ValueError('waiting for the simulator %s to serve its telemetry (parameters %s/%s and %s/%s '
-                             'not set yet)' % (self.node, self.node, BOUND_PORT_PARAM, self.node, STREAM_ID_PARAM))
+            raise ValueError('%s %s to serve its telemetry (parameters %s/%s and %s/%s not set yet)' % (
+                WAITING_FOR_SIMULATOR, self.node, self.node, BOUND_PORT_PARAM, self.node, STREAM_ID_PARAM))
         for name, value, high in ((BOUND_PORT_PARAM, port, 65535), (STREAM_ID_PARAM, stream_id, 2 ** 31 - 1)):
             if isinstance(value, bool) or not isinstance(value, int) or not 0 < value <= high:
                 raise ValueError('%s/%s must be an integer in [1, %d], got %r' % (self.node, name, high, value))

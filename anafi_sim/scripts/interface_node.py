@@ -48,7 +48,7 @@ from nav_msgs.msg import Odometry
 
 from anafi_sim.interface import ground_truth as gt
 from anafi_sim.interface.supervisor import ProcessSupervisor
-from anafi_sim.interface.telemetry_source import SimulatorSource, with_port
+from anafi_sim.interface.telemetry_source import WAITING_FOR_SIMULATOR, SimulatorSource, with_port
 
 #: [bytes] longest telemetry line taken (a Sphinx line is < 100 bytes); longer ones are dropped and counted
 MAX_LINE = 4096
@@ -167,6 +167,11 @@ class InterfaceNode(object):
                                    'restarting in %.1f s (%d hangs so far)' % (
                                        info.get('pid'), info.get('silent_for', float('nan')),
                                        info.get('restart_in', 0.0), self.supervisor.hangs))
+        elif kind == 'spawn_failed' and WAITING_FOR_SIMULATOR in str(info.get('message')):
+            # the usual start-up order (the simulator binds its port after the interface starts): not an error
+            # yet; the diagnostics say ERROR "no telemetry received yet" until samples flow
+            rospy.loginfo_throttle(10.0, 'interface: %s; retrying in %.1f s' % (
+                info.get('message'), info.get('restart_in', 0.0)))
         elif kind == 'spawn_failed':
             rospy.logerr_throttle(10.0, 'interface: cannot start telemetry command %r: %s; retrying in %.1f s '
                                   '(%d failures so far)' % (self.supervisor.argv, info.get('message'),

@@ -12,8 +12,11 @@ export ROS_MASTER_URI="http://127.0.0.1:$port"
 export ROS_HOSTNAME=127.0.0.1
 echo "[demo] ROS master at $ROS_MASTER_URI"
 set +e
+# each run writes into its own folder ~/.ros/anafi_demo/<run>-<date>-<time>-<pid> (~/.ros/anafi_demo/latest)
+run_id="$(date +%Y%m%d-%H%M%S)-$$"
 # shellcheck disable=SC2086
-roslaunch anafi_sim ${DEMO_LAUNCH:-demo.launch} ${DEMO_ARGS:-controller:=${CONTROLLER:-mpc}} 2>&1 \
+roslaunch anafi_sim ${DEMO_LAUNCH:-demo.launch} ${DEMO_ARGS:-controller:=${CONTROLLER:-mpc}} \
+    $([ -z "${DEMO_LAUNCH:-}" ] && echo "run_id:=$run_id") 2>&1 \
     | python -u -c '
 import re, sys
 RED, GREEN, OFF = "\033[1;31m", "\033[1;32m", "\033[0m"

@@ -8,6 +8,7 @@
                       [--engine inprocess|ros [--sync] [--rtf R]] [--no-plot] --out DIR
         -> DIR/<scenario>_<controller>.yaml (the evaluator's summary), .csv (reference log), .png; one
            'RESULT ...' line on stdout, then one line per file written (exit 0 when the summary is final).
+           --engine ros: in a new folder DIR/<scenario>_<controller>-<date>-<time>-<pid> per run (DIR/latest links to it).
     experiment.py batch [--engine inprocess|ros [--sync] [--rtf R]] [--workers N] [--scheduler ADDRESS]
                         [--scenarios ...] [--controllers mpc,pid,preview_mpc] [--runs-dir DIR] [--no-plots] --out DIR
         -> DIR/experiments.yaml (the ROS batch's schema) and DIR/report.md (the paper's tables), plots.
@@ -31,7 +32,7 @@ import sys
 
 import yaml
 
-from anafi_sim import paths
+from anafi_sim import paths, run_files
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import CONTROLLERS, make_schedule, wind_settings
 from anafi_lab.engine.runs import SYNC_SCHEDULE, batch, make_task, result_line, run_task, task_name
@@ -99,6 +100,8 @@ def cmd_run(args):
                 or args.state_source != 'estimate' or args.name:
             raise ValueError('--engine ros runs experiment.launch as it is: controller mpc or pid, the seed and wind '
                              'of sim.yaml, no --param / --schedule / --state-source / --name')
+        args.out = run_files.new_run_dir(args.out, name)    # its own folder: concurrent runs never share files
+        print('run folder %s (%s)' % (args.out, os.path.join(os.path.dirname(args.out), run_files.LATEST)))
         rc = _ros_batch(args.out, [args.scenario], [args.controller], args.out,
                         ['--no-plots', '--retries', '0', '--report', os.path.join(args.out, 'ros_batch.md'),
                          '--rtf', str(args.rtf)] + (['--sync'] if args.sync else []))

@@ -51,7 +51,8 @@ def run_sync(controller, out_dir, scenario_file, rtf=0.5, timeout=300.0, extra=(
     cmd = ['roslaunch', '-p', str(port), 'anafi_sim', 'experiment.launch', 'controller:=' + controller,
            'scenario:=' + scenario, 'scenario_file:=' + scenario_file, 'rtf:=%g' % rtf,
            'sync:=%s' % ('true' if sync else 'false'),
-           'mirror:=false', 'record:=true', 'out_dir:=' + out_dir, 'run_name:=' + name, 'plot:=false',
+           'mirror:=false', 'record:=true', 'out_dir:=' + out_dir, 'run_name:=' + name, 'unique:=false',
+           'plot:=false',
            'progress_period:=0', 'telemetry_port:=%d' % processes.free_port()] + list(extra)
     log = os.path.join(out_dir, name + '.launch.log')
     base = os.path.join(out_dir, name)

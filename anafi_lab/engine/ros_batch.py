@@ -71,7 +71,7 @@ class Run(object):
         cmd = ['roslaunch', '-p', str(self.port), 'anafi_sim', 'experiment.launch',
                'controller:=' + controller, 'scenario:=' + scenario, 'rtf:=%g' % args.rtf,
                'mirror:=' + args.mirror, 'record:=' + args.record, 'out_dir:=' + runs_dir,
-               'run_name:=' + self.name, 'plot:=false', 'progress_period:=0',
+               'run_name:=' + self.name, 'unique:=false', 'plot:=false', 'progress_period:=0',
                'telemetry_port:=%d' % processes.free_port(), 'pid_mode:=' + args.pid_mode,
                'ready_timeout:=%g' % args.ready_timeout] + (['sync:=true'] if args.sync else [])
         self.t0 = time.monotonic()

@@ -123,6 +123,9 @@ class GroundTruthInterface(object):
     ``publish_rate`` even when it is not an integer fraction of the source rate.
     stale_timeout [s]: no accepted sample for longer (receipt clock) = stale.
     rate_window [s]: window of the published rate in ``health``.
+    expected_stream_id: None (any stream, e.g. the real ``tlm-data-logger``, which prints no id) or the
+    stream id of our simulator (``protocol.STREAM_ID_KEY``): a sample of a stream with another id, or
+    with none, is refused (counted in ``foreign_samples``; health ERROR naming both ids).
     """
 
     def __init__(self, publish_rate=100.0, stale_timeout=0.5, rate_window=1.0, rate_tolerance=0.1,
@@ -154,6 +157,10 @@ class GroundTruthInterface(object):
         self._outage_noticed = None  # receipt-clock time the current outage was last reported
         self.process_starts = 0      # on_process_start calls
         self.awaiting_samples = False  # the telemetry process (re)started and no valid sample came since
+        self.expected_stream_id = None  # set by the node from the simulator's parameter
+        self.foreign_samples = 0       # samples refused: another stream id than expected (or none)
+        self.last_foreign_id = None    # stream id of the last refused sample (None: the stream had none)
+        self._last_foreign_receipt = None
 
     def reset(self):
         """Forget decimation state and the last timestamp (counters are kept)."""
@@ -166,10 +173,17 @@ class GroundTruthInterface(object):
         if self.process_starts > 1:
             self.awaiting_samples = True
 
-    def on_sample(self, sample, receipt_wall_time):
-        """Return ``sample`` if it is to be published now, else None. ``receipt_wall_time`` [s]."""
+    def on_sample(self, sample, receipt_wall_time, stream_id=None):
+        """Return ``sample`` if it is to be published now, else None. ``receipt_wall_time`` [s];
+        ``stream_id``: the id the stream carried (``TelemetryParser.stream_id``), None if none."""
         self.received += 1
         self.restarted = False
+        expected = self.expected_stream_id
+        if expected is not None and stream_id != expected:
+            self.foreign_samples += 1
+            self.last_foreign_id = stream_id
+            self._last_foreign_receipt = receipt_wall_time
+            return None
         if not _finite_sample(sample):
             self.rejected_nonfinite += 1
             return None
@@ -252,6 +266,8 @@ class GroundTruthInterface(object):
             ('rejected non-finite samples', str(self.rejected_nonfinite)),
             ('duplicate samples', str(self.duplicates)),
             ('sim restarts', str(self.sim_restarts)),
+            ('expected stream id', 'any' if self.expected_stream_id is None else str(self.expected_stream_id)),
+            ('refused samples of another stream', str(self.foreign_samples)),
         ]
         for name in ('lines', 'blank', 'malformed', 'nonfinite', 'unknown_key', 'partial_samples'):
             if name in parser_counters:
@@ -269,7 +285,15 @@ class GroundTruthInterface(object):
         ]))
 
         down = bool(process) and not process.get('running', True)
-        if age is None:
+        foreign_recent = self._last_foreign_receipt is not None and (
+            self.last_receipt is None or self._last_foreign_receipt > self.last_receipt) and \
+            now_wall - self._last_foreign_receipt <= max(self.stale_timeout, self.rate_window)
+        if foreign_recent and (age is None or age > self.stale_timeout):
+            level, message = ERROR, 'refusing the telemetry of another drone (%s, expected stream id %d; %d ' \
+                'samples refused): nothing published' % (
+                    'a stream without id' if self.last_foreign_id is None else 'stream id %d' % self.last_foreign_id,
+                    self.expected_stream_id if self.expected_stream_id is not None else 0, self.foreign_samples)
+        elif age is None:
             level, message = ERROR, 'no telemetry received yet'
         elif age > self.stale_timeout:
             level, message = ERROR, 'stale: no telemetry for %.1f s' % age

@@ -20,6 +20,10 @@ Lines are read with a cap of ``max_line`` bytes: a longer line is dropped
 bounded whatever the process prints. ``sample_timeout`` [s] (None: off): the
 process is also treated as hung when ``on_line`` has not returned True (= a
 sample was completed) for that long while it prints (garbage only).
+
+``prepare`` (None: off): ``prepare(argv) -> argv`` is called before every start
+(e.g. to put in the port the simulator serves on now); a ValueError it raises
+counts as a spawn failure (its message in ``last_error``), retried with back-off.
 """
 import os
 import shlex
@@ -40,7 +44,7 @@ class ProcessSupervisor(object):
 
     def __init__(self, command, on_line, restart_timeout=2.0, backoff_initial=0.2, backoff_max=5.0,
                  on_event=None, healthy_time=1.0, kill_grace=0.2, poll_period=0.05, env=None, max_line=4096,
-                 sample_timeout=None):
+                 sample_timeout=None, prepare=None):
         if isinstance(command, str):
             argv = shlex.split(command)
         else:
@@ -58,6 +62,8 @@ class ProcessSupervisor(object):
         if backoff_max < backoff_initial:
             raise ValueError('backoff_max (%r) < backoff_initial (%r)' % (backoff_max, backoff_initial))
         self.argv = argv
+        self.command_argv = list(argv)   # as given; ``argv`` is what ``prepare`` made of it for the last start
+        self.prepare = prepare
         self.on_line = on_line
         self.on_event = on_event
         self.restart_timeout = float(restart_timeout)
@@ -152,6 +158,8 @@ class ProcessSupervisor(object):
     def _run_once(self):
         """Run the command once; return True if it printed healthily for healthy_time."""
         try:
+            if self.prepare is not None:
+                self.argv = [str(a) for a in self.prepare(list(self.command_argv))]
             proc = subprocess.Popen(self.argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                     stderr=subprocess.PIPE, start_new_session=True, env=self.env)
         except Exception as exc:  # missing executable, permission denied, bad argument ...

@@ -17,7 +17,8 @@ generator status, evaluator summaries, the simulator's diagnostics) and decides,
 - failures: not ready within ``ready_timeout`` s of wall time, the scenario not ending within its
   duration + ``end_margin`` s of ROS time, no final evaluator summary ``final_timeout`` s of wall
   time after the end ('fail' action with the reason);
-- the end: the evaluator's summary with state 'final' ('done' action).
+- the end: the evaluator's summary with state 'final' ('done' action); ``result_problem`` then says
+  whether that summary is a measurement at all (ground truth present, the drone flew the scenario).
 
 ``progress_line`` gives the one-line live status (phase, current e against the estimate, the
 evaluator's statistics so far, the simulator's achieved real-time factor); ``run_info`` the figures
@@ -103,6 +104,8 @@ class ExperimentMonitor(object):
         self.hover_commands = 0        # ... of which all zero (hover)
         self.max_command_gap = 0.0     # s of ROS time
         self._last_command_time = None
+        self.drone_travel = 0.0        # m the estimate moved while the scenario ran
+        self.target_travel = 0.0       # m the waypoint moved meanwhile
         self.max_hover_commands = int(max_hover_commands)
         self.max_command_gap_limit = float(max_command_gap)
 
@@ -156,10 +159,37 @@ class ExperimentMonitor(object):
         return self.state == WAITING
 
     def on_waypoint(self, position):
-        self.waypoint = tuple(float(v) for v in position[:3])
+        new = tuple(float(v) for v in position[:3])
+        self.target_travel += self._travel(self.waypoint, new)
+        self.waypoint = new
 
     def on_estimate(self, position):
-        self.estimate = tuple(float(v) for v in position[:3])
+        new = tuple(float(v) for v in position[:3])
+        self.drone_travel += self._travel(self.estimate, new)
+        self.estimate = new
+
+    def _travel(self, old, new):
+        """Distance from ``old`` to ``new`` while the scenario runs (0 otherwise, or for non-finite points)."""
+        if old is None or self.state not in (STARTED, MEASURING):
+            return 0.0
+        d = math.sqrt(sum((a - b) ** 2 for a, b in zip(old, new)))
+        return d if math.isfinite(d) else 0.0
+
+    def result_problem(self, require_truth=True, min_travel_fraction=0.1, min_target_travel=1.0):
+        """Why the final summary is not a measurement ('' when it is): no ground truth (with
+        ``require_truth``), or the drone did not fly the scenario (it moved less than
+        ``min_travel_fraction`` of the waypoint's travel, when the waypoint moved at least
+        ``min_target_travel`` m)."""
+        summary = self.summary if isinstance(self.summary, dict) else {}
+        if not summary.get('samples'):
+            return 'no evaluated samples'
+        truth = summary.get('truth')
+        if require_truth and not (isinstance(truth, dict) and truth.get('e_mu') is not None):
+            return 'no ground truth: the interface published none for the measured segment (see its diagnostics)'
+        if self.target_travel >= min_target_travel and self.drone_travel < min_travel_fraction * self.target_travel:
+            return 'the drone did not fly the scenario: it moved %.2f m while the target moved %.2f m' % (
+                self.drone_travel, self.target_travel)
+        return ''
 
     def on_status(self, phase, state=''):
         """Generator status (trajectory/status): current phase name and generator state."""
@@ -356,6 +386,8 @@ class ExperimentMonitor(object):
             'disturbed': self.disturbed(),
             'controller_cpu_s': r(cpu, 3),
             'controller_cpu_per_sim_s': r(cpu / sim_s, 4) if cpu is not None and sim_s else None,
+            'drone_travel_m': r(self.drone_travel, 3),
+            'target_travel_m': r(self.target_travel, 3),
         }
         return info
 

@@ -626,9 +626,61 @@ def scenario_from_dict(d, name=None, what=None):
         description = d.get('description', '')
         if not isinstance(description, str):
             raise ValueError('description must be a string')
-        return Scenario(scenario_name, trajectory, phases, start=start, description=description)
+        scenario = Scenario(scenario_name, trajectory, phases, start=start, description=description)
+        check_limits(scenario)
+        return scenario
     except ValueError as e:
         raise ValueError('%s: %s' % (what, e))
+
+
+#: bounds of a scenario a drone can fly (``check_limits``): total duration [s], measured phase [s], every
+#: waypoint's |x|, |y| [m] and z [m] (world ENU), speed [m/s] (the Anafi flies up to 16 m/s) and acceleration
+#: [m/s^2] (a circle's v^2 / r: radius and speed together)
+SCENARIO_LIMITS = {'max_duration': 3600.0, 'min_measured': 0.5, 'max_xy': 1000.0, 'min_z': 0.0, 'max_z': 100.0,
+                   'max_speed': 20.0, 'max_acceleration': 50.0}
+_LIMIT_SAMPLES = 1000
+
+
+def check_limits(scenario, limits=None):
+    """ValueError naming the value when ``scenario`` leaves ``SCENARIO_LIMITS``: its duration, its measured
+    phase, or its waypoints (start, and the trajectory sampled at least 16 times per period) in position,
+    speed or acceleration (e.g. a centre at 1e300 m, a radius of 1e-300 m, 1e6 m/s, a 1e6 s duration)."""
+    lim = dict(SCENARIO_LIMITS, **(limits or {}))
+    if scenario.duration > lim['max_duration']:
+        raise ValueError('duration %.6g s > %g s' % (scenario.duration, lim['max_duration']))
+    measured = scenario.measured_phase.duration
+    if measured < lim['min_measured']:
+        raise ValueError('measured phase %s lasts %.3g s < %g s' % (scenario.measured_phase.name, measured,
+                                                                    lim['min_measured']))
+
+    def check(what, sample, acc):
+        x, y, z = sample[0], sample[1], sample[2]
+        speed = math.sqrt(sample[3] ** 2 + sample[4] ** 2 + sample[5] ** 2)
+        accel = math.sqrt(sum(a * a for a in acc))
+        for name, value, ok in (
+                ('x', x, abs(x) <= lim['max_xy']), ('y', y, abs(y) <= lim['max_xy']),
+                ('z', z, lim['min_z'] <= z <= lim['max_z']), ('speed', speed, speed <= lim['max_speed']),
+                ('acceleration', accel, accel <= lim['max_acceleration'])):
+            if not ok:      # also NaN / inf
+                bound = {'x': '|x| <= %g m' % lim['max_xy'], 'y': '|y| <= %g m' % lim['max_xy'],
+                         'z': '%g <= z <= %g m' % (lim['min_z'], lim['max_z']),
+                         'speed': '<= %g m/s' % lim['max_speed'],
+                         'acceleration': '<= %g m/s^2 (v^2 / r of a circle)' % lim['max_acceleration']}[name]
+                raise ValueError('%s: %s %.6g outside the limits (%s)' % (what, name, value, bound))
+
+    check('start', scenario.start, (0.0, 0.0, 0.0))
+    span = scenario.trajectory_duration
+    if span <= 0.0:
+        return
+    period = scenario.period()
+    step = span / _LIMIT_SAMPLES
+    if period:
+        step = min(step, period / 16.0)
+    n = min(int(math.ceil(span / step)), 50 * _LIMIT_SAMPLES) if step > 0.0 else 1
+    traj = scenario.trajectory
+    for i in range(n + 1):
+        t = span * i / n
+        check('waypoint at trajectory time %.6g s' % t, traj.sample(t), traj.acceleration(t))
 
 
 def scenario_path(name_or_path, directory=None):

@@ -6,7 +6,8 @@ from geometry_msgs.msg import Pose, Twist
 from nav_msgs.msg import Odometry
 
 from anafi_control import frames
-from anafi_control.contract import LIMIT_DEFAULTS, WaypointLimits
+from anafi_control.contract import LEVEL_WARN, LIMIT_DEFAULTS, WaypointLimits
+from anafi_control.waypoint_admission import DEFAULTS as ADMISSION_DEFAULTS, WaypointAdmission
 from anafi_sim.ros import waypoints
 
 
@@ -49,13 +50,27 @@ def waypoint_numbers(msg):
     return waypoints.waypoint_numbers(msg)
 
 
-def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=waypoints.DEFAULT_WAYPOINT_TYPE):
+def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=waypoints.DEFAULT_WAYPOINT_TYPE,
+                     admission=None):
     """Feed ``target.on_state`` / ``target.on_waypoint`` (an ``anafi_control.contract`` Controller or
     InputGate) from nav_msgs/Odometry on ``state_topic`` and waypoints of ``waypoint_type`` (``anafi_sim`` or
     the reference implementation's ``anafi_control``) on ``waypoint_topic``, with the ROS time of receipt,
-    under ``lock``. A refused sample is logged (throttled, with the count of
-    ``target.counters``). Returns the resolved (state topic, waypoint topic)."""
+    under ``lock``. A refused sample is logged (throttled, with the count of ``target.counters``).
+    ``admission`` (``anafi_control.waypoint_admission.WaypointAdmission``): waypoints whose header stamp or
+    frame it refuses are dropped before the target (counted there, logged throttled); a waypoint type without a
+    header (``anafi_control``) is not checked. Returns the resolved (state topic, waypoint topic)."""
     resolved = rospy.resolve_name(state_topic), rospy.resolve_name(waypoint_topic)
+
+    def on_waypoint(msg):
+        if admission is not None and hasattr(msg, 'header'):
+            with lock:
+                ok, why = admission.admit(rospy.get_time(), msg.header.stamp.to_sec(), msg.header.frame_id)
+                dropped = admission.dropped
+            if not ok:
+                rospy.logwarn_throttle(5.0, '%s: waypoint on %s dropped (%d so far): %s'
+                                       % (rospy.get_name(), resolved[1], dropped, why))
+                return
+        feed('waypoint', (waypoint_numbers(msg),), resolved[1])
 
     def feed(kind, numbers, topic):
         with lock:
@@ -68,10 +83,28 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=wa
 
     rospy.Subscriber(state_topic, Odometry, lambda m: feed('state', odometry_numbers(m), resolved[0]),
                      queue_size=5, tcp_nodelay=True)
-    rospy.Subscriber(waypoint_topic, waypoints.waypoint_class(waypoint_type),
-                     lambda m: feed('waypoint', (waypoint_numbers(m),), resolved[1]),
-                     queue_size=5, tcp_nodelay=True)
+    rospy.Subscriber(waypoint_topic, waypoints.waypoint_class(waypoint_type), on_waypoint, queue_size=5,
+                     tcp_nodelay=True)
     return resolved
+
+
+def waypoint_admission(p):
+    """The controllers' ``WaypointAdmission`` from the node's ParamReader ``p``: ~waypoint_max_age [s],
+    ~waypoint_frame (defaults ``waypoint_admission.DEFAULTS``); ValueError on bad values."""
+    d = ADMISSION_DEFAULTS
+    return WaypointAdmission(p.positive('waypoint_max_age', d['waypoint_max_age']),
+                             p.ros_name('waypoint_frame', d['waypoint_frame']))
+
+
+def amend_health(health, admission):
+    """``health`` (a contract.Health) with the waypoints ``admission`` dropped since the previous call: WARN
+    (at least) and their count in the message; the drop counters added to the values."""
+    news = admission.news()
+    values = list(health.values) + admission.values()
+    if not news:
+        return health._replace(values=values)
+    return health._replace(level=max(health.level, LEVEL_WARN), message='%s; %s' % (health.message, news),
+                           values=values)
 
 
 def waypoint_limits(p):

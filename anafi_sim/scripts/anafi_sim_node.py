@@ -18,7 +18,10 @@ north-west-up referenced, anafi_sim.sim.bridge), drone/state (latched), sim/trut
 truth Odometry stamped at its sample's time), /diagnostics (1 Hz wall),
 /clock when ~publish_clock; with ~publish_state_enu (true) also position_control/state_enu
 (anafi_control/State, the reference implementation's bridge fork: frame ids "/world",
-pose = drone/pose_enu, twist.linear = drone/speed, twist.angular = 0; wire-identical class from anafi_sim.ros.wire_types). Parameters: see anafi_sim/config/sim.yaml; the
+pose = drone/pose_enu, twist.linear = drone/speed, twist.angular = 0; wire-identical class from anafi_sim.ros.wire_types).
+Sets ~telemetry_bound_port (the port it serves on: ~telemetry_port, or a free one for 0) and
+~telemetry_stream_id (a new random id per start, printed in every telemetry sample) for the interface (its
+~simulator_node). Parameters: see anafi_sim/config/sim.yaml; the
 fitted model dict is ~model if set, else read from ~model_file (default anafi_model.yaml, a name in
 anafi_sim/config such as anafi_model_fitted.yaml, or an absolute path).
 ~sync (with ~publish_clock): lockstep with the controller
@@ -51,7 +54,7 @@ from anafi_sim.sim.clock import SYNC_DEFAULTS, Lockstep, SimClock, StartHold
 from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
 from anafi_sim.sim.simulator import SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
-from anafi_sim.telemetry.protocol import DEFAULT_PREFIX
+from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, new_stream_id
 from anafi_sim.telemetry.server import TelemetryServer
 
 
@@ -81,7 +84,7 @@ class AnafiSimNode(object):
         telemetry_rate = p.positive('telemetry_rate', 100.0)
         estimate_rate = p.positive('estimate_publish_rate', 30.0)
         host = p.string('telemetry_host', '127.0.0.1')
-        port = p.integer('telemetry_port', 9060, minimum=0, maximum=65535)   # 0 = any free port
+        port = p.integer('telemetry_port', 0, minimum=0, maximum=65535)   # 0 = any free port
         prefix = p.string('telemetry_prefix', DEFAULT_PREFIX)
         auto_takeoff = p.flag('auto_takeoff', True)
         publish_state_enu = p.flag('publish_state_enu', True)
@@ -103,8 +106,8 @@ class AnafiSimNode(object):
         if lockstep is not None:
             rospy.on_shutdown(lockstep.close)
         self._connect(base, publish_clock, publish_state_enu)
-        rospy.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz)%s%s',
-                      self.drone, rate, rtf, host, self.server.port, telemetry_rate,
+        rospy.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz, stream id %d)%s%s',
+                      self.drone, rate, rtf, host, self.server.port, telemetry_rate, self.stream_id,
                       ', publishing /clock' if publish_clock else '',
                       ', lockstep with the controller every %g s (time-out %g s wall)'
                       % (sync['period'], sync['timeout']) if sync else '')
@@ -153,12 +156,18 @@ class AnafiSimNode(object):
                                  'true (this node then provides the simulation clock) or unset /use_sim_time')
 
     def _serve_telemetry(self, host, port, prefix):
-        self.server = TelemetryServer(host, port, prefix)
+        # Every start gets a new stream id; the interface reads it (and the bound port) from these parameters
+        # and refuses a stream with another id (another simulator's drone, a stale port).
+        self.stream_id = new_stream_id()
+        self.server = TelemetryServer(host, port, prefix, stream_id=self.stream_id)
         try:
             self.server.start()
         except OSError as error:
-            raise ValueError('cannot serve telemetry on %s:%s: %s' % (host, port, error))
+            raise ValueError('cannot serve telemetry on %s:%s (~telemetry_port): %s%s' % (
+                host, port, error, '; another simulator uses it: give another port, or 0 for any free one'
+                if port else ''))
         rospy.on_shutdown(self.server.stop)
+        rospy.set_param('~telemetry_stream_id', self.stream_id)
         rospy.set_param('~telemetry_bound_port', self.server.port)
 
     def _connect(self, base, publish_clock, publish_state_enu):

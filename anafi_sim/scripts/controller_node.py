@@ -64,7 +64,7 @@ from anafi_sim.sim.drone_model import DEFAULT_MODEL_FILE, load_model_params
 from anafi_sim.msg import MpcStats
 from anafi_sim.ros.reconfigure import TracedServer
 from anafi_sim import names
-from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
+from anafi_sim.ros.conversions import amend_health, subscribe_inputs, waypoint_admission, waypoint_limits
 from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 sleep_until_aligned, start_diagnostics_thread)
@@ -345,8 +345,9 @@ class ControllerNode(object):
         self.pub_cmd = rospy.Publisher(command_topic, self.Command, queue_size=10)
         self.pub_diag = diagnostics_publisher()
         self.adapter.setup()
+        self.admission = waypoint_admission(p)
         self.state_topic, self.waypoint_topic = subscribe_inputs(self.core, self.lock, state_topic, waypoint_topic,
-                                                                  waypoint_type)
+                                                                  waypoint_type, self.admission)
         rospy.loginfo('%s: %s controller, state %s, waypoint %s (%s/Waypoint) -> %s; cycle %g Hz, command %g Hz',
                       rospy.get_name(), kind, self.state_topic, self.waypoint_topic, waypoint_type,
                       rospy.resolve_name(command_topic), self.rate, self.command_rate or self.rate)
@@ -392,7 +393,7 @@ class ControllerNode(object):
     # -- diagnostics (own thread, wall clock: reports even when /clock stops) --------------------
     def diagnostic_statuses(self):
         with self.lock:
-            health = self.core.health()
+            health = amend_health(self.core.health(), self.admission)
             extra = [('commands sent', self.commands), ('hover commands', self.hover_commands),
                      ('command periods without a command (silent)', self.silent_cycles),
                      ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]

@@ -22,12 +22,15 @@ the final summary is printed, published, written to ~summary_file ('' =
 none; *.md = Markdown, else YAML) and the rows of ~csv_window ('measured'
 or 'all') to ~csv_file in the reference-log format ('' = none); with
 ~exit_when_done the node then shuts down. On shutdown before that, an
-'incomplete' summary is written. Sample times are the header stamps
+'incomplete' summary is written (with ~mark_incomplete, as experiment.launch sets it: named
+RUN.FAILED.yaml / RUN.FAILED.csv; a fleet's or formation's evaluators, which end with Ctrl-C, keep the
+names). Every file is
+written to a temporary name and renamed when complete (anafi_sim.run_files): a full disk leaves no
+file, never a cut one. Sample times are the header stamps
 (~use_header_stamp, true; else the receive time). ~min_altitude [m] (-1):
 positions below are excluded as not flying. ~name: label (default: the
 scenario name from the begin signal).
 """
-import os
 import threading
 
 import rospy
@@ -35,6 +38,7 @@ import yaml
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
+from anafi_sim import run_files
 from anafi_sim.mission.evaluation import LiveEvaluator, stamp_ns, summary_markdown
 from anafi_sim.mission.reference_log import write_log
 from anafi_sim import names
@@ -54,6 +58,7 @@ class EvaluatorNode(object):
         self.summary_file = p.string('summary_file', '')
         self.csv_file = p.string('csv_file', '')
         self.csv_window = p.choice('csv_window', 'measured', ('measured', 'all'))
+        self.mark_incomplete = p.flag('mark_incomplete', False)
         self.name = p.text('name')
         self.core = LiveEvaluator(name=self.name, min_altitude=self.min_altitude,
                                   max_samples=p.integer('max_samples', 500000, minimum=1))
@@ -158,18 +163,20 @@ class EvaluatorNode(object):
         return result
 
     def write(self, result, d):
+        """Each file written to a temporary name and renamed when complete; with ~mark_incomplete an unfinished
+        evaluation's files carry .FAILED in their names (RUN.FAILED.yaml, state incomplete)."""
+        final = d.get('state') == 'final' or not self.mark_incomplete
         if self.summary_file:
-            _makedirs(self.summary_file)
-            with open(self.summary_file, 'w') as f:
-                if self.summary_file.endswith('.md'):
-                    f.write(summary_markdown(d))
-                else:
-                    yaml.safe_dump(dict(d), f, default_flow_style=False, sort_keys=False)
-            rospy.loginfo('summary written to %s', self.summary_file)
+            path = self.summary_file if final else run_files.failed_name(self.summary_file)
+            text = summary_markdown(d) if path.endswith('.md') else yaml.safe_dump(
+                dict(d), default_flow_style=False, sort_keys=False)
+            run_files.atomic_write_text(path, text)
+            rospy.loginfo('summary written to %s', path)
         if self.csv_file and result is not None:
-            _makedirs(self.csv_file)
-            write_log(self.csv_file, result.log if self.csv_window == 'measured' else result.full_log)
-            rospy.loginfo('reference-log CSV written to %s', self.csv_file)
+            path = self.csv_file if final else run_files.failed_name(self.csv_file)
+            with run_files.atomic_path(path) as tmp:
+                write_log(tmp, result.log if self.csv_window == 'measured' else result.full_log)
+            rospy.loginfo('reference-log CSV written to %s', path)
 
     def run(self):
         rate_period = self.publish_period
@@ -197,11 +204,6 @@ class EvaluatorNode(object):
         if not self.finished:
             self.finalize('incomplete')
 
-
-def _makedirs(path):
-    directory = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(directory):
-        os.makedirs(directory)
 
 
 if __name__ == '__main__':

@@ -45,7 +45,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
-from anafi_sim import processes
+from anafi_sim import processes, run_files
 from anafi_sim.mission.monitor import FAILED, FINAL, ExperimentMonitor, summary_lines
 from anafi_sim.mission.trajectory import SCENARIO_DIR, load_scenario
 from anafi_sim.msg import MpcStats, Waypoint
@@ -68,11 +68,15 @@ def _yaml(msg):
 
 
 def _write_yaml(path, data):
-    directory = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(directory):
-        os.makedirs(directory)
-    with open(path, 'w') as f:
-        yaml.safe_dump(data, f, default_flow_style=False, sort_keys=False)
+    run_files.atomic_write_text(path, yaml.safe_dump(data, default_flow_style=False, sort_keys=False))
+
+
+def _read_yaml(path):
+    try:
+        with open(path) as f:
+            return yaml.safe_load(f)
+    except (IOError, OSError, yaml.YAMLError):
+        return None
 
 
 class ExperimentMonitorNode(object):
@@ -93,6 +97,21 @@ class ExperimentMonitorNode(object):
         self.evaluator_node = rospy.resolve_name(p.string('evaluator_node', 'evaluator'))
         self.files = dict((k, p.string('%s_file' % k, '')) for k in ('summary', 'csv', 'plot', 'info', 'bag'))
         self.hold = p.flag('hold', True)
+        self.require_truth = p.flag('require_truth', True)
+        self.run_dir = run_dir = p.string('run_dir', '')
+        latest_link = p.string('latest_link', '')
+        if run_dir:
+            os.makedirs(run_dir, exist_ok=True)
+            if latest_link:
+                run_files.update_latest(os.path.dirname(os.path.abspath(latest_link)), run_dir)
+        if p.flag('remove_previous', False):
+            removed = run_files.remove_previous([self.files[k] for k in ('summary', 'csv', 'plot', 'info', 'bag')])
+            if removed:
+                rospy.logwarn('removed the previous run\'s files %s', ', '.join(removed))
+        if self.files['info']:      # a run that never ends (killed) leaves this: RUN.FAILED.run.yaml, state running
+            _write_yaml(run_files.failed_name(self.files['info']), {
+                'state': 'running', 'label': self.label,
+                'reason': 'the run did not end (killed?): its files are partial'})
         self.waypoint_topic = rospy.resolve_name(names.WAYPOINT)
         self.lock = threading.Lock()
         self.master = rosgraph.Master(rospy.get_name())
@@ -245,26 +264,57 @@ class ExperimentMonitorNode(object):
             info['tuning'] = sorted((c for changes in self.tuning.values() for c in changes),
                                     key=lambda c: c.get('wall', 0.0))      # [] = no live tuning
         exited = True
+        problems = []
         if ok:
             exited = self._wait_for_evaluator_exit()
             if not exited:
                 rospy.logwarn('%s did not exit within %.0f s: reading its files anyway', self.evaluator_node,
                               self.evaluator_exit_timeout)
-        if self.files['plot'] and self.files['csv']:
-            if os.path.isfile(self.files['csv']):
-                try:
-                    from anafi_sim.mission.plots import plot_run
-                    plot_run(self.files['csv'], self.files['plot'], summary=summary, title=self.label)
-                    info['plot'] = self.files['plot']
-                except Exception as e:    # a plot problem must not hide the result
-                    rospy.logerr('plot failed: %s', e)
-            else:
-                rospy.logerr('no CSV %s: no plot', self.files['csv'])
+            with self.lock:
+                problem = self.core.result_problem(self.require_truth)
+            if problem:
+                problems.append(problem)
+            problems += self._missing_files()
+        if self.files['plot'] and self.files['csv'] and os.path.isfile(self.files['csv']):
+            try:
+                from anafi_sim.mission.plots import plot_run
+                with run_files.atomic_path(self.files['plot'], '.png') as tmp:
+                    plot_run(self.files['csv'], tmp, summary=summary, title=self.label)
+                info['plot'] = self.files['plot']
+            except Exception as e:    # a plot that cannot be written: the run's files are not complete
+                problems.append('plot %s not written: %s' % (self.files['plot'], e))
+        elif ok and self.files['plot']:
+            problems.append('no CSV %s: no plot' % self.files['csv'])
+        if ok and problems:
+            ok = False
+            with self.lock:
+                self.core.state = FAILED
+                self.core.reason = '; '.join(problems)
+            info['state'], info['reason'] = FAILED, self.core.reason
         if self.files['info']:
             try:
                 _write_yaml(self.files['info'], info)
             except (IOError, OSError) as e:
-                rospy.logerr('cannot write %s: %s', self.files['info'], e)
+                ok = False
+                info['state'] = FAILED
+                info['reason'] = '; '.join(r for r in (info.get('reason'), 'cannot write %s: %s'
+                                                       % (self.files['info'], e)) if r)
+        if ok and self.files['info']:
+            try:
+                os.remove(run_files.failed_name(self.files['info']))    # the "running" marker
+            except OSError:
+                pass
+        if not ok:      # every file this run leaves says so in its name (the recorder renames the bag)
+            try:
+                marked = run_files.mark_failed([self.files[k] for k in ('summary', 'csv', 'plot', 'info')])
+            except OSError as e:
+                marked = []
+                rospy.logerr('cannot mark the files of the failed run: %s', e)
+            for key in ('summary', 'csv', 'plot', 'info', 'bag'):
+                if self.files[key]:
+                    failed = run_files.failed_name(self.files[key])
+                    if failed in marked or key == 'bag':
+                        self.files[key] = failed
         lines = ['', '=' * 78, 'RESULT %s  (%s)' % (self.label, 'ok' if ok else 'FAILED: ' + info['reason'])]
         lines += summary_lines(summary, self.label)[1:] if summary else ['  no evaluator summary']
         if info.get('achieved_rtf') is not None:
@@ -274,12 +324,33 @@ class ExperimentMonitorNode(object):
         if info.get('mpc_solve_time_mean_ms') is not None:
             lines.append('  MPC solve time: mean %.2f ms, max %.2f ms' % (info['mpc_solve_time_mean_ms'],
                                                                           info['mpc_solve_time_max_ms']))
+        if self.run_dir:
+            lines.append('  %-8s %s' % ('folder:', self.run_dir))
         for key in ('bag', 'csv', 'summary', 'plot', 'info'):
             path = self.files[key]
             if path and (key in ('info', 'bag') or os.path.exists(path)):
                 lines.append('  %-8s %s' % (key + ':', path))
         lines.append('=' * 78)
         self._say('\n'.join(lines))
+        return ok
+
+    def _missing_files(self):
+        """Problems with the evaluator's files (not written, e.g. a full disk, or not final)."""
+        out = []
+        path = self.files['summary']
+        if path:
+            data = _read_yaml(path)
+            if not isinstance(data, dict) or data.get('state') != 'final':
+                out.append('summary %s %s' % (path, 'not written' if not os.path.exists(path)
+                                              else 'unreadable or not final'))
+        if self.files['csv'] and not os.path.isfile(self.files['csv']):
+            out.append('CSV %s not written' % self.files['csv'])
+        bag = self.files['bag']
+        if bag and not os.path.exists(bag + '.active') and not os.path.exists(bag):
+            out.append('bag %s not being recorded (rosbag stopped)' % bag)
+        if out:
+            out[-1] += ' (a full disk? see the nodes\' logs)'
+        return out
 
     def _publish_hold(self):
         """The scenario's start as the waypoint (zero velocity), every 0.1 s of ROS time."""
@@ -339,7 +410,7 @@ class ExperimentMonitorNode(object):
                 time.sleep(0.1)
         if rospy.is_shutdown() and self.core.state not in (FINAL, FAILED):
             self.core.reason = 'shut down before the end (state %s)' % self.core.state
-        self._finish(ok)
+        ok = self._finish(ok)
         rospy.signal_shutdown('experiment finished')
         return ok
 

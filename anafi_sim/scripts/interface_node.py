@@ -25,6 +25,12 @@ queued, so ROS I/O never blocks the reader):
   restarting) and after a restart until samples flow again; the restart note stays in
   the message.
 
+With ~simulator_node (our simulator, e.g. anafi_sim in the same namespace) the port of the command's
+inet:HOST:PORT argument is the one that node serves on (its ~telemetry_bound_port, read before each start:
+telemetry_port 0 works) and only samples with its stream id (~telemetry_stream_id) are published; a
+stream with another id or none (another drone, a stale port) is refused: ERROR, nothing published, the
+telemetry process restarted after ~restart_timeout (anafi_sim.interface.telemetry_source).
+
 The telemetry process is restarted when it exits, prints no byte or no complete sample
 for ~restart_timeout s; lines longer than MAX_LINE bytes are dropped and counted
 (process oversize lines). Restart warnings are throttled (10 s) with running counts.
@@ -35,6 +41,7 @@ anafi_sim/config/interface.yaml. Under the reference implementation's names (com
 sphinx_interface_node, ~publish_hz = ~rate (wins when set); the node sets ~publish_hz to the rate it
 publishes at, where the reference implementation's MPC reads it. Bad parameters: logfatal and exit code 2.
 """
+import shlex
 import threading
 import time
 
@@ -45,6 +52,7 @@ from nav_msgs.msg import Odometry
 
 from anafi_sim.interface import ground_truth as gt
 from anafi_sim.interface.supervisor import ProcessSupervisor
+from anafi_sim.interface.telemetry_source import WAITING_FOR_SIMULATOR, SimulatorSource, with_port
 
 #: [bytes] longest telemetry line taken (a Sphinx line is < 100 bytes); longer ones are dropped and counted
 MAX_LINE = 4096
@@ -79,6 +87,7 @@ def read_params():
     namespace = rospy.get_namespace().strip('/')
     p['drone_name'] = reader.base_name('drone_name', namespace.split('/')[-1] if namespace else 'anafi')
     p['stamp_with_sample_time'] = reader.flag('stamp_with_sample_time', False)
+    p['simulator_node'] = reader.string('simulator_node', '')
     p['topic_base'] = '' if namespace else p['drone_name'] + '/'
     return p
 
@@ -120,10 +129,16 @@ class InterfaceNode(object):
         self.static_tf.sendTransform(_transform(rospy.Time(0), self.camera, drone + '/camera_optical',
                                                 (0.0, 0.0, 0.0), gt.CAMERA_OPTICAL_ROTATION))
         self.diag_name = '%s: ground truth interface' % rospy.get_name()
+        self.source = None
+        if params['simulator_node']:     # our simulator: its bound port and stream id, read before each start
+            self.source = SimulatorSource(params['simulator_node'], lambda name: rospy.get_param(name, None))
+            with_port(shlex.split(params['telemetry_command']) if isinstance(params['telemetry_command'], str)
+                      else params['telemetry_command'], 1)    # ValueError now if it has no inet:HOST:PORT
         self.supervisor = ProcessSupervisor(   # ValueError for a command string shlex cannot split
             params['telemetry_command'], self.on_line, restart_timeout=params['restart_timeout'],
             backoff_initial=params['backoff_initial'], backoff_max=params['backoff_max'],
-            on_event=self.on_event, sample_timeout=params['restart_timeout'], max_line=MAX_LINE)
+            on_event=self.on_event, sample_timeout=params['restart_timeout'], max_line=MAX_LINE,
+            prepare=self._prepare if self.source is not None else None)
 
     def run(self):
         rospy.loginfo('interface: running %r, publishing %s at %.0f Hz', self.supervisor.argv,
@@ -135,10 +150,20 @@ class InterfaceNode(object):
         self.supervisor.stop()
 
     # -- supervisor callbacks (supervisor threads) ---------------------------------------
+    def _prepare(self, argv):
+        argv = self.source.prepare(argv)
+        with self.lock:
+            if self.core.expected_stream_id != self.source.stream_id:
+                rospy.loginfo('interface: reading the telemetry of %s on port %d, stream id %d',
+                              self.source.node, self.source.port, self.source.stream_id)
+            self.core.expected_stream_id = self.source.stream_id
+        return argv
+
     def on_event(self, kind, info):
         if kind == 'start':
             with self.lock:
                 self.parser.reset()  # a sample cut by the previous process must not be completed by this one
+                self.parser.stream_id = None
                 self.core.on_process_start()   # ERROR until samples flow again
             rospy.loginfo('interface: telemetry process started (pid %s)', info.get('pid'))
         elif kind == 'exit':     # throttled: a simulator that is down makes the tool exit again and again
@@ -152,6 +177,11 @@ class InterfaceNode(object):
                                    'restarting in %.1f s (%d hangs so far)' % (
                                        info.get('pid'), info.get('silent_for', float('nan')),
                                        info.get('restart_in', 0.0), self.supervisor.hangs))
+        elif kind == 'spawn_failed' and WAITING_FOR_SIMULATOR in str(info.get('message')):
+            # the usual start-up order (the simulator binds its port after the interface starts): not an error
+            # yet; the diagnostics say ERROR "no telemetry received yet" until samples flow
+            rospy.loginfo_throttle(10.0, 'interface: %s; retrying in %.1f s' % (
+                info.get('message'), info.get('restart_in', 0.0)))
         elif kind == 'spawn_failed':
             rospy.logerr_throttle(10.0, 'interface: cannot start telemetry command %r: %s; retrying in %.1f s '
                                   '(%d failures so far)' % (self.supervisor.argv, info.get('message'),
@@ -165,8 +195,15 @@ class InterfaceNode(object):
             sample = self.parser.feed_line(line, line.endswith('\n'))
             if sample is None:
                 return False
-            out = self.core.on_sample(sample, wall_time)
+            refused = self.core.foreign_samples
+            out = self.core.on_sample(sample, wall_time, self.parser.stream_id)
+            refused = self.core.foreign_samples > refused
             restarted = self.core.restarted
+        if refused:
+            rospy.logerr_throttle(5.0, 'interface: refusing the telemetry of another drone (stream id %s, expected '
+                                  '%s; %d samples refused): nothing published' % (
+                                      self.parser.stream_id, self.core.expected_stream_id, self.core.foreign_samples))
+            return False    # not our sample: after restart_timeout the supervisor restarts (re-reads the port)
         if restarted:
             rospy.logwarn('interface: simulator restart detected (timestamp jumped back to %.3f s); state reset',
                           sample.timestamp)

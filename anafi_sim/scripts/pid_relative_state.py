@@ -39,7 +39,7 @@ from anafi_control.contract import MESSAGES, NO_STATE, NO_WAYPOINT, OK, InputGat
 from anafi_control.pid_framework import DEFAULTS, relative_state
 from anafi_control.pid_wiring import input_topics, loop_inputs
 from anafi_sim import names
-from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
+from anafi_sim.ros.conversions import amend_health, subscribe_inputs, waypoint_admission, waypoint_limits
 from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES
 from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
@@ -66,8 +66,9 @@ class RelativeStateNode(object):
         self.pub_enable = rospy.Publisher(names.pid_topic(names.PID_ENABLE, pid_ns), Bool, queue_size=1, latch=True)
         self.pub_diag = diagnostics_publisher()
         self._set_enabled(False)
+        self.admission = waypoint_admission(p)
         self.state_topic, self.waypoint_topic = subscribe_inputs(self.gate, self.lock, state_topic, waypoint_topic,
-                                                                  waypoint_type)
+                                                                  waypoint_type, self.admission)
         rospy.loginfo('%s: state %s, waypoint %s -> %s/<loop>/{setpoint,state} at %g Hz',
                       rospy.get_name(), self.state_topic, self.waypoint_topic,
                       rospy.resolve_name(pid_ns), self.rate)
@@ -99,7 +100,7 @@ class RelativeStateNode(object):
 
     def _diagnostic_statuses(self):
         with self.lock:
-            h = health(self.key, self.reason, list(self.gate.counters.items()))
+            h = amend_health(health(self.key, self.reason, list(self.gate.counters.items())), self.admission)
             extra = [('published cycles', self.published_cycles),
                      ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]
         return [health_status('pid_relative_state: %s' % rospy.get_name(), h, namespace_id(), extra)]

@@ -10,8 +10,15 @@ in the world ENU frame, attitude (roll, pitch, yaw) [rad], body-frame (FLU)
 velocity, angular velocity [rad/s], acceleration [m/s^2] and angular
 acceleration [rad/s^2], the simulation ``timestamp`` [s] and the gimbal
 motor angles relative to the body [rad].
+
+Stream identity: our simulator starts every sample with one extra line
+``<prefix>streamId : N`` (``STREAM_ID_KEY``; N an integer that identifies the
+simulator instance, see ``new_stream_id``), so an interface can refuse another
+drone's stream. The real ``tlm-data-logger`` prints no such key: a stream
+without it is read as before (``TelemetryParser.stream_id`` stays None).
 """
 import collections
+import os
 
 DEFAULT_PREFIX = 'omniscient_anafi.'
 
@@ -36,6 +43,11 @@ GIMBAL_KEYS = (
     ('gimbal_pitch_anafi.motor_angle', 'gimbal_pitch'),
 )
 
+#: key (after the prefix) of the stand-in's stream identity line, printed first in every sample
+STREAM_ID_KEY = 'streamId'
+#: stream ids are integers in [1, STREAM_ID_MAX] (exact in the float a reader parses)
+STREAM_ID_MAX = 2 ** 31 - 1
+
 FIELDS = tuple(f for _, f in DRONE_KEYS) + tuple(f for _, f in GIMBAL_KEYS)
 
 TelemetrySample = collections.namedtuple('TelemetrySample', FIELDS)
@@ -48,9 +60,16 @@ def key_map(prefix=DEFAULT_PREFIX):
     return keys
 
 
-def format_sample(sample, prefix=DEFAULT_PREFIX):
-    """The lines ``tlm-data-logger`` prints for one sample, as one string (ends with a newline)."""
-    return ''.join('%s : %.9g\n' % (key, getattr(sample, field))
+def new_stream_id(random_bytes=os.urandom):
+    """A fresh stream id: a random integer in [1, STREAM_ID_MAX]."""
+    return int.from_bytes(random_bytes(4), 'big') % STREAM_ID_MAX + 1
+
+
+def format_sample(sample, prefix=DEFAULT_PREFIX, stream_id=None):
+    """The lines ``tlm-data-logger`` prints for one sample, as one string (ends with a newline); with
+    ``stream_id`` the sample starts with the stand-in's ``<prefix>streamId : N`` line."""
+    head = '' if stream_id is None else '%s%s : %d\n' % (prefix, STREAM_ID_KEY, stream_id)
+    return head + ''.join('%s : %.9g\n' % (key, getattr(sample, field))
                    for key, field in key_map(prefix).items())
 
 
@@ -72,6 +91,9 @@ class TelemetryParser(object):
     starts with that key. Known keys outside ``required_fields`` only update
     their last value (0.0 until first seen) and never complete a sample.
 
+    A ``<prefix>streamId : N`` line (the stand-in's stream identity) sets
+    ``stream_id`` (an int, None until seen): the id of the samples that follow.
+
     Counters (``counters`` property, a dict): lines, samples, blank,
     malformed (no colon, value not a number, line cut short),
     nonfinite (NaN/inf: value ignored), unknown_key, partial_samples.
@@ -88,6 +110,8 @@ class TelemetryParser(object):
         # full key -> (field index, required?)
         self._keys = dict((key, (index[field], field in required))
                           for key, field in key_map(prefix).items())
+        self._stream_id_key = prefix + STREAM_ID_KEY
+        self.stream_id = None               # the stream's identity (stand-in only), None until seen
         self._n_required = len(required)
         self._last = [0.0] * len(FIELDS)   # last values (seeds optional fields)
         self._pending = {}                  # field index -> value of the sample being assembled
@@ -136,6 +160,16 @@ class TelemetryParser(object):
             return None
         key = head.strip()
         entry = self._keys.get(key)
+        if entry is None and key.split()[-1:] == [self._stream_id_key]:
+            try:
+                value = float(value_text)
+            except ValueError:
+                value = float('nan')
+            if not (value == value and 0 < value <= STREAM_ID_MAX and value == int(value)):
+                self.malformed += 1
+                return None
+            self.stream_id = int(value)
+            return None
         if entry is None:
             words = key.split()
             entry = self._keys.get(words[-1]) if words else None

@@ -22,7 +22,7 @@ import select
 import socket
 import threading
 
-from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, format_sample
+from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, STREAM_ID_MAX, format_sample
 
 BLOCK_END = b'\n\n'
 
@@ -37,9 +37,16 @@ class _Client(object):
 
 
 class TelemetryServer(object):
-    """TCP server pushing telemetry blocks to every client (host, port; port 0 = ephemeral)."""
+    """TCP server pushing telemetry blocks to every client (host, port; port 0 = ephemeral).
 
-    def __init__(self, host='127.0.0.1', port=9060, prefix=DEFAULT_PREFIX, max_backlog=65536):
+    ``stream_id`` (an int in [1, STREAM_ID_MAX], or None): printed first in every block
+    (``protocol.format_sample``) so that a reader can tell this simulator's stream from another's.
+    """
+
+    def __init__(self, host='127.0.0.1', port=9060, prefix=DEFAULT_PREFIX, max_backlog=65536, stream_id=None):
+        if stream_id is not None and not (isinstance(stream_id, int) and 0 < stream_id <= STREAM_ID_MAX):
+            raise ValueError('stream_id must be an integer in [1, %d] or None, got %r' % (STREAM_ID_MAX, stream_id))
+        self.stream_id = stream_id
         self.host = host
         self.requested_port = int(port)
         self.prefix = prefix
@@ -101,7 +108,7 @@ class TelemetryServer(object):
         """Send one ``TelemetrySample`` to every client without blocking; returns the number of clients served."""
         if not self._clients:
             return 0
-        data = (format_sample(sample, self.prefix) + '\n').encode('ascii')
+        data = (format_sample(sample, self.prefix, self.stream_id) + '\n').encode('ascii')
         self.samples_published += 1
         return self.publish_raw(data)
 

@@ -50,7 +50,8 @@ class TestExperiment(unittest.TestCase):
         processes.add_module_paths(env, 'osqp')  # nodes started through /usr/bin/python3 relay scripts need it too
         cmd = ['roslaunch', '-p', str(port), 'anafi_sim', 'experiment.launch', 'controller:=' + controller,
                'scenario:=experiment_short', 'scenario_file:=' + SCENARIO, 'rtf:=2.0', 'mirror:=true',
-               'record:=true', 'out_dir:=' + out, 'run_name:=' + name, 'plot:=false', 'progress_period:=0',
+               'record:=true', 'out_dir:=' + out, 'run_name:=' + name, 'unique:=false', 'plot:=false',
+               'progress_period:=0',
                'telemetry_port:=%d' % processes.free_port()]
         log_path = os.path.join(out, 'launch.log')
         proc = processes.start(cmd, env=env, log=log_path)

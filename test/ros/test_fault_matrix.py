@@ -57,8 +57,16 @@ FAULTS = (
      'rejected_waypoints grows, the drone stops'),
     ('stale_waypoint', 'waypoints stop', 'HOLD after waypoint_timeout (1 s): WARN "holding position: stale '
      'waypoint", the drone stops'),
+    ('old_waypoint_stream', 'a second waypoint stream 7.5 m to the side, stamped 5 s old, interleaved at 10 Hz',
+     'dropped (stale stamp, > waypoint_max_age 1 s), counted, WARN "dropped waypoints"; the drone keeps '
+     'tracking the real stream (no swing)'),
+    ('out_of_order_waypoint', 'a second waypoint stream 7.5 m to the side, stamped 0.3 s behind the real one',
+     'dropped (out of order), counted, WARN "dropped waypoints"; the drone keeps tracking the real stream'),
     ('far_waypoint', 'a waypoint 1 km away', 'HOLD: WARN "holding position: waypoint outside the geofence", '
      'rejected_geofence grows, the drone stops'),
+    ('foreign_frame_waypoint', 'the waypoints arrive in anafi/base_link (20 m to the side of the drone)',
+     'refused (foreign frame), counted; no usable waypoint: HOLD after waypoint_timeout (WARN "holding '
+     'position: stale waypoint ...; dropped waypoints: N foreign frame"), the drone stops'),
     ('nan_state', 'NaN state (odometry) at 30 Hz', 'SILENT: WARN "no command, firmware hover brake: '
      'non-finite state", rejected_states grows, no command, the firmware brake stops the drone'),
     ('stale_state', 'state stops', 'SILENT after state_timeout (0.5 s): WARN "no command, firmware hover brake: '
@@ -76,6 +84,13 @@ FAULTS = (
      'interface ERROR while the telemetry is gone, controller SILENT (stale state); roslaunch respawns the '
      'simulator (a new flight from the take-off point); interface OK within 5 s of its first sample, the '
      'controller tracks again'),
+    ('foreign_stream', 'another drone\'s telemetry (its own stream id) served on the port the interface reads '
+     '(the simulator\'s port parameter pointed at it, the telemetry CLI restarted)',
+     'interface ERROR "refusing the telemetry of another drone", nothing published (no ground truth from the '
+     'other drone); the right port back -> OK; the controller (on the estimate) keeps tracking'),
+    ('taken_port', 'a second simulator told to serve on the port the first one uses',
+     'the second simulator exits at once with code 1 and a FATAL line naming ~telemetry_port and the taken '
+     'port; the first simulator\'s stream and the interface unaffected (OK, same stream id)'),
     ('world_killed', 'Gazebo world (/gazebo) killed (SIGKILL), respawned by world.launch',
      'the mirror survives (same pid), counts the world restart, respawns both models, OK again; the drone keeps '
      'tracking (the controller does not use the world)'),
@@ -111,7 +126,8 @@ class Graph(object):
         self.truth = []           # (wall time, x, y, z)
         self.commands = []        # wall times of drone/rpyt
         self._state_mode = 'relay'  # relay | nan | off (the relay process, RELAY)
-        self.wp_mode = 'off'       # off | track | nan | far | stop
+        self.wp_mode = 'off'       # off | track | nan | far | stop | foreign (track, in anafi/base_link)
+        self.second = None         # None | old (a second stream stamped 5 s old) | behind (0.3 s behind)
         self.track = None          # (t0, x0, y0, direction)
         self.pub_mode = rospy.Publisher('/%s/fault/mode' % DRONE, String, queue_size=1, latch=True)
         self.pub_wp = rospy.Publisher('/%s/position_control/waypoint' % DRONE, Waypoint, queue_size=10)
@@ -157,16 +173,27 @@ class Graph(object):
         if mode in ('off', 'stop'):
             return
         w = Waypoint()
+        now = rospy.Time.now()
+        w.header.stamp, w.header.frame_id = now, 'world'
         if mode == 'nan':
             w.x = w.y = w.z = NAN
         elif mode == 'far':
             w.x, w.y, w.z = 1000.0, 0.0, 3.0
+        elif mode == 'foreign':     # "20 m to the side" in the drone's body frame
+            w.header.frame_id = '%s/base_link' % DRONE
+            w.x, w.y, w.z = 0.0, 20.0, 0.0
         else:
             t0, x0, y0, d = self.track
             t = time.time() - t0
             w.x, w.y, w.z = x0 + d * SPEED * t, y0, 3.0
             w.vx = d * SPEED
         self.pub_wp.publish(w)
+        if self.second is not None and mode == 'track':
+            other = Waypoint()
+            other.header.frame_id = 'world'
+            other.header.stamp = now - rospy.Duration(5.0 if self.second == 'old' else 0.3)
+            other.x, other.y, other.z, other.vx = w.x, w.y + 7.5, w.z, w.vx
+            self.pub_wp.publish(other)
 
     # -- queries
     def position(self):
@@ -378,8 +405,47 @@ class TestFaultMatrix(unittest.TestCase):
         # detected waypoint_timeout (1 s) after the last waypoint, at the next 10 Hz cycle
         self.hold_case('stale_waypoint', 'stop', 'stale waypoint', 'stale_waypoint', 1.1)
 
+    def second_stream_case(self, name, mode, reason):
+        g = self.g
+        self.fly()
+        key = 'dropped waypoints: %s' % reason
+        before = counter(self.controller(0.0), key) or 0
+        y0 = g.track[2]
+        t0 = time.time()
+        g.second = mode
+        worst = [0.0]
+
+        def watch():
+            p = g.position()
+            worst[0] = max(worst[0], abs(p[1] - y0))
+            return time.time() - t0 > 4.0
+        processes.require(watch, 10.0, 'flying with the second stream')
+        e = self.wait_controller(t0 + 1.0, lambda e: 'dropped waypoints' in e[2], 5.0, 'dropped waypoints diagnostic')
+        g.second = None
+        self.assertEqual(e[1], 1, e)                                   # WARN
+        self.assertIn('tracking', e[2])
+        self.assertGreater(counter(e, key), before, e)
+        self.assertLess(worst[0], 1.0, '%s: the second stream moved the drone %.2f m sideways' % (name, worst[0]))
+        self.assertGreater(g.command_rate(), 5.0)
+        t_fixed = time.time()
+        rec = self.recover(t_fixed)
+        self.record(name, 'WARN "%s"; %s %d -> %d; largest sideways deviation %.2f m (the second stream is 7.5 m '
+                    'away)' % (e[2], key, before, counter(e, key), worst[0]),
+                    'not needed (the drone keeps tracking at %.1f m/s)' % (g.speed() or 0.0), rec)
+
+    def test_03b_old_waypoint_stream(self):
+        self.second_stream_case('old_waypoint_stream', 'old', 'stale stamp')
+
+    def test_03c_out_of_order_waypoint(self):
+        self.second_stream_case('out_of_order_waypoint', 'behind', 'out of order')
+
     def test_04_far_waypoint(self):
         self.hold_case('far_waypoint', 'far', 'waypoint outside the geofence', 'rejected_geofence', 0.2)
+
+    def test_04b_foreign_frame_waypoint(self):
+        # nothing usable arrives: the stale-waypoint HOLD waypoint_timeout (1 s) after the last world waypoint
+        self.hold_case('foreign_frame_waypoint', 'foreign', 'stale waypoint', 'dropped waypoints: foreign frame',
+                       1.1)
 
     def test_05_nan_state(self):
         self.silent_case('nan_state', 'nan', 'non-finite state', 'rejected_states', 0.2)
@@ -530,6 +596,99 @@ class TestFaultMatrix(unittest.TestCase):
                        counter(before, 'process restarts'), counter(ok[0], 'process restarts')),
                     'the simulated drone restarts (a new flight); no command meanwhile',
                     max(ok[0][0], tracking_at) - t_back)
+
+    def test_08d_foreign_stream(self):
+        from anafi_sim.telemetry.protocol import FIELDS, TelemetrySample
+        from anafi_sim.telemetry.server import TelemetryServer
+        g = self.g
+        self.fly()
+        param = '/%s/anafi_sim/telemetry_bound_port' % DRONE
+        own_port = rospy.get_param(param)
+        own_id = rospy.get_param('/%s/anafi_sim/telemetry_stream_id' % DRONE)
+        other = TelemetryServer('127.0.0.1', 0, stream_id=own_id % (2 ** 31 - 1) + 1)
+        other.start()
+        stop = threading.Event()
+        seen = {'other': 0, 'total': 0}
+
+        def serve():            # the other drone hovers at x = 50 m
+            t = 0.0
+            values = dict((f, 0.0) for f in FIELDS)
+            while not stop.is_set():
+                t += 0.01
+                values.update(x=50.0, z=3.0, timestamp=t)
+                other.publish(TelemetrySample(**values))
+                time.sleep(0.01)
+
+        def on_truth(msg):
+            seen['total'] += 1
+            if abs(msg.pose.pose.position.x - 50.0) < 1.0:
+                seen['other'] += 1
+        server = threading.Thread(target=serve, daemon=True)
+        server.start()
+        sub = rospy.Subscriber('/%s/ground_truth/odom' % DRONE, Odometry, on_truth, queue_size=100)
+        try:
+            before = self._interface()
+            t0 = time.time()
+            rospy.set_param(param, other.port)         # a stale / wrong port: the other drone's stream
+            psutil.Process(processes.node_pid('/%s/interface' % DRONE, self.uri)).children()[0].kill()
+            err = [None]
+
+            def refused():
+                err[0] = self._interface(t0)
+                return err[0] is not None and err[0][1] == 2 and 'another drone' in err[0][2]
+            processes.require(refused, 10.0, 'interface ERROR refusing the other stream', lambda: str(err[0]))
+            time.sleep(2.0)
+            self.assertEqual(seen['other'], 0, 'ground truth of the other drone was published')
+            refused_n = counter(err[0], 'refused samples of another stream')
+            self.assertGreater(refused_n, 0, err[0])
+            self.assertEqual(self.controller(t0)[2], 'tracking', 'the controller flies on the estimate')
+            t_fixed = time.time()
+            rospy.set_param(param, own_port)           # the interface restarts the refused stream by itself
+            ok = [None]
+
+            def back():
+                ok[0] = self._interface(t_fixed)
+                return ok[0] is not None and ok[0][1] == 0 and \
+                    counter(ok[0], 'samples published') > counter(before, 'samples published')
+            processes.require(back, RECOVERY_TIME + 5.0, 'interface OK on its own stream', lambda: str(ok[0]))
+        finally:
+            stop.set()
+            sub.unregister()
+            other.stop()
+            rospy.set_param(param, own_port)
+        self.assertEqual(seen['other'], 0)
+        self.record('foreign_stream', 'ERROR "%s"; no ground truth of the other drone published (0 of %d messages '
+                    'during the fault); OK again on its own stream' % (err[0][2], seen['total']),
+                    'not needed (the drone keeps tracking on its estimate)', ok[0][0] - t_fixed)
+
+    def test_08e_taken_port(self):
+        port = rospy.get_param('/%s/anafi_sim/telemetry_bound_port' % DRONE)
+        own_id = rospy.get_param('/%s/anafi_sim/telemetry_stream_id' % DRONE)
+        script = os.path.join(paths.package_dir(), 'anafi_sim', 'scripts', 'anafi_sim_node.py')
+        log = os.path.join(self.workdir, 'taken_port.log')
+        t0 = time.time()
+        proc = processes.start([sys.executable, script, '__name:=anafi_sim', '__ns:=/taken',
+                              '_telemetry_port:=%d' % port], env=self.env, log=log)
+        try:
+            rc = proc.wait(30.0)
+        finally:
+            processes.stop(proc)
+        took = time.time() - t0
+        text = open(log).read()
+        self.assertEqual(rc, 1, text[-2000:])
+        fatal = [line for line in text.splitlines() if 'FATAL' in line]
+        self.assertTrue(fatal and '~telemetry_port' in fatal[-1] and str(port) in fatal[-1], text[-2000:])
+        ok = [None]
+
+        def fine():
+            ok[0] = self._interface(time.time() - 0.5)
+            return ok[0] is not None and ok[0][1] == 0
+        processes.require(fine, 5.0, 'the first interface still OK', lambda: str(ok[0]))
+        self.assertEqual(rospy.get_param('/%s/anafi_sim/telemetry_stream_id' % DRONE), own_id)
+        self.assertEqual(ok[0][3]['expected stream id'], str(own_id))
+        self.record('taken_port', 'second simulator exit code %d after %.1f s: "%s"; the first interface OK "%s", '
+                    'stream id unchanged' % (rc, took, fatal[-1].split('bad parameters: ')[-1][:200], ok[0][2]),
+                    'not needed (nothing else changes)', None)
 
     def _mirror(self, since=0.0):
         return self.g.status('/%s/gazebo_mirror' % DRONE, since)

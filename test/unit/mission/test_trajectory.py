@@ -5,6 +5,7 @@ Velocities are checked against central finite differences of the positions
 formulas against the paper's definitions written out here.
 """
 import math
+import re
 
 import pytest
 import yaml
@@ -328,3 +329,41 @@ def test_airship_target_is_the_followers_waypoint_of_the_scripted_airship():
     with pytest.raises(ValueError):
         load_scenario_from = __import__('anafi_sim.mission.trajectory', fromlist=['trajectory_from_dict'])
         load_scenario_from.trajectory_from_dict({'type': 'airship', 'path': {'wingspan': 3}})
+
+
+# ---------------------------------------------------------------- scenario limits
+def _limited(trajectory=None, phases=None, start='trajectory'):
+    from anafi_sim.mission import trajectory as tr
+    d = {'name': 'x', 'start': start,
+         'trajectory': dict({'type': 'circle', 'centre': [0, 0, 5], 'radius': 2, 'speed': 1}, **(trajectory or {})),
+         'phases': phases or [{'name': 'm', 'periods': 1, 'measure': True}]}
+    return tr.scenario_from_dict(d)
+
+
+@pytest.mark.parametrize('trajectory,phases,words', [
+    ({'centre': [1e300, 0, 5]}, None, 'x 1e+300 outside the limits'),
+    ({'radius': 1e-300}, [{'name': 'm', 'duration': 10, 'measure': True}], 'acceleration'),
+    ({'speed': 1e6}, [{'name': 'm', 'duration': 10, 'measure': True}], 'speed 1e+06 outside the limits'),
+    ({'type': 'line', 'start': [0, 0, 5], 'direction': [1, 0, 0], 'speed': 1e6, 'centre': None, 'radius': None},
+     [{'name': 'm', 'duration': 10, 'measure': True}], 'outside the limits'),
+    (None, [{'name': 'm', 'duration': 1e6, 'measure': True}], 'duration 1e+06 s > 3600 s'),
+    ({'radius': 1e-300}, None, 'measured phase m lasts'),
+    ({'centre': [0, 0, -50]}, None, 'z -50 outside the limits'),
+])
+def test_scenario_values_beyond_the_limits_are_refused_with_the_value_named(trajectory, phases, words):
+    trajectory = dict((k, v) for k, v in (trajectory or {}).items() if v is not None)
+    if trajectory.get('type') == 'line':
+        trajectory = {'type': 'line', 'start': [0, 0, 5], 'direction': [1, 0, 0], 'speed': 1e6}
+        with pytest.raises(ValueError, match=re.escape(words)):
+            from anafi_sim.mission import trajectory as tr
+            tr.scenario_from_dict({'name': 'x', 'trajectory': trajectory, 'phases': phases})
+        return
+    with pytest.raises(ValueError, match=re.escape(words)):
+        _limited(trajectory, phases)
+
+
+def test_every_shipped_scenario_is_within_the_limits():
+    from anafi_sim.mission import trajectory as tr
+    for name in tr.list_scenarios():
+        tr.load_scenario(name)
+    assert _limited().duration > 0

@@ -33,10 +33,11 @@ LAB_TOOLS = sorted(p for p in glob.glob(os.path.join(ROOT, 'anafi_lab', 'cli', '
 ALL_PY = sorted(set(CORE_MODULES + SCRIPTS + glob.glob(os.path.join(ROOT, '**', '*.py'), recursive=True)))
 ALL_PY = [p for p in ALL_PY if '/.venv/' not in p and '/.ws/' not in p]
 
-_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _LAB = (
+_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN, _LAB = (
     'anafi_sim.sim', 'anafi_sim.telemetry', 'anafi_sim.interface', 'anafi_sim.gazebo', 'anafi_sim.mission',
-    'anafi_control', 'anafi_sim.paths', 'anafi_sim.names', 'anafi_sim.processes', 'anafi_sim.numeric', 'anafi_lab')
-_FLIGHT_CORES = {_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM}
+    'anafi_control', 'anafi_sim.paths', 'anafi_sim.names', 'anafi_sim.processes', 'anafi_sim.numeric',
+    'anafi_sim.run_files', 'anafi_lab')
+_FLIGHT_CORES = {_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN}
 #: the one direction of the data flow: what each stage may import (besides itself). Simulated drone ->
 #: telemetry -> interface -> gazebo mirror | controllers; the mission (scenarios, evaluation) on top;
 #: ros/ (node glue) and scripts/ (nodes) above all cores; anafi_control stands alone; the lab (anafi_lab)
@@ -48,11 +49,12 @@ ALLOWED_IMPORTS = {
     _NAMES: set(),
     _PROC: set(),
     _NUM: set(),
+    _RUN: set(),
     _TLM: {_PATHS, _NUM},
     _SIM: {_TLM, _CTL, _PATHS, _NUM},
     _IF: {_TLM, _CTL, _PATHS, _NUM},
     _GZ: {_IF, _TLM, _CTL, _PATHS, _NUM},
-    _MIS: {_SIM, _TLM, _IF, _GZ, _CTL, _PATHS, _NAMES, _NUM},
+    _MIS: {_SIM, _TLM, _IF, _GZ, _CTL, _PATHS, _NAMES, _NUM, _RUN},
     _LAB: _FLIGHT_CORES,
 }
 

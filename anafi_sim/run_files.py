@@ -1,0 +1,127 @@
+"""A run's result files: one new folder per run, written atomically, failures marked (pure, no ROS).
+
+- ``new_run_dir(out_dir, name)``: a folder ``out_dir/<name>-<YYYYmmdd-HHMMSS>-<pid>`` that did not exist
+  (created exclusively, so two runs started in the same second never share one), and the link
+  ``out_dir/latest`` pointing at it (replaced atomically).
+- ``atomic_write(path, write)``: ``write(stream)`` fills ``<path>.tmp-<pid>`` in the same folder, which is
+  flushed, synced and renamed to ``path`` only when complete; on any error (a full disk: ENOSPC) the
+  temporary file is removed and the error raised, so ``path`` is either the complete new file or absent.
+- ``atomic_path(path)``: the same for writers that take a path (a CSV writer, matplotlib).
+- ``failed_name(path)``: ``RUN.csv`` -> ``RUN.FAILED.csv``: the name of a file of a run that did not end
+  with a valid measurement; ``mark_failed(paths)`` renames the ones that exist.
+- ``remove_previous(paths)``: a rerun into the same names first removes the previous run's files, so a
+  killed rerun can never leave them next to its own partial files.
+"""
+import contextlib
+import os
+import time
+
+LATEST = 'latest'
+
+
+def new_run_dir(out_dir, name, now=None, pid=None):
+    """Create and return a new folder for a run in ``out_dir``; ``out_dir/latest`` links to it."""
+    out_dir = os.path.abspath(os.path.expanduser(out_dir))
+    os.makedirs(out_dir, exist_ok=True)
+    stamp = time.strftime('%Y%m%d-%H%M%S', time.localtime(time.time() if now is None else now))
+    base = '%s-%s-%d' % (name, stamp, os.getpid() if pid is None else pid)
+    for i in range(1000):
+        path = os.path.join(out_dir, base if i == 0 else '%s-%d' % (base, i))
+        try:
+            os.mkdir(path)
+        except FileExistsError:
+            continue
+        update_latest(out_dir, path)
+        return path
+    raise OSError('cannot create a new run folder %s-* in %s' % (base, out_dir))
+
+
+def update_latest(out_dir, run_dir):
+    """Point ``out_dir/latest`` at ``run_dir`` (relative link, replaced atomically); OSError is ignored
+    where links are impossible (the run folder is the result, the link a convenience)."""
+    link = os.path.join(out_dir, LATEST)
+    tmp = '%s.tmp-%d' % (link, os.getpid())
+    try:
+        if os.path.lexists(tmp):
+            os.remove(tmp)
+        os.symlink(os.path.relpath(run_dir, out_dir), tmp)
+        os.replace(tmp, link)
+    except OSError:
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+
+
+def atomic_write(path, write, mode='w'):
+    """Write ``path`` through ``write(stream)`` into a temporary file renamed when complete (see module doc)."""
+    directory = os.path.dirname(os.path.abspath(path))
+    os.makedirs(directory, exist_ok=True)
+    tmp = '%s.tmp-%d' % (path, os.getpid())
+    try:
+        with open(tmp, mode, **({} if 'b' in mode else {'newline': ''})) as stream:
+            write(stream)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+        raise
+
+
+@contextlib.contextmanager
+def atomic_path(path, suffix=''):
+    """For writers that take a path: yields a temporary path (ending with ``suffix``, e.g. '.png' for a
+    writer that picks the format by extension) that is synced and renamed to ``path`` when the block ends
+    without error, and removed otherwise."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    tmp = '%s.tmp-%d%s' % (path, os.getpid(), suffix)
+    try:
+        yield tmp
+        with open(tmp, 'rb') as stream:
+            os.fsync(stream.fileno())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def atomic_write_text(path, text):
+    """``atomic_write`` of a string."""
+    atomic_write(path, lambda stream: stream.write(text))
+
+
+def failed_name(path):
+    """``dir/RUN.csv`` -> ``dir/RUN.FAILED.csv`` (``RUN.run.yaml`` -> ``RUN.FAILED.run.yaml``)."""
+    directory, name = os.path.split(path)
+    if not name:
+        raise ValueError('no file name in %r' % (path,))
+    head, dot, tail = name.partition('.')
+    if '.FAILED' in name:
+        return path
+    return os.path.join(directory, head + '.FAILED' + dot + tail if dot else name + '.FAILED')
+
+
+def mark_failed(paths):
+    """Rename every existing file of ``paths`` to its ``failed_name``; returns the new names."""
+    out = []
+    for path in paths:
+        if path and os.path.exists(path):
+            target = failed_name(path)
+            os.replace(path, target)
+            out.append(target)
+    return out
+
+
+def remove_previous(paths):
+    """Remove the files of ``paths`` (and their FAILED names) left by a previous run; returns the removed."""
+    removed = []
+    for path in paths:
+        for candidate in (path, failed_name(path)) if path else ():
+            if os.path.lexists(candidate):
+                os.remove(candidate)
+                removed.append(candidate)
+    return removed

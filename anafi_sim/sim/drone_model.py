@@ -63,7 +63,8 @@ not model keys, because Sphinx flew without wind and cannot show it; docs/calibr
 an estimate d of the horizontal acceleration the wind puts on the drone, the difference between the drag on
 the airspeed and the drag on the ground speed, (k(|v|) v - k(|v_air|) v_air), followed by a first order of
 time constant tau_w (0: at once), and adds the tilt that cancels K x d to the roll/pitch setpoint (world
-acceleration -K d turned into the body axes, added to g tan of the setpoint) before the max-tilt clamp, in
+acceleration -K d turned into the body axes, added to the setpoint's own thrust acceleration at a level
+altitude) before the max-tilt clamp, in
 every flight state. The real Anafi, piloted by near-zero attitude commands, holds ~0.2 rad of tilt into a
 ~6 m/s wind (drag-equivalent) and keeps its point. The estimate is the model's, not a sensor's: the effect
 is inert without wind (no step runs it while the wind and the gusts are zero: bit for bit the model
@@ -525,8 +526,11 @@ class AnafiModel(object):
         cy, sy = math.cos(self.yaw), math.sin(self.yaw)
         forward = -k * (cy * est[0] + sy * est[1])
         left = -k * (-sy * est[0] + cy * est[1])
+        # the setpoint's thrust at a level altitude pushes forward g tan(pitch) and left -g tan(roll) / cos(pitch)
         g = self._g
-        return math.atan(math.tan(roll_sp) - left / g), math.atan(math.tan(pitch_sp) + forward / g)
+        pitch = math.atan(math.tan(pitch_sp) + forward / g)
+        left += -g * math.tan(roll_sp) / math.cos(pitch_sp)
+        return math.atan(-left * math.cos(pitch) / g), pitch
 
     def step(self, dt, t):
         """Advance the state from sim time ``t`` to ``t + dt`` [s]."""

@@ -5,7 +5,8 @@ Usage: calibrate_model.py [--logs DIR] [--out YAML] [--fitted YAML] [--report MD
 Defaults (paths of the package's checkout, found through the ROS package path): logs
 <checkout>/../shared/reference_logs, out anafi_sim/config/anafi_model.yaml (the fidelity effects as
 fit.SHIPPED_EFFECTS says), fitted anafi_sim/config/anafi_model_fitted.yaml (every fitted effect on), report
-docs/calibration.md, plot docs/calibration_replay.png. The fits are anafi_sim/calibration/fit.py, the texts
+docs/calibration.md (its "Real flights" section, calibrate_conditions.py's, is kept), plot
+docs/calibration_replay.png. The fits are anafi_sim/calibration/fit.py, the texts
 report.py, the figure plot.py; this script only wires them to files.
 """
 import argparse
@@ -14,7 +15,7 @@ import os
 import sys
 
 from anafi_sim import paths
-from anafi_sim.calibration import fit, plot, report
+from anafi_sim.calibration import conditions, fit, plot, report
 from anafi_sim.experiments.reference_log import read_log
 
 
@@ -66,7 +67,10 @@ def main(argv=None):
         print('wrote %s (%d bytes)' % (args.plot, os.path.getsize(args.plot)))
         plot_name = os.path.relpath(args.plot, os.path.dirname(os.path.abspath(args.report or args.plot)))
     if args.report:
-        write(args.report, report.format_report(cal, logs, plot_name=plot_name))
+        # the real flights' section (calibrate_conditions.py) is kept as it is
+        kept = conditions.existing_section(open(args.report).read()) if os.path.exists(args.report) else ''
+        text = report.format_report(cal, logs, plot_name=plot_name)
+        write(args.report, conditions.replace_section(text, kept) if kept else text)
     return 0
 
 

@@ -42,7 +42,7 @@ OUTPUTS = ('log', 'screen')
 
 
 def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output, aggregator, log=sys.stderr.write,
-             rviz=False):
+             rviz=False, conditions=''):
     """Write the scenarios (and the aggregator groups) and the launch file into out_dir; its path."""
     fleet = load_fleet(fleet_name, drones)
     out_dir = os.path.abspath(os.path.expanduser(out_dir))
@@ -66,7 +66,7 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
             yaml.safe_dump(aggregator_analyzers(fleet), f, default_flow_style=False, sort_keys=False)
     xml = launch_xml(fleet, ports, files, out_dir, evaluate=evaluate, mirror=mirror, mirror_rate=mirror_rate,
                      output=output, source=fleet_path(fleet_name), aggregator_file=aggregator_file,
-                     rviz=rviz)
+                     rviz=rviz, conditions=conditions)
     path = os.path.join(out_dir, 'fleet.launch')
     with open(path, 'w') as f:
         f.write(xml)
@@ -102,7 +102,8 @@ class FleetLauncherNode(object):
                              p.integer('drones', 0, minimum=0), p.string('out_dir', DEFAULT_OUT_DIR, allow_empty=False),
                              p.flag('evaluate', True), p.flag('mirror', True), p.positive('mirror_rate', 100.0),
                              p.choice('output', 'log', OUTPUTS), p.flag('aggregator', False),
-                             log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False))   # ValueError: fatal, exit 2
+                             log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False),
+                             conditions=p.string('conditions', '', allow_empty=True))   # ValueError: fatal, exit 2
         self.child = None
         self.code = 0
 

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The main job (run inside env.bash by `make demo`): a private ROS master on a free port, then the
-# tracking demo (the mirrored Anafi following a circle; CONTROLLER=mpc|pid|preview_mpc). DEMO_LAUNCH/DEMO_ARGS override.
+# tracking demo (the mirrored Anafi following a circle; CONTROLLER=mpc|pid|preview_mpc; CONDITIONS=real_flights: in
+# the wind of the paper's outdoor flights). DEMO_LAUNCH/DEMO_ARGS override.
 #
 # roslaunch ends the demo with a red "REQUIRED process [...] has died!" even when the experiment monitor
 # (the required node) finished its job and exited cleanly. Its output goes through a filter that says
@@ -13,7 +14,7 @@ export ROS_HOSTNAME=127.0.0.1
 echo "[demo] ROS master at $ROS_MASTER_URI"
 set +e
 # shellcheck disable=SC2086
-roslaunch anafi_sim ${DEMO_LAUNCH:-demo.launch} ${DEMO_ARGS:-controller:=${CONTROLLER:-mpc}} 2>&1 \
+roslaunch anafi_sim ${DEMO_LAUNCH:-demo.launch} ${DEMO_ARGS:-controller:=${CONTROLLER:-mpc} ${CONDITIONS:+conditions:=$CONDITIONS}} 2>&1 \
     | python -u -c '
 import re, sys
 RED, GREEN, OFF = "\033[1;31m", "\033[1;32m", "\033[0m"

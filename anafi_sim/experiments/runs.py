@@ -128,7 +128,8 @@ def run_task(task):
         try:
             from anafi_sim.experiments.plots import plot_run
             plot_run(files['csv'], path, summary=result.summary,
-                     title='%s, %s' % (scenario.name, report.LABELS.get(task['controller'], task['controller'])))
+                     title='%s, %s' % (scenario.name, report.LABELS.get(task['controller'], task['controller'])),
+                     wind=engine.settings)
             files['plot'] = path
         except (IOError, OSError, ValueError) as error:
             record['error'] = record['error'] or 'plot: %s' % error

@@ -50,6 +50,7 @@ from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim.ros import topics
 from anafi_sim.ros.node import private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
+from anafi_sim.sim.conditions_profile import load_conditions
 
 try:
     import psutil
@@ -91,6 +92,13 @@ class ExperimentMonitorNode(object):
         self.evaluator_node = rospy.resolve_name(p.string('evaluator_node', 'evaluator'))
         self.files = dict((k, p.string('%s_file' % k, '')) for k in ('summary', 'csv', 'plot', 'info', 'bag'))
         self.hold = p.flag('hold', True)
+        # the flight conditions the simulator flies in (sim.launch conditions:=NAME): shown on the plot
+        conditions = p.string('conditions', '')
+        try:
+            self.wind = load_conditions(conditions) if conditions else None
+        except ValueError as error:
+            rospy.logwarn('conditions %r: %s (the plot will not show the wind)', conditions, error)
+            self.wind = None
         self.waypoint_topic = rospy.resolve_name(topics.WAYPOINT)
         self.lock = threading.Lock()
         self.master = rosgraph.Master(rospy.get_name())
@@ -241,7 +249,8 @@ class ExperimentMonitorNode(object):
             if os.path.isfile(self.files['csv']):
                 try:
                     from anafi_sim.experiments.plots import plot_run
-                    plot_run(self.files['csv'], self.files['plot'], summary=summary, title=self.label)
+                    plot_run(self.files['csv'], self.files['plot'], summary=summary, title=self.label,
+                             wind=self.wind)
                     info['plot'] = self.files['plot']
                 except Exception as e:    # a plot problem must not hide the result
                     rospy.logerr('plot failed: %s', e)

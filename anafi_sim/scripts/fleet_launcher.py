@@ -153,13 +153,14 @@ def tool(argv):
     ap.add_argument('--output', default='log', choices=OUTPUTS)
     ap.add_argument('--aggregator', type=flag, default=False, metavar='true|false')
     ap.add_argument('--rviz', type=flag, default=False, metavar='true|false')
+    ap.add_argument('--conditions', default='', help='flight-conditions profile NAME for every simulated drone')
     what = ap.add_mutually_exclusive_group(required=True)
     what.add_argument('--print', dest='print_only', action='store_true')
     what.add_argument('--write-only', action='store_true')
     args = ap.parse_args(argv)
     try:
         path = generate(args.fleet, args.drones, args.out_dir, args.evaluate, args.mirror, args.mirror_rate,
-                        args.output, args.aggregator, rviz=args.rviz)
+                        args.output, args.aggregator, rviz=args.rviz, conditions=args.conditions)
     except ValueError as error:
         sys.stderr.write('fleet_launcher: %s\n' % error)
         return 2

@@ -79,3 +79,20 @@ def conditions_label(name_or_path):
         return 'none'
     text = str(name_or_path)
     return text if NAME.match(text) else os.path.splitext(os.path.basename(text))[0]
+
+
+def wind_text(settings):
+    """One line describing the wind of simulator ``settings`` (a profile's or sim.yaml's), '' without wind:
+    e.g. 'wind 5.3 m/s toward (-0.60, -0.80) ENU, gusts 1.5 m/s, firmware wind handling K 0.98'."""
+    import math
+    wx, wy = float(settings.get('wind_x', 0.0)), float(settings.get('wind_y', 0.0))
+    gust = float(settings.get('gust_std_horizontal', 0.0))
+    speed = math.hypot(wx, wy)
+    if speed == 0.0 and gust == 0.0:
+        return ''
+    parts = ['wind %.1f m/s' % speed + (' toward (%.2f, %.2f) ENU' % (wx / speed, wy / speed) if speed else '')]
+    if gust:
+        parts.append('gusts %.1f m/s' % gust)
+    if float(settings.get('wind_compensation', 0.0)) > 0.0:
+        parts.append('firmware wind handling K %.2f' % float(settings['wind_compensation']))
+    return ', '.join(parts)

@@ -133,3 +133,31 @@ def test_predicted_section_has_the_seed_spread():
     assert stats['e_max'][:4] == (2.0, 1.0, 1.0, 3.0) and stats['e_max'][4] == 3
     text = '\n'.join(predicted_section(table))
     assert '| real_flights | circle_r1_v1 | mpc | 3 | 2.00 +- 1.00 [1.00, 3.00] |' in text
+
+
+def test_the_run_plot_shows_the_wind(tmp_path):
+    from anafi_sim.experiments.plots import run_figure
+    from anafi_sim.experiments.reference_log import read_log
+    from anafi_sim.sim.conditions_profile import wind_text
+    settings = load_conditions('real_flights')
+    text = wind_text(settings)
+    assert text.startswith('wind ') and 'gusts' in text and 'wind handling' in text
+    assert wind_text({'wind_x': 0.0}) == ''
+    log = synthetic_log(1.0)
+    fig = run_figure(log, wind=settings)
+    assert text in fig._suptitle.get_text()
+    arrows = [a for ax in fig.axes for a in ax.texts if a.get_text().startswith('wind ')]
+    assert arrows
+    calm = run_figure(log)
+    assert calm._suptitle is None or 'wind' not in calm._suptitle.get_text()
+
+
+def test_fleet_drones_get_the_conditions():
+    from anafi_sim.experiments.fleet import launch_xml, load_fleet
+    fleet = load_fleet('three_circles', 0)
+    ports = dict((d.name, 9000 + i) for i, d in enumerate(fleet.drones))
+    xml = launch_xml(fleet, ports, {}, '/tmp', conditions='real_flights')
+    assert xml.count('<arg name="conditions" value="real_flights"/>') == len(fleet.drones)
+    assert 'conditions' not in launch_xml(fleet, ports, {}, '/tmp')
+    with pytest.raises(ValueError):
+        launch_xml(fleet, ports, {}, '/tmp', conditions='../../etc/x')

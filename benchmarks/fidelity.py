@@ -44,6 +44,7 @@ import time
 
 import yaml
 
+from anafi_sim.calibration import conditions
 from anafi_sim import paths
 from anafi_sim.calibration import fit
 from anafi_sim.experiments import fidelity as F
@@ -277,9 +278,15 @@ def main(argv=None):
                  'self_replay': list(selfrep.values())}
         with open(store_path, 'w') as stream:
             yaml.safe_dump(store, stream, default_flow_style=False, sort_keys=False)
+        text = render(records, t3, all_logs, variants, ablation, phases, on, meta, walls, args, scen, gains,
+                      selfrep)
+        # the real flights' replay section (anafi_sim/scripts/calibrate_conditions.py) is kept as it is
+        kept = conditions.existing_section(open(args.out).read(), conditions.FIDELITY_BEGIN,
+                                           conditions.FIDELITY_END) if os.path.exists(args.out) else ''
+        if kept:
+            text = conditions.replace_section(text, kept, conditions.FIDELITY_BEGIN, conditions.FIDELITY_END)
         with open(args.out, 'w') as stream:
-            stream.write(render(records, t3, all_logs, variants, ablation, phases, on, meta, walls, args, scen,
-                                gains, selfrep))
+            stream.write(text)
 
     for step in args.steps:
         t = time.perf_counter()

@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """Identify the firmware's wind handling and the flight conditions from real-flight logs; write the profile.
 
-Usage: calibrate_conditions.py [--logs DIR] [--profile YAML] [--report MD] [--seeds N] [--workers N]
+Usage: calibrate_conditions.py [--logs DIR] [--profile YAML] [--report MD] [--fidelity MD] [--seeds N] [--workers N]
 Defaults (paths of the package's checkout): logs <checkout>/../shared/reference_logs/real, profile
 anafi_sim/config/conditions/real_flights.yaml, report docs/calibration.md (its "Real flights" section is
-replaced; calibrate_model.py keeps it when it rewrites the file). The method is
+replaced; calibrate_model.py keeps it when it rewrites the file), fidelity docs/fidelity.md (its real-flights
+replay section, kept by benchmarks/fidelity.py). The method is
 anafi_sim/calibration/conditions.py; this script only wires it to files.
 """
 import argparse
@@ -32,6 +33,8 @@ def parse_args(argv):
                         help='conditions profile YAML to write ("" to skip)')
     parser.add_argument('--report', default=os.path.join(root, 'docs', 'calibration.md'),
                         help='Markdown file whose conditions section is replaced ("" to skip)')
+    parser.add_argument('--fidelity', default=os.path.join(root, 'docs', 'fidelity.md'),
+                        help='Markdown file whose real-flights replay section is replaced ("" to skip)')
     parser.add_argument('--seeds', type=int, default=3, help='gust seeds per closed-loop replay (default 3)')
     parser.add_argument('--workers', type=int, default=os.cpu_count() or 1, help='worker processes')
     args = parser.parse_args(argv)
@@ -86,6 +89,10 @@ def main(argv=None):
                                       seeds, off_index, COMMAND)
         text = open(args.report).read() if os.path.exists(args.report) else ''
         write(args.report, cond.replace_section(text, section))
+    if args.fidelity:
+        section = cond.fidelity_section(logs, grid, chosen, references, seeds, COMMAND)
+        text = open(args.fidelity).read() if os.path.exists(args.fidelity) else ''
+        write(args.fidelity, cond.replace_section(text, section, cond.FIDELITY_BEGIN, cond.FIDELITY_END))
     print('wall %.0f s' % (time.time() - t0))
     return 0
 

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Identify the firmware's wind handling and the flight conditions from real-flight logs; write the profile.
 
-Usage: calibrate_conditions.py [--logs DIR] [--profile YAML] [--report MD] [--fidelity MD] [--seeds N] [--workers N]
+Usage: calibrate_conditions.py [--logs DIR] [--profile YAML] [--report MD] [--fidelity MD] [--store YAML]
+                               [--render-only] [--seeds N] [--workers N]
 Defaults (paths of the package's checkout): logs <checkout>/../shared/reference_logs/real, profile
 anafi_sim/config/conditions/real_flights.yaml, report docs/calibration.md (its "Real flights" section is
 replaced; calibrate_model.py keeps it when it rewrites the file), fidelity docs/fidelity.md (its real-flights
@@ -35,6 +36,10 @@ def parse_args(argv):
                         help='Markdown file whose conditions section is replaced ("" to skip)')
     parser.add_argument('--fidelity', default=os.path.join(root, 'docs', 'fidelity.md'),
                         help='Markdown file whose real-flights replay section is replaced ("" to skip)')
+    parser.add_argument('--store', default=os.path.join(root, 'docs', 'fidelity', 'real_flights.yaml'),
+                        help='the closed-loop replays\' figures (YAML) to write, or to read with --render-only')
+    parser.add_argument('--render-only', action='store_true',
+                        help='no replays: the figures of --store (the identification is recomputed: seconds)')
     parser.add_argument('--seeds', type=int, default=3, help='gust seeds per closed-loop replay (default 3)')
     parser.add_argument('--workers', type=int, default=os.cpu_count() or 1, help='worker processes')
     args = parser.parse_args(argv)
@@ -78,7 +83,16 @@ def main(argv=None):
                                                cond.TAU_W_GRID[1]))
     seeds = list(range(args.seeds))
     references = dict((log.name, cond.log_figures(log)) for log in logs)
-    grid = cond.replay_grid(logs, settings_list, seeds, workers=args.workers)
+    if args.render_only:
+        import yaml
+        with open(args.store) as stream:
+            stored = yaml.safe_load(stream)
+        if [dict(s) for s in settings_list] != stored['settings'] or seeds != stored['seeds']:
+            raise SystemExit('%s was made with other settings or seeds: rerun without --render-only' % args.store)
+        grid = cond.grid_from_store(stored)
+    else:
+        grid = cond.replay_grid(logs, settings_list, seeds, workers=args.workers)
+        write(args.store, cond.store_text(settings_list, seeds, grid, COMMAND))
     scores = [cond.score(grid, i, references)[0] for i in range(off_index)]
     chosen = min(range(off_index), key=lambda i: scores[i])
     print('chosen: %s (score %.3f)' % (dict(settings_list[chosen]), scores[chosen]))

@@ -1,5 +1,6 @@
 """anafi_sim.calibration.conditions (the firmware's wind handling and the conditions from a log) on synthetic
 logs with a known wind, and the conditions profiles (anafi_sim.sim.conditions_profile) where runs are made."""
+import collections
 import math
 import os
 
@@ -161,3 +162,21 @@ def test_fleet_drones_get_the_conditions():
     assert 'conditions' not in launch_xml(fleet, ports, {}, '/tmp')
     with pytest.raises(ValueError):
         launch_xml(fleet, ports, {}, '/tmp', conditions='../../etc/x')
+
+
+def test_the_replays_store_round_trips_and_renders():
+    import yaml
+    settings = [cond.profile_settings((1.0, 2.0), 1.0, 0.5, 0.98, 0.25)]
+    figures = collections.OrderedDict((('e_mu', 0.8), ('e_max', 6.2), ('tilt_mean', 0.2), ('e_hold', 0.2)))
+    grid = collections.OrderedDict([((0, 'log_mpc'), [figures, None])])
+    back = cond.grid_from_store(yaml.safe_load(cond.store_text(settings, [0, 1], grid, 'cmd')))
+    assert back == grid
+    assert cond.seed_means(back[(0, 'log_mpc')])['e_mu'] == (0.8, 0.8, 0.8)
+
+    class Log(object):
+        name = 'log_mpc'
+    refs = {'log_mpc': collections.OrderedDict((('e_mu', 1.0), ('e_max', 6.2), ('tilt_mean', 0.25),
+                                                ('e_hold', 0.2)))}
+    text = cond.fidelity_section([Log()], back, 0, refs, [0, 1], 'cmd')
+    assert text.startswith(cond.FIDELITY_BEGIN) and cond.FIDELITY_END in text
+    assert '| log_mpc | 0.800 [0.800, 0.800] vs 1.000 (0.80) |' in text

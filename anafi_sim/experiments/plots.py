@@ -83,10 +83,14 @@ def run_figure(log, window=None, title='', show_truth=True, wind=None):
     """Figure of one run (see the module doc); ``window`` = (t0, t1) s since the first sample or None;
     ``wind``: the run's simulator settings (wind_x, wind_y, gust_std_horizontal, wind_compensation) -> an arrow
     on the xy path and a line under the title (none without wind)."""
+    text = ''
+    if wind:
+        from anafi_sim.sim.conditions_profile import wind_text
+        text = wind_text(wind)
     fig = Figure(figsize=(9.0, 6.0))
     FigureCanvasAgg(fig)
     gs = fig.add_gridspec(3, 2, width_ratios=(1.35, 1.0), hspace=0.12, wspace=0.28,
-                          left=0.08, right=0.98, top=0.92, bottom=0.09)
+                          left=0.08, right=0.98, top=0.86 if text else 0.92, bottom=0.09)
     t = log.t
     k = _decimate(len(t))
     truth = show_truth and has_truth(log)
@@ -154,10 +158,6 @@ def run_figure(log, window=None, title='', show_truth=True, wind=None):
     bottom.set_ylabel('e [m]')
     bottom.grid(True, lw=0.3)
     bottom.legend(loc='best', fontsize=7, framealpha=0.7)
-    text = ''
-    if wind:
-        from anafi_sim.sim.conditions_profile import wind_text
-        text = wind_text(wind)
     if text:
         wx, wy = float(wind.get('wind_x', 0.0)), float(wind.get('wind_y', 0.0))
         speed = float(np.hypot(wx, wy))
@@ -167,8 +167,6 @@ def run_figure(log, window=None, title='', show_truth=True, wind=None):
                          xycoords='axes fraction', arrowprops={'arrowstyle': '->', 'color': 'tab:purple', 'lw': 2})
             top.text(0.88, 0.01, 'wind %.1f m/s' % speed, transform=top.transAxes, ha='center', va='bottom',
                      fontsize=7, color='tab:purple')
-    if text:
-        gs.update(top=0.86)         # room for the wind line
     if title or text:
         fig.suptitle(title + (('\n' if title else '') + text if text else ''), fontsize=10 if not text else 9)
     return fig

@@ -328,6 +328,7 @@ def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLER
                    '- %d runs on %s: %.1f s wall for %.0f s of simulated time.' % (
                        len(records), 'Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)'
                        % workers, wall, sim),
+                   '- Flight conditions: %s.' % (conditions or 'none (sim.yaml: no wind, as Sphinx flew)'),
                    '- Controller CPU: the time spent in the controller\'s callbacks within one process; the ROS '
                    'batch counts whole node processes (the distributed PID\'s 8 nodes pay ROS\'s per-message cost), '
                    'so the PID / MPC ratio here is not the paper\'s measure.']),

@@ -520,6 +520,17 @@ def _f(value, digits=3):
     return ('%.' + str(digits) + 'f') % value if value is not None and math.isfinite(value) else 'n/a'
 
 
+def _turn_text(turns):
+    """'log: world W against body B m/s^2; ...' of the yaw-turn checks."""
+    parts = []
+    for check in turns:
+        b, a = check['before'], check['after']
+        world = math.hypot(a['world'][0] - b['world'][0], a['world'][1] - b['world'][1])
+        body = math.hypot(a['body'][0] - b['body'][0], a['body'][1] - b['body'][1])
+        parts.append('%s: %s against %s m/s^2' % (check['name'], _f(world, 2), _f(body, 2)))
+    return '; '.join(parts) or 'no log with a yaw turn'
+
+
 def report_section(logs, handling, conds, combined, grid, settings_list, chosen, references, seeds, off_index,
                    command):
     """Markdown of the calibration.md section (between ``SECTION_BEGIN`` and ``SECTION_END``)."""
@@ -554,8 +565,8 @@ def report_section(logs, handling, conds, combined, grid, settings_list, chosen,
         out.append('| %s | %s | %s |' % (name, _f(rms), verdict))
     out += ['', 'Reading: (1) the commands explain almost none of the held tilt (the MPC restarts its cumulative '
             'errors each cycle; the PID\'s only integral, the lateral velocity loop, is capped at 10 deg and '
-            'starts at zero): the firmware adds it. (2) Through the 180 deg turns the contribution stays put in '
-            'the world and turns over in the body frame: a world-frame estimate of the wind, not an integrator '
+            'starts at zero): the firmware adds it. (2) Through the 180 deg turns the contribution changes less in '
+            'the world than in the body frame (%s): a world-frame estimate of the wind, not an integrator '
             'in the body-frame attitude or velocity loop (rejected: it would point the wrong way after the turn '
             'and need its own time to recover). (3) A velocity or position integrator in the world frame is '
             'rejected by the Sphinx logs (docs/calibration.md sections (c)-(f)): without wind Sphinx delivers '
@@ -565,7 +576,8 @@ def report_section(logs, handling, conds, combined, grid, settings_list, chosen,
             'tilt gain cannot make a tilt under zero commands. (5) The estimator\'s time constant cannot be '
             'read open-loop: the acceleration d is a derivative of a 1/256-quantised velocity estimate and its '
             'noise enters the held tilt as well (the rms falls toward tau = 0 for that reason, not because the '
-            'firmware is instantaneous); it is chosen by the closed-loop replays below, with the gust level.', '',
+            'firmware is instantaneous); it is chosen by the closed-loop replays below, with the gust level.'
+            % _turn_text(handling.turns), '',
             '### Flight conditions from each log', '',
             'Steady wind: the calibrated drag inverted on the mean wind\'s push (where the air moves to, world '
             'ENU; a drag-equivalent speed: the paper reports about 4 m/s, so the real airframe\'s drag is '

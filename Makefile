@@ -1,5 +1,5 @@
 # anafi_sim: the two commands of the README, and their helpers.
-#   make demo   - install what is missing, build, run the main job
+#   make demo   - install what is missing, build, run the main job (CONTROLLER=..., CONDITIONS=real_flights)
 #   make test   - install what is missing, build, run every test (pytest, then rostest)
 # Both start with `make setup`, which is idempotent (a second run only checks).
 SHELL := /bin/bash

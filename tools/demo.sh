@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The main job (run inside env.bash by `make demo`): a private ROS master on a free port, then the
-# tracking demo (the mirrored Anafi following a circle; CONTROLLER=mpc|pid|preview_mpc). DEMO_LAUNCH/DEMO_ARGS override.
+# tracking demo (the mirrored Anafi following a circle; CONTROLLER=mpc|pid|preview_mpc; CONDITIONS=real_flights: in
+# the wind of the paper's outdoor flights). DEMO_LAUNCH/DEMO_ARGS override.
 #
 # roslaunch ends the demo with a red "REQUIRED process [...] has died!" even when the experiment monitor
 # (the required node) finished its job and exited cleanly. Its output goes through a filter that says
@@ -15,7 +16,7 @@ set +e
 # each run writes into its own folder ~/.ros/anafi_demo/<run>-<date>-<time>-<pid> (~/.ros/anafi_demo/latest)
 run_id="$(date +%Y%m%d-%H%M%S)-$$"
 # shellcheck disable=SC2086
-roslaunch anafi_sim ${DEMO_LAUNCH:-demo.launch} ${DEMO_ARGS:-controller:=${CONTROLLER:-mpc}} \
+roslaunch anafi_sim ${DEMO_LAUNCH:-demo.launch} ${DEMO_ARGS:-controller:=${CONTROLLER:-mpc} ${CONDITIONS:+conditions:=$CONDITIONS}} \
     $([ -z "${DEMO_LAUNCH:-}" ] && echo "run_id:=$run_id") 2>&1 \
     | python -u -c '
 import re, sys

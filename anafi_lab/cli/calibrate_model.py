@@ -5,7 +5,7 @@ Usage: calibrate_model.py [--logs DIR] [--out YAML] [--fitted YAML] [--report MD
 Defaults (paths of the package's checkout, found through the ROS package path): logs
 <checkout>/../shared/reference_logs, out anafi_sim/config/anafi_model.yaml (the fidelity effects as
 fit.SHIPPED_EFFECTS says), fitted anafi_sim/config/anafi_model_fitted.yaml (every fitted effect on), report
-docs/calibration.md, context benchmarks/results/calibration.yaml (the figures of the report and of both model
+docs/calibration.md (its "Real flights" section, calibrate_conditions.py's, is kept), context benchmarks/results/calibration.yaml (the figures of the report and of both model
 YAMLs: the texts are rendered from it, and render again from it without the fits), plot
 docs/calibration_replay.png. The fits are anafi_lab/calibration/ (fit.py puts them together), the texts
 anafi_lab/reports/calibration_report.py with its templates anafi_lab/reports/templates/calibration.md and
@@ -21,7 +21,7 @@ import tempfile
 import yaml
 
 from anafi_sim import paths
-from anafi_lab.calibration import fit, plot
+from anafi_lab.calibration import conditions, fit, plot
 from anafi_lab.reports import calibration_report as report
 from anafi_sim.mission.reference_log import read_log
 
@@ -90,7 +90,10 @@ def main(argv=None):
     if args.fitted:
         write(args.fitted, report.render_model_yaml(stored['model_fitted']))
     if args.report:
-        write(args.report, report.render_report(stored['report']))
+        # the real flights' section (calibrate_conditions.py) is kept as it is
+        kept = conditions.existing_section(open(args.report).read()) if os.path.exists(args.report) else ''
+        text = report.render_report(stored['report'])
+        write(args.report, conditions.replace_section(text, kept) if kept else text)
     return 0
 
 

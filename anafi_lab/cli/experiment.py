@@ -3,18 +3,23 @@
 
     experiment.py run --controller pid|mpc|pid_single|pkg.mod:Class --scenario NAME|PATH [--seed S]
                       [--wind X,Y[,Z]] [--gust STD] [--gust-vertical STD] [--gust-tau S]
-                      [--param KEY=VALUE ...] [--schedule KEY=VALUE ...] [--sync-schedule]
+                      [--conditions NAME|PATH] [--param KEY=VALUE ...] [--schedule KEY=VALUE ...] [--sync-schedule]
                       [--state-source estimate|truth]
                       [--engine inprocess|ros [--sync] [--rtf R]] [--no-plot] --out DIR
         -> DIR/<scenario>_<controller>.yaml (the evaluator's summary), .csv (reference log), .png; one
            'RESULT ...' line on stdout, then one line per file written (exit 0 when the summary is final).
            --engine ros: in a new folder DIR/<scenario>_<controller>-<date>-<time>-<pid> per run (DIR/latest links to it).
-    experiment.py batch [--engine inprocess|ros [--sync] [--rtf R]] [--workers N] [--scheduler ADDRESS]
+    experiment.py batch [--engine inprocess|ros [--sync] [--rtf R]] [--workers N] [--scheduler ADDRESS] [--conditions C]
                         [--scenarios ...] [--controllers mpc,pid,preview_mpc] [--runs-dir DIR] [--no-plots] --out DIR
         -> DIR/experiments.yaml (the ROS batch's schema) and DIR/report.md (the paper's tables), plots.
-    experiment.py sweep NAME|SPEC.yaml [--workers N] [--scheduler ADDRESS] [--no-plot] --out DIR
+    experiment.py sweep NAME|SPEC.yaml [--workers N] [--scheduler ADDRESS] [--conditions C] [--no-plot] --out DIR
         -> DIR/runs.csv (every run's metrics), DIR/summary.md, DIR/e_mu.png. NAME: a spec of
            anafi_sim/config/sweeps/ (e.g. wind_circles); a relative path missing here is looked up in the package.
+
+``--conditions NAME|PATH``: a flight-conditions profile (anafi_sim/config/conditions/, e.g. real_flights: the
+wind, gusts and firmware wind handling of the paper's outdoor flights) under the run's settings; ``--wind`` and
+the gust options override its wind. For a sweep it overrides the spec's ``conditions:``. Without it: sim.yaml
+(no wind), as Sphinx flew.
 
 The in-process engine (anafi_lab.engine.engine) needs no ROS master: the same cores as the nodes on
 virtual time, bit-for-bit deterministic for a seed. ``--engine ros`` runs the real graph instead
@@ -38,6 +43,7 @@ from anafi_lab.engine.engine import CONTROLLERS, make_schedule, wind_settings
 from anafi_lab.engine.runs import SYNC_SCHEDULE, batch, make_task, result_line, run_task, task_name
 from anafi_lab.engine.sweep import GROUPS, load_spec, run_sweep, unflatten
 from anafi_sim.mission.trajectory import list_scenarios
+from anafi_sim.sim.conditions_profile import load_conditions
 
 
 #: the batch's controllers by engine (the ROS batch runs the paper's two); README's run counts come from these
@@ -93,13 +99,15 @@ def cmd_run(args):
     os.makedirs(args.out, exist_ok=True)
     task = make_task(args.scenario, args.controller, seed=args.seed, wind=wind, params=params or None,
                      schedule=schedule or None, state_source=args.state_source, name=args.name,
-                     out_dir=args.out, plot=not args.no_plot)
+                     out_dir=args.out, plot=not args.no_plot, conditions=args.conditions)
+    load_conditions(args.conditions)
     name = task_name(task)
     if args.engine == 'ros':
         if args.controller not in ('mpc', 'pid') or wind or params or schedule or args.seed is not None \
-                or args.state_source != 'estimate' or args.name:
+                or args.state_source != 'estimate' or args.name or args.conditions:
             raise ValueError('--engine ros runs experiment.launch as it is: controller mpc or pid, the seed and wind '
-                             'of sim.yaml, no --param / --schedule / --state-source / --name')
+                             'of sim.yaml, no --param / --schedule / --state-source / --name / --conditions '
+                             '(roslaunch anafi_sim experiment.launch conditions:=NAME runs the graph in them)')
         args.out = run_files.new_run_dir(args.out, name)    # its own folder: concurrent runs never share files
         print('run folder %s (%s)' % (args.out, os.path.join(os.path.dirname(args.out), run_files.LATEST)))
         rc = _ros_batch(args.out, [args.scenario], [args.controller], args.out,
@@ -152,6 +160,9 @@ def cmd_batch(args):
     os.makedirs(out, exist_ok=True)
     command = 'anafi_lab/cli/experiment.py ' + ' '.join(sys.argv[1:])
     if args.engine == 'ros':
+        if args.conditions:
+            raise ValueError('--conditions is for the in-process batch (roslaunch anafi_sim experiment.launch '
+                             'conditions:=NAME runs the graph in them)')
         runs_dir = os.path.abspath(args.runs_dir or os.path.join(out, 'runs'))
         extra = ['--rtf', str(args.rtf)] + (['--no-plots'] if args.no_plots else []) + (
             ['--sync'] if args.sync else [])
@@ -162,8 +173,10 @@ def cmd_batch(args):
         print('ROS batch: %s, %s' % (os.path.join(out, 'experiments.yaml'), os.path.join(out, 'report.md')))
         return rc
     _in_process_only(args)
+    load_conditions(args.conditions)
     records, meta, report_path = batch(out, scenarios, controllers, workers=args.workers, scheduler=args.scheduler,
-                                       runs_dir=args.runs_dir, plots=not args.no_plots, command=command)
+                                       runs_dir=args.runs_dir, plots=not args.no_plots, command=command,
+                                       conditions=args.conditions)
     ok = sum(1 for r in records if r['ok'])
     print('batch done: %d of %d runs ok, %.1f s wall for %.0f s of simulated time; %s, %s' % (
         ok, len(records), meta['wall_s'], meta['sim_s'], os.path.join(out, 'experiments.yaml'), report_path))
@@ -174,6 +187,8 @@ def cmd_batch(args):
 
 def cmd_sweep(args):
     spec = load_spec(args.spec)
+    if args.conditions:
+        spec['conditions'] = args.conditions
     command = 'anafi_lab/cli/experiment.py ' + ' '.join(sys.argv[1:])
     table, out_paths, meta = run_sweep(spec, args.out, workers=args.workers, scheduler=args.scheduler,
                                        command=command, plot=not args.no_plot)
@@ -197,6 +212,8 @@ def parser():
     run.add_argument('--gust', type=float, default=None, help='horizontal gust std [m/s]')
     run.add_argument('--gust-vertical', type=float, default=None, help='vertical gust std [m/s]')
     run.add_argument('--gust-tau', type=float, default=None, help='gust time constant [s]')
+    run.add_argument('--conditions', default=None, metavar='NAME|PATH',
+                     help='flight-conditions profile (anafi_sim/config/conditions, e.g. real_flights); default none')
     run.add_argument('--param', action='append', metavar='KEY=VALUE',
                      help='controller parameter (mpc: mpc.yaml keys, e.g. r=0.1; pid: LOOP.PARAM, e.g. x_outer.Kp=1)')
     run.add_argument('--schedule', action='append', metavar='KEY=VALUE',
@@ -223,6 +240,7 @@ def parser():
                      help='comma list (default %s in-process; %s with --engine ros)'
                           % (BATCH_CONTROLLERS['inprocess'], BATCH_CONTROLLERS['ros']))
     bat.add_argument('--runs-dir', default=None, help='per-run summaries and CSVs (default OUT/runs)')
+    bat.add_argument('--conditions', default=None, metavar='NAME|PATH', help='flight-conditions profile')
     bat.add_argument('--no-plots', action='store_true')
     bat.add_argument('--rtf', type=float, default=2.0, help='--engine ros: requested real-time factor')
     bat.add_argument('--sync', action='store_true',
@@ -234,6 +252,8 @@ def parser():
     swp.add_argument('spec', help='sweep spec: a name in anafi_sim/config/sweeps (e.g. wind_circles) or a path')
     swp.add_argument('--workers', type=int, default=1, help='processes (default 1)')
     swp.add_argument('--scheduler', default=None, help='Dask distributed scheduler address')
+    swp.add_argument('--conditions', default=None, metavar='NAME|PATH',
+                     help='flight-conditions profile (overrides the spec\'s conditions:)')
     swp.add_argument('--no-plot', action='store_true')
     swp.add_argument('--out', required=True)
     swp.set_defaults(func=cmd_sweep)

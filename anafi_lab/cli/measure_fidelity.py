@@ -46,7 +46,7 @@ import time
 import yaml
 
 from anafi_sim import paths
-from anafi_lab.calibration import estimate, fit
+from anafi_lab.calibration import conditions, estimate, fit
 from anafi_lab.fidelity import replay as F
 from anafi_lab.fidelity import held_out as H
 from anafi_lab.fidelity import variants as V
@@ -180,7 +180,15 @@ def render(args):
     text = report.report_from_store(store, os.path.relpath(args.figures, out_dir),
                                     os.path.relpath(args.store, out_dir), store_name,
                                     report.load_log_facts(args.facts))
-    write_atomic(args.out, text)
+    write_atomic(args.out, with_real_flights(text, args.out))
+
+
+def with_real_flights(text, out):
+    """``text`` with the "real flights" section of the report at ``out`` kept as it is (calibrate_conditions.py
+    writes it from its own measured figures)."""
+    kept = conditions.existing_section(open(out).read(), conditions.FIDELITY_BEGIN, conditions.FIDELITY_END) \
+        if os.path.exists(out) else ''
+    return conditions.replace_section(text, kept, conditions.FIDELITY_BEGIN, conditions.FIDELITY_END) if kept else text
 
 
 Plan = collections.namedtuple('Plan', 'log_paths chosen variants run_variants ablation phases scen_variants')

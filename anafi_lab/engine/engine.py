@@ -102,6 +102,7 @@ from anafi_sim.mission.trajectory import DONE, Scenario, TrajectoryGenerator, lo
 from anafi_sim.interface.ground_truth import GroundTruthInterface, odometry
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.sim.clock import TIMER_PHASES, SimClock
+from anafi_sim.sim.conditions_profile import load_conditions
 from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
 from anafi_sim.sim.simulator import SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
@@ -507,18 +508,22 @@ class Engine(object):
     SCENARIO_CONTROLLER); max_sim_time: give up after this many simulated seconds (default: the scenario's
     duration + 120 s); actions: [(s > 0 after the scenario's start, fn(engine))], called at those simulated
     times before the physics step of that instant, whose state then shows the action (e.g. the fidelity
-    replay's initial state, ``anafi_lab.fidelity.replay``).
+    replay's initial state, ``anafi_lab.fidelity.replay``); conditions: a flight-conditions profile NAME or
+    PATH (``anafi_sim.sim.conditions_profile``: wind, gusts, the firmware's wind handling) under ``settings``
+    and ``wind`` (None: sim.yaml as it is).
     """
 
     def __init__(self, scenario, controller='mpc', seed=None, wind=None, settings=None, controller_params=None,
                  schedule=None, model_params=None, state_source='estimate', name=None, max_sim_time=None,
-                 actions=None):
+                 actions=None, conditions=None):
         self.scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
         self.controller = controller
         label = controller if isinstance(controller, str) else getattr(controller, '__name__', 'controller')
         self.name = name or '%s_%s' % (self.scenario.name, label.split(':')[-1])
         self.schedule = make_schedule(schedule)
-        sim_settings = dict(settings or {})
+        self.conditions = conditions or None
+        sim_settings = dict(load_conditions(conditions))
+        sim_settings.update(settings or {})
         sim_settings.update(wind_settings(wind))
         self.mapping, self.settings, default_seed = simulator_config(sim_settings)
         self.seed = default_seed if seed is None else int(seed)
@@ -725,6 +730,7 @@ class Engine(object):
             ('engine', 'inprocess'), ('state', 'final' if self.evaluator.complete() and not self.failed
                                       else 'failed'),
             ('reason', self.failed or ''), ('seed', self.seed), ('wind', dict(self.wind)),
+            ('conditions', self.conditions),
             ('startup_sim_s', r(self.started_at, 3)), ('sim_s', r(sim_s, 3)),
             ('scenario_sim_s', r(scenario_sim, 3)), ('wall_s', r(wall, 3)),
             ('achieved_rtf', r(sim_s / wall if wall > 0 else None, 2)),

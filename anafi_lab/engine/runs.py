@@ -46,7 +46,7 @@ command latency in simulation time: mpc_latency 0)."""
 TASK_DEFAULTS = collections.OrderedDict([
     ('scenario', None), ('controller', 'mpc'), ('seed', None), ('wind', None), ('params', None),
     ('schedule', None), ('state_source', 'estimate'), ('name', None), ('out_dir', None), ('plot', False),
-    ('detail', True),
+    ('detail', True), ('conditions', None),
 ])
 
 
@@ -85,7 +85,8 @@ def run_task(task):
         record['scenario'] = scenario.name if os.sep not in str(task['scenario']) else str(task['scenario'])
         engine = Engine(scenario, task['controller'], seed=task.get('seed'), wind=task.get('wind'),
                         controller_params=task.get('params'), schedule=task.get('schedule'),
-                        state_source=task.get('state_source') or 'estimate', name=name)
+                        state_source=task.get('state_source') or 'estimate', name=name,
+                        conditions=task.get('conditions'))
         result = engine.run()
     except Exception as error:      # a bad task must not take the batch down: the record says why
         record['error'] = '%s: %s' % (type(error).__name__, error)
@@ -98,8 +99,9 @@ def run_task(task):
     record['summary'] = result.summary
     info = result.info
     if not task.get('detail', True):
-        info = dict((k, info[k]) for k in ('engine', 'state', 'seed', 'wind', 'sim_s', 'scenario_sim_s',
-                                           'wall_s', 'achieved_rtf', 'hover_commands', 'controller_cpu_s'))
+        info = dict((k, info[k]) for k in ('engine', 'state', 'seed', 'wind', 'conditions', 'sim_s',
+                                           'scenario_sim_s', 'wall_s', 'achieved_rtf', 'hover_commands',
+                                           'controller_cpu_s'))
     record['info'] = info
     record['step'] = None
     files = {}
@@ -126,7 +128,8 @@ def run_task(task):
         try:
             from anafi_sim.mission.plots import plot_run
             plot_run(files['csv'], path, summary=result.summary,
-                     title='%s, %s' % (scenario.name, report.LABELS.get(task['controller'], task['controller'])))
+                     title='%s, %s' % (scenario.name, report.LABELS.get(task['controller'], task['controller'])),
+                     wind=engine.settings)
             files['plot'] = path
         except (IOError, OSError, ValueError) as error:
             record['error'] = record['error'] or 'plot: %s' % error
@@ -261,9 +264,10 @@ def execute(tasks, workers=1, scheduler=None, progress=None, label='runs', funct
 
 # ---------------------------------------------------------------------------------------------- batch
 def batch_tasks(scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLERS, runs_dir=None, plots_dir=None,
-                seed=None, schedule=None):
+                seed=None, schedule=None, conditions=None):
     """The batch's tasks: every scenario x controller (scenario-major, as the ROS batch orders them)."""
-    return [make_task(s, c, seed=seed, schedule=schedule, out_dir=runs_dir, plot=plots_dir or False)
+    return [make_task(s, c, seed=seed, schedule=schedule, out_dir=runs_dir, plot=plots_dir or False,
+                      conditions=conditions)
             for s in scenarios for c in controllers]
 
 
@@ -295,7 +299,7 @@ def static_comparison(records, plots_dir, report_dir):
 
 
 def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLERS, workers=None, scheduler=None,
-          runs_dir=None, plots=True, command='', progress=None, seed=None, schedule=None):
+          runs_dir=None, plots=True, command='', progress=None, seed=None, schedule=None, conditions=None):
     """The paper's batch in-process (see the module doc); returns (records, meta, report path)."""
     out_dir = os.path.abspath(out_dir)
     runs_dir = os.path.abspath(runs_dir or os.path.join(out_dir, 'runs'))
@@ -303,7 +307,7 @@ def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLER
     for d in (out_dir, runs_dir) + ((plots_dir,) if plots else ()):
         os.makedirs(d, exist_ok=True)
     workers = workers or os.cpu_count() or 1
-    tasks = batch_tasks(scenarios, controllers, runs_dir, plots_dir if plots else None, seed, schedule)
+    tasks = batch_tasks(scenarios, controllers, runs_dir, plots_dir if plots else None, seed, schedule, conditions)
     order = sorted(range(len(tasks)), key=lambda i: -cost(tasks[i]))
     t0 = time.perf_counter()
     records = execute(tasks, workers=workers, scheduler=scheduler, progress=progress, label='batch', order=order)
@@ -326,9 +330,20 @@ def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLER
         ('machine', '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0, platform.python_version())),
         ('engine', 'inprocess'),
         ('rtf', 'none (virtual time)'), ('wall_s', round(wall, 1)), ('mirror', 'no (in-process engine)'),
-        ('pid_mode', 'distributed'),
+        ('pid_mode', 'distributed'), ('conditions', conditions or 'none (sim.yaml: no wind)'),
         ('workers', 'the Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)' % workers),
         ('sim_s', round(sim, 1)), ('batch_rtf', round(sim / wall, 1) if wall > 0 else None),
+        ('notes', ['- In-process engine (anafi_lab/engine/engine.py): one process per run, virtual time, the '
+                   'cores of the ROS graph on its schedule (rates, phases, transport delays: the engine\'s '
+                   'DEFAULT_SCHEDULE); "achieved RTF" is simulated seconds per wall second of the run; the '
+                   'simulator cannot fall behind, so there are no overruns, re-anchors or start-up wall times.',
+                   '- %d runs on %s: %.1f s wall for %.0f s of simulated time.' % (
+                       len(records), 'Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)'
+                       % workers, wall, sim),
+                   '- Flight conditions: %s.' % (conditions or 'none (sim.yaml: no wind, as Sphinx flew)'),
+                   '- Controller CPU: the time spent in the controller\'s callbacks within one process; the ROS '
+                   'batch counts whole node processes (the distributed PID\'s 8 nodes pay ROS\'s per-message cost), '
+                   'so the PID / MPC ratio here is not the paper\'s measure.']),
     ])
     report_path = os.path.join(out_dir, 'report.md')
     with open(report_path, 'w') as stream:

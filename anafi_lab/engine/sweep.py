@@ -17,11 +17,15 @@ Spec (YAML)::
     schedule: {generator_phase: [0.0, 0.05]} # GRID of engine schedule overrides (every controller)
     state_source: estimate                   # or truth: the controllers' state (ground_truth/odom)
     group_by: [wind]                         # extra columns of the summary table: wind, or a factor column
+    conditions: real_flights                 # a flight-conditions profile NAME or PATH under every run (wind,
+                                             #   gusts, the firmware's wind handling; anafi_sim/config/conditions)
 
 A GRID is a mapping (nested for the PID's loops: {x_outer: {Kp: [0.5, 0.875]}}) whose list values are axes
 of the grid and whose other values are fixed; the runs are every combination of scenario x controller x
 wind case x params x schedule x seed. Instead of the grid keys, ``runs:`` gives an explicit list of runs
-(each a mapping with scenario, controller, seed, wind, params, schedule).
+(each a mapping with scenario, controller, seed, wind, params, schedule, conditions). With ``conditions``
+the summary also has the predicted e_max / e_mu / e_sigma per cell with the seed spread
+(``anafi_lab.reports.conditions_report``).
 
 Outputs in the output folder: ``runs.csv`` (tidy: one row per run; factor columns scenario, controller,
 seed, the wind, ``param:<path>`` and ``schedule:<key>`` of every parameter set anywhere; metric columns:
@@ -46,10 +50,11 @@ from anafi_lab.engine.engine import CONTROLLERS, WIND_KEYS, make_schedule, simul
 from anafi_lab.engine.runs import execute, make_task, run_task
 from anafi_sim.mission.trajectory import list_scenarios
 from anafi_sim.numeric import fmt, median, summary_stats
+from anafi_sim.sim.conditions_profile import conditions_label, load_conditions
 
 SPEC_KEYS = ('name', 'description', 'scenarios', 'controllers', 'seeds', 'wind', 'schedule', 'state_source',
-             'group_by', 'runs')
-RUN_KEYS = ('scenario', 'controller', 'seed', 'wind', 'params', 'schedule', 'name')
+             'group_by', 'runs', 'conditions')
+RUN_KEYS = ('scenario', 'controller', 'seed', 'wind', 'params', 'schedule', 'name', 'conditions')
 GROUPS = {'all': report.ALL_SCENARIOS, 'static': report.STATIC, 'straight': report.STRAIGHT,
           'circle': report.CIRCLE_SCENARIOS, 'vertical': report.VERTICAL_SCENARIOS}
 METRICS = (('e_mu', 'estimate', 'e_mu'), ('e_max', 'estimate', 'e_max'), ('e_sigma', 'estimate', 'e_sigma'),
@@ -217,6 +222,8 @@ def expand(spec):
     if state_source not in ('estimate', 'truth'):
         raise ValueError("state_source must be 'estimate' or 'truth', got %r" % (state_source,))
     tasks = []
+    conditions = spec.get('conditions') or None
+    load_conditions(conditions)
     if spec.get('runs') is not None:
         clash = sorted(k for k in ('scenarios', 'controllers', 'seeds', 'wind', 'schedule') if k in spec)
         if clash:
@@ -225,12 +232,13 @@ def expand(spec):
             if not isinstance(run, dict) or set(run) - set(RUN_KEYS) or 'scenario' not in run:
                 raise ValueError('runs[%d]: a mapping with scenario and any of %s, got %r' % (i, RUN_KEYS, run))
             wind_settings(run.get('wind'))
+            load_conditions(run.get('conditions'))
             _check_schedule(run.get('schedule'))
             _controllers([run.get('controller', 'mpc')])
             tasks.append(make_task(_scenarios(run['scenario'])[0], run.get('controller', 'mpc'),
                                    seed=run.get('seed'), wind=run.get('wind'), params=run.get('params'),
                                    schedule=run.get('schedule'), state_source=state_source, name=run.get('name'),
-                                   detail=False))
+                                   detail=False, conditions=run.get('conditions', conditions)))
     else:
         winds = _list(spec.get('wind')) if spec.get('wind') is not None else [None]
         for w in winds:
@@ -249,7 +257,8 @@ def expand(spec):
                                 for seed in seeds:
                                     tasks.append(make_task(scenario, controller, seed=seed, wind=w,
                                                            params=params or None, schedule=schedule or None,
-                                                           state_source=state_source, detail=False))
+                                                           state_source=state_source, detail=False,
+                                                           conditions=conditions))
     if not tasks:
         raise ValueError('the spec gives no runs')
     for i, task in enumerate(tasks):
@@ -259,14 +268,16 @@ def expand(spec):
 
 
 # ---------------------------------------------------------------------------------------------- rows
-def _wind_values(wind):
-    settings = simulator_config(wind_settings(wind))[1]
+def _wind_values(wind, conditions=None):
+    settings = dict(load_conditions(conditions))
+    settings.update(wind_settings(wind))
+    settings = simulator_config(settings)[1]
     return collections.OrderedDict((k, settings[v]) for k, v in WIND_KEYS.items())
 
 
-def wind_label(wind):
-    """'calm' or e.g. 'wind (1, 0, 0) m/s, gusts 0.5 m/s'."""
-    v = _wind_values(wind)
+def wind_label(wind, conditions=None):
+    """'calm' or e.g. 'wind (1, 0, 0) m/s, gusts 0.5 m/s' (of the wind case over the conditions)."""
+    v = _wind_values(wind, conditions)
     if not any(v[k] for k in ('x', 'y', 'z', 'gust', 'gust_vertical')):
         return 'calm'
     text = 'wind (%g, %g, %g) m/s' % (v['x'], v['y'], v['z'])
@@ -295,7 +306,8 @@ def rows(tasks, records):
                                                                             or task['scenario']),
                                        ('controller', task['controller']),
                                        ('seed', info.get('seed', task.get('seed')))])
-        for k, v in _wind_values(task.get('wind')).items():
+        row['conditions'] = conditions_label(task.get('conditions'))
+        for k, v in _wind_values(task.get('wind'), task.get('conditions')).items():
             row['wind_' + k if k in ('x', 'y', 'z') else k] = v
         params = dict(_flatten(task.get('params')))
         for path in param_keys:
@@ -334,7 +346,7 @@ def groups(tasks, table, group_by=()):
     for task, row in zip(tasks, table):
         key = [row['scenario'], row['controller']]
         for g in group_by:
-            key.append(wind_label(task.get('wind')) if g == 'wind' else row.get(g))
+            key.append(wind_label(task.get('wind'), task.get('conditions')) if g == 'wind' else row.get(g))
         out.setdefault(tuple(key), []).append(row)
     return out
 
@@ -394,7 +406,8 @@ def plot_distribution(tasks, table, path, metric='e_mu', title=''):
 def summary_markdown(spec, tasks, table, meta, plot=None):
     """The Markdown summary of a sweep."""
     group_by = [g for g in _list(spec.get('group_by') or [])]
-    winds = set(wind_label(t.get('wind')) for t in tasks)
+    winds = set(wind_label(t.get('wind'), t.get('conditions')) for t in tasks)
+    conditions = sorted(set(conditions_label(t.get('conditions')) for t in tasks))
     if len(winds) > 1 and 'wind' not in group_by:
         group_by.insert(0, 'wind')
     ok = sum(1 for r in table if r['ok'])
@@ -407,6 +420,7 @@ def summary_markdown(spec, tasks, table, meta, plot=None):
             len(table), ok, len(table) - ok, meta.get('workers'), meta.get('wall_s'), meta.get('sim_s'),
             meta.get('sim_s') / meta.get('wall_s') if meta.get('wall_s') else float('nan')),
         '- Wind: %s.' % '; '.join(sorted(winds)),
+        '- Flight conditions: %s.' % ', '.join(conditions),
         '- Every run\'s metrics: [runs.csv](runs.csv) (tidy: one row per run).', '',
         '## e_mu per scenario and controller [m]', '',
         'Against the drone\'s estimate (the paper\'s metric) over the runs of each group (seeds and the other '
@@ -426,6 +440,9 @@ def summary_markdown(spec, tasks, table, meta, plot=None):
     failed = [r for r in table if not r['ok']]
     if failed:
         lines += ['', '## Failed runs', ''] + ['- %s: %s' % (r['name'], r['error']) for r in failed]
+    if any(t.get('conditions') for t in tasks):
+        from anafi_lab.reports.conditions_report import predicted_section
+        lines += [''] + predicted_section(table)
     if plot:
         lines += ['', '## Distribution', '', '![e_mu per scenario and controller](%s)' % plot]
     return '\n'.join(lines) + '\n'

@@ -652,15 +652,15 @@ def initial_yaw(log, model_params):
     return yaw - float(model_params.get('estimate_yaw_bias', 0.0))
 
 
-def run_replay(plan, variant=None, seed=None):
+def run_replay(plan, variant=None, seed=None, settings=None):
     """Replay ``plan`` on the engine with ``variant`` (None: the shipped defaults); ``Replay``. The simulated
-    drone takes off at ``initial_yaw``."""
+    drone takes off at ``initial_yaw``; ``settings``: more simulator settings (e.g. a flight's wind)."""
     name = variant.name if variant is not None else 'default'
     try:
         model = variant.model_params if variant is not None and variant.model_params is not None \
             else load_model_params()
         engine = Engine(plan.scenario, plan.controller, seed=seed,
-                        settings={'initial_yaw': initial_yaw(plan.log, model)},
+                        settings=dict(settings or {}, initial_yaw=initial_yaw(plan.log, model)),
                         controller_params=_controller_params(variant, plan.controller),
                         schedule=variant.schedule if variant is not None else None,
                         model_params=model,

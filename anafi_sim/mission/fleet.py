@@ -361,7 +361,8 @@ def drone_launch_lines(drone, port, scenario_file, options):
         out += _include('sim.launch', [('drone_name', n), ('telemetry_port', port), ('use_sim_time', 'false'),
                                        ('initial_x', _fmt(drone.start[0])), ('initial_y', _fmt(drone.start[1])),
                                        ('initial_yaw', _fmt(math.radians(drone.start[2]))),
-                                       ('output', options['output'])])
+                                       ('output', options['output'])]
+                       + ([('conditions', options['conditions'])] if options.get('conditions') else []))
         if options['mirror'] == 'true':
             out += _include('spawn_anafi.launch', [('drone_name', n), ('rate', _fmt(options['mirror_rate'])),
                                                    ('output', options['output'])])
@@ -424,16 +425,22 @@ def describe_task(drone):
 
 
 def launch_xml(fleet, ports, scenario_files, out_dir, evaluate=True, mirror=True, mirror_rate=100.0,
-               output='log', source='', aggregator_file='', rviz=False, rviz_file=''):
+               output='log', source='', aggregator_file='', rviz=False, rviz_file='', conditions=''):
     """The roslaunch XML of every drone of ``fleet`` (the world is fleet.launch's): ``ports`` {name: telemetry
     port}, ``scenario_files`` {name: path} (drones with a scenario or waypoint), ``out_dir`` for the
     evaluators' files (``evaluate``), ``mirror`` (spawn_anafi.launch per drone at ``mirror_rate`` Hz),
     ``output`` (screen | log) of the nodes; ``aggregator_file``: a YAML of ``aggregator_analyzers`` -> a
     diagnostic_aggregator node with diagnostics_aggregator.yaml + it ('' = none); ``rviz``: rviz.launch
     (gui false) per drone: robot description, robot_state_publisher, the markers on /<drone>/visualisation/markers;
-    ``rviz_file``: rviz on that config (the fleet's view, rviz_config.fleet_rviz; '' = no rviz window)."""
+    ``rviz_file``: rviz on that config (the fleet's view, rviz_config.fleet_rviz; '' = no rviz window);
+    ``conditions``: a flight-conditions profile NAME for every simulated drone ('' = none)."""
     options = {'evaluate': bool(evaluate), 'mirror': 'true' if mirror else 'false', 'mirror_rate': mirror_rate,
-               'output': output, 'out_dir': out_dir, 'rviz': bool(rviz)}
+               'output': output, 'out_dir': out_dir, 'rviz': bool(rviz), 'conditions': conditions or ''}
+    if conditions:
+        from anafi_sim.sim.conditions_profile import NAME
+        if not NAME.match(conditions):
+            raise ValueError('conditions must be a profile NAME (anafi_sim/config/conditions), got %r'
+                             % (conditions,))
     if output not in ('screen', 'log'):
         raise ValueError('output must be screen or log, got %r' % (output,))
     lines = ['<?xml version="1.0"?>',

@@ -79,12 +79,18 @@ def _decimate(n, max_points=1500):
     return max(1, int(math.ceil(n / float(max_points))))
 
 
-def run_figure(log, window=None, title='', show_truth=True):
-    """Figure of one run (see the module doc); ``window`` = (t0, t1) s since the first sample or None."""
+def run_figure(log, window=None, title='', show_truth=True, wind=None):
+    """Figure of one run (see the module doc); ``window`` = (t0, t1) s since the first sample or None;
+    ``wind``: the run's simulator settings (wind_x, wind_y, gust_std_horizontal, wind_compensation) -> an arrow
+    on the xy path and a line under the title (none without wind)."""
+    text = ''
+    if wind:
+        from anafi_sim.sim.conditions_profile import wind_text
+        text = wind_text(wind)
     fig = Figure(figsize=(9.0, 6.0))
     FigureCanvasAgg(fig)
     gs = fig.add_gridspec(3, 2, width_ratios=(1.35, 1.0), hspace=0.12, wspace=0.28,
-                          left=0.08, right=0.98, top=0.92, bottom=0.09)
+                          left=0.08, right=0.98, top=0.86 if text else 0.92, bottom=0.09)
     t = log.t
     k = _decimate(len(t))
     truth = show_truth and has_truth(log)
@@ -152,8 +158,17 @@ def run_figure(log, window=None, title='', show_truth=True):
     bottom.set_ylabel('e [m]')
     bottom.grid(True, lw=0.3)
     bottom.legend(loc='best', fontsize=7, framealpha=0.7)
-    if title:
-        fig.suptitle(title, fontsize=10)
+    if text:
+        wx, wy = float(wind.get('wind_x', 0.0)), float(wind.get('wind_y', 0.0))
+        speed = float(np.hypot(wx, wy))
+        if speed > 0.0:             # where the air moves, in the xy panel's corner (axes fraction, x east)
+            ux, uy = wx / speed, wy / speed
+            top.annotate('', xy=(0.88 + 0.08 * ux, 0.14 + 0.08 * uy), xytext=(0.88 - 0.08 * ux, 0.14 - 0.08 * uy),
+                         xycoords='axes fraction', arrowprops={'arrowstyle': '->', 'color': 'tab:purple', 'lw': 2})
+            top.text(0.88, 0.01, 'wind %.1f m/s' % speed, transform=top.transAxes, ha='center', va='bottom',
+                     fontsize=7, color='tab:purple')
+    if title or text:
+        fig.suptitle(title + (('\n' if title else '') + text if text else ''), fontsize=10 if not text else 9)
     return fig
 
 
@@ -206,9 +221,9 @@ def summary_window(summary):
     return None
 
 
-def plot_run(csv_path, png_path, window=None, title='', summary=None, dpi=DEFAULT_DPI):
-    """Read ``csv_path``, draw ``run_figure`` and save it to ``png_path``; ``window`` defaults to the
-    summary's. Returns the PNG path."""
+def plot_run(csv_path, png_path, window=None, title='', summary=None, dpi=DEFAULT_DPI, wind=None):
+    """Read ``csv_path``, draw ``run_figure`` (``wind``: see there) and save it to ``png_path``; ``window``
+    defaults to the summary's. Returns the PNG path."""
     log = load(csv_path)
     if len(log) == 0:
         raise ValueError('%s has no samples to plot' % csv_path)
@@ -216,7 +231,7 @@ def plot_run(csv_path, png_path, window=None, title='', summary=None, dpi=DEFAUL
         window = summary_window(summary)
     if not title and isinstance(summary, dict):
         title = str(summary.get('name') or '')
-    return save(run_figure(log, window=window, title=title), png_path, dpi)
+    return save(run_figure(log, window=window, title=title, wind=wind), png_path, dpi)
 
 
 def plot_comparison(runs, png_path, title='', dpi=DEFAULT_DPI):

@@ -52,6 +52,7 @@ from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim import names
 from anafi_sim.ros.node import private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
+from anafi_sim.sim.conditions_profile import load_conditions
 
 try:
     import psutil
@@ -97,6 +98,13 @@ class ExperimentMonitorNode(object):
         self.evaluator_node = rospy.resolve_name(p.string('evaluator_node', 'evaluator'))
         self.files = dict((k, p.string('%s_file' % k, '')) for k in ('summary', 'csv', 'plot', 'info', 'bag'))
         self.hold = p.flag('hold', True)
+        # the flight conditions the simulator flies in (sim.launch conditions:=NAME): shown on the plot
+        conditions = p.string('conditions', '')
+        try:
+            self.wind = load_conditions(conditions) if conditions else None
+        except ValueError as error:
+            rospy.logwarn('conditions %r: %s (the plot will not show the wind)', conditions, error)
+            self.wind = None
         self.require_truth = p.flag('require_truth', True)
         self.run_dir = run_dir = p.string('run_dir', '')
         latest_link = p.string('latest_link', '')
@@ -279,7 +287,7 @@ class ExperimentMonitorNode(object):
             try:
                 from anafi_sim.mission.plots import plot_run
                 with run_files.atomic_path(self.files['plot'], '.png') as tmp:
-                    plot_run(self.files['csv'], tmp, summary=summary, title=self.label)
+                    plot_run(self.files['csv'], tmp, summary=summary, title=self.label, wind=self.wind)
                 info['plot'] = self.files['plot']
             except Exception as e:    # a plot that cannot be written: the run's files are not complete
                 problems.append('plot %s not written: %s' % (self.files['plot'], e))

@@ -45,7 +45,7 @@ OUTPUTS = ('log', 'screen')
 
 
 def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output, aggregator, log=sys.stderr.write,
-             rviz=False):
+             rviz=False, conditions=''):
     """Write the scenarios (and the aggregator groups) and the launch file into out_dir; its path."""
     fleet = load_fleet(fleet_name, drones)
     out_dir = os.path.abspath(os.path.expanduser(out_dir))
@@ -76,7 +76,7 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
             f.write(text)
     xml = launch_xml(fleet, ports, files, out_dir, evaluate=evaluate, mirror=mirror, mirror_rate=mirror_rate,
                      output=output, source=fleet_path(fleet_name), aggregator_file=aggregator_file,
-                     rviz=rviz, rviz_file=rviz_file)
+                     rviz=rviz, rviz_file=rviz_file, conditions=conditions)
     path = os.path.join(out_dir, 'fleet.launch')
     with open(path, 'w') as f:
         f.write(xml)
@@ -112,7 +112,8 @@ class FleetLauncherNode(object):
                              p.integer('drones', 0, minimum=0), p.string('out_dir', DEFAULT_OUT_DIR, allow_empty=False),
                              p.flag('evaluate', True), p.flag('mirror', True), p.positive('mirror_rate', 100.0),
                              p.choice('output', 'log', OUTPUTS), p.flag('aggregator', False),
-                             log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False))   # ValueError: fatal, exit 2
+                             log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False),
+                             conditions=p.string('conditions', '', allow_empty=True))   # ValueError: fatal, exit 2
         self.child = None
         self.code = 0
 
@@ -162,13 +163,14 @@ def tool(argv):
     ap.add_argument('--output', default='log', choices=OUTPUTS)
     ap.add_argument('--aggregator', type=flag, default=False, metavar='true|false')
     ap.add_argument('--rviz', type=flag, default=False, metavar='true|false')
+    ap.add_argument('--conditions', default='', help='flight-conditions profile NAME for every simulated drone')
     what = ap.add_mutually_exclusive_group(required=True)
     what.add_argument('--print', dest='print_only', action='store_true')
     what.add_argument('--write-only', action='store_true')
     args = ap.parse_args(argv)
     try:
         path = generate(args.fleet, args.drones, args.out_dir, args.evaluate, args.mirror, args.mirror_rate,
-                        args.output, args.aggregator, rviz=args.rviz)
+                        args.output, args.aggregator, rviz=args.rviz, conditions=args.conditions)
     except ValueError as error:
         sys.stderr.write('fleet_launcher: %s\n' % error)
         return 2

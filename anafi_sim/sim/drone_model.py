@@ -57,6 +57,19 @@ fitted by ``anafi_lab/calibration/fit.py``, see docs/calibration.md):
   command swings through level (docs/calibration.md). The whole loop:
   ``frames.tilt_loop_step``.
 
+The firmware's wind handling (identified from the real-flight logs, shared/reference_logs/real; settings,
+not model keys, because Sphinx flew without wind and cannot show it; docs/calibration.md "Wind handling"):
+``wind_compensation`` K [-] (0 = off) and ``wind_compensation_time_constant`` tau_w [s]. The firmware keeps
+an estimate d of the horizontal acceleration the wind puts on the drone, the difference between the drag on
+the airspeed and the drag on the ground speed, (k(|v|) v - k(|v_air|) v_air), followed by a first order of
+time constant tau_w (0: at once), and adds the tilt that cancels K x d to the roll/pitch setpoint (world
+acceleration -K d turned into the body axes, added to the setpoint's own thrust acceleration at a level
+altitude) before the max-tilt clamp, in
+every flight state. The real Anafi, piloted by near-zero attitude commands, holds ~0.2 rad of tilt into a
+~6 m/s wind (drag-equivalent) and keeps its point. The estimate is the model's, not a sensor's: the effect
+is inert without wind (no step runs it while the wind and the gusts are zero: bit for bit the model
+without it).
+
 The estimate's effects (position fusion, yaw bias, quantisation) are
 ``anafi_sim/sim/state_estimate.py``'s. With every effect off the model is bit
 for bit the one without them.
@@ -160,12 +173,15 @@ DEFAULT_SETTINGS = {
     'brake_capture_speed': 0.1,      # m/s, below this the brake captures the hold point ...
     'brake_capture_time': 3.0,       # s, ... or after braking this long (e.g. drifting in wind)
     'max_specific_thrust': 25.0,     # m/s^2, thrust clamp
+    'wind_compensation': 0.0,        # -, K: firmware cancels K x its wind-force estimate (0 = off)
+    'wind_compensation_time_constant': 0.0,  # s, tau_w: first order of that estimate (0 = instantaneous)
 }
 _SETTINGS_POSITIVE = ('takeoff_altitude', 'takeoff_speed', 'landing_speed', 'gust_time_constant',
                       'brake_velocity_gain', 'brake_capture_speed', 'brake_capture_time',
                       'max_specific_thrust')
 _SETTINGS_NONNEGATIVE = ('command_timeout', 'gust_std_horizontal', 'gust_std_vertical',
-                         'brake_position_gain', 'brake_integral_gain', 'brake_altitude_gain')
+                         'brake_position_gain', 'brake_integral_gain', 'brake_altitude_gain',
+                         'wind_compensation', 'wind_compensation_time_constant')
 
 DEFAULT_MODEL_FILE = paths.config_path('anafi_model.yaml')
 
@@ -306,6 +322,9 @@ class AnafiModel(object):
         self._wind_mean = (s['wind_x'], s['wind_y'], s['wind_z'])
         self._gust_std = (s['gust_std_horizontal'], s['gust_std_horizontal'], s['gust_std_vertical'])
         self._gusty = any(v > 0.0 for v in self._gust_std)
+        # the firmware's wind handling runs only where there is wind (inert, bit for bit, without)
+        self._wind_comp = s['wind_compensation'] if (self._gusty or any(self._wind_mean)) else 0.0
+        self._tau_wind = s['wind_compensation_time_constant']
         self._dt = None
         self.reset(s['initial_x'], s['initial_y'], 0.0, s['initial_yaw'], flying=False)
 
@@ -324,6 +343,7 @@ class AnafiModel(object):
         self.accel = (0.0, 0.0, 0.0)            # world kinematic acceleration [m/s^2]
         self.thrust = 0.0                       # specific thrust along body z [m/s^2]
         self.gust = [0.0, 0.0, 0.0]
+        self.wind_estimate = [0.0, 0.0]         # firmware's estimate of the wind's horizontal acceleration [m/s^2]
         self.gimbal_pitch_command = 0.0         # rad, camera pitch in the world (+ = down in FLU)
         self._queue = collections.deque()       # (t_command, roll_sp, pitch_sp, yaw_rate_sp, vz_sp)
         self._active = None                     # delayed setpoints now applied
@@ -439,6 +459,7 @@ class AnafiModel(object):
         self._gust_decay = math.exp(-dt / tau_g)
         scale = math.sqrt(1.0 - self._gust_decay * self._gust_decay)
         self._gust_scale = tuple(scale * s for s in self._gust_std)
+        self._c_wind = _lag_coefficient(dt, self._tau_wind)
 
     def _set_hold(self, hold):
         self._hold = hold
@@ -483,6 +504,33 @@ class AnafiModel(object):
         left = -sn * ax + c * ay
         g = self._g
         return -math.atan(left / g), math.atan(forward / g), vz_sp
+
+    def wind_force(self, gust=None):
+        """Horizontal acceleration [m/s^2, world] the wind puts on the drone now: the drag on the ground
+        speed minus the drag on the airspeed."""
+        gust = self.gust if gust is None else gust
+        wind = self._wind_mean
+        ax, ay = self.vx - wind[0] - gust[0], self.vy - wind[1] - gust[1]
+        k_air = self._drag_lin + self._drag_quad * math.sqrt(ax * ax + ay * ay)
+        k_ground = self._drag_lin + self._drag_quad * math.sqrt(self.vx * self.vx + self.vy * self.vy)
+        return k_ground * self.vx - k_air * ax, k_ground * self.vy - k_air * ay
+
+    def _compensate_wind(self, roll_sp, pitch_sp, gust):
+        """(roll, pitch) setpoints with the tilt that cancels K x the (lagged) wind-force estimate."""
+        fx, fy = self.wind_force(gust)
+        est = self.wind_estimate
+        c = self._c_wind
+        est[0] += c * (fx - est[0])
+        est[1] += c * (fy - est[1])
+        k = self._wind_comp
+        cy, sy = math.cos(self.yaw), math.sin(self.yaw)
+        forward = -k * (cy * est[0] + sy * est[1])
+        left = -k * (-sy * est[0] + cy * est[1])
+        # the setpoint's thrust at a level altitude pushes forward g tan(pitch) and left -g tan(roll) / cos(pitch)
+        g = self._g
+        pitch = math.atan(math.tan(pitch_sp) + forward / g)
+        left += -g * math.tan(roll_sp) / math.cos(pitch_sp)
+        return math.atan(-left * math.cos(pitch) / g), pitch
 
     def step(self, dt, t):
         """Advance the state from sim time ``t`` to ``t + dt`` [s]."""
@@ -533,6 +581,8 @@ class AnafiModel(object):
                 vz_sp = self.settings['takeoff_speed']
             else:
                 vz_sp = -self.settings['landing_speed']
+        if self._wind_comp > 0.0:                   # the firmware's wind handling (module doc)
+            roll_sp, pitch_sp = self._compensate_wind(roll_sp, pitch_sp, gust)
         tilt = self._max_tilt
         roll_sp = -tilt if roll_sp < -tilt else (tilt if roll_sp > tilt else roll_sp)
         pitch_sp = -tilt if pitch_sp < -tilt else (tilt if pitch_sp > tilt else pitch_sp)

@@ -682,7 +682,7 @@ def test_the_report_rerenders_byte_identical_from_the_stored_figures():
         store = yaml.load(stream, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))
     facts = fidelity_report.load_log_facts(os.path.join(repo, 'benchmarks', 'results', 'fidelity_log_facts.yaml'))
     text = fidelity_report.report_from_store(store, 'fidelity', '../benchmarks/results/fidelity.yaml',
-                                             'benchmarks/results/fidelity.yaml', facts)
+                                             'benchmarks/results/fidelity.yaml', facts, _findings())
     with open(os.path.join(repo, 'docs', 'fidelity.md')) as stream:
         committed = stream.read()
     assert text == committed, ('docs/fidelity.md differs from its re-render: '
@@ -721,6 +721,13 @@ def _facts():
                        'standin_without_stall_deg': 0.2}}
 
 
+def _findings():
+    """The recorded offline findings the reading quotes (benchmarks/results/fidelity_findings.yaml)."""
+    from anafi_lab.reports import fidelity_report
+    return fidelity_report.load_findings(os.path.join(paths.checkout(), 'benchmarks', 'results',
+                                                      'fidelity_findings.yaml'))
+
+
 def test_a_rerender_measures_nothing_and_keeps_the_measuring_run(tmp_path):
     """``--steps ,`` re-renders from the store alone: the store is not rewritten, and the report names the
     command and date of the run that measured the figures."""
@@ -753,13 +760,13 @@ def test_the_ranking_and_the_recommendation_include_the_shipped_defaults():
     """The shipped defaults are ranked with the other configurations (not only the replay methods are left
     out): best when they score best, and quoted beside the best otherwise."""
     from anafi_lab.reports import fidelity_report
-    text = fidelity_report.report_from_store(_store('shipped'), 'f', 's.yaml', 's.yaml', _facts())
+    text = fidelity_report.report_from_store(_store('shipped'), 'f', 's.yaml', 's.yaml', _facts(), _findings())
     assert 'on the shared logs (most cells within +-10 %, then mean |ln ratio|): **shipped defaults**' in text
     assert 'By these measurements the shipped defaults score best (8 / 8 shared-log cells' in text
-    text = fidelity_report.report_from_store(_store('on'), 'f', 's.yaml', 's.yaml', _facts())
+    text = fidelity_report.report_from_store(_store('on'), 'f', 's.yaml', 's.yaml', _facts(), _findings())
     assert 'then mean |ln ratio|): **effects on**' in text
     assert 'By these measurements: **effects on** (8 / 8 shared-log cells within +-10 %' in text
     assert 'the shipped defaults score 0 / 8, ' in text
     # a replay method scoring best is no configuration: not recommended
-    text = fidelity_report.report_from_store(_store('settled'), 'f', 's.yaml', 's.yaml', _facts())
+    text = fidelity_report.report_from_store(_store('settled'), 'f', 's.yaml', 's.yaml', _facts(), _findings())
     assert '**shipped, settled start**' not in text.split('## Recommendation')[1].split('\n\n')[1]

@@ -16,11 +16,13 @@ from anafi_lab.fidelity import variants as V
 from anafi_lab.reports import fidelity_tables as T
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.reports.render import render
-from anafi_lab.engine.engine import DEFAULT_SCHEDULE, mpc_config
+from anafi_lab.engine.engine import DEFAULT_SCHEDULE, mpc_config, simulator_config
+from anafi_sim.mission.trajectory import scenario_path
 from anafi_sim.numeric import fmt
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF, load_model_params
 
 COMMAND = 'python anafi_lab/cli/measure_fidelity.py'
+EXAMPLE_WORKERS = 2      # worker processes of the report's regenerate command (the shared machine's two cores)
 
 Measured = collections.namedtuple('Measured', 'records t3 scen gains selfrep walls meta fitted')
 Measured.__doc__ = ('The measured figures of the store: records ({(log, variant): replay record}), t3 ({(variant, '
@@ -320,6 +322,12 @@ def half_float_grid(lows=(64, 128)):
     return [dict(step=float(np.spacing(np.float16(low))), low=low, high=2 * low) for low in lows]
 
 
+def straight_phases():
+    """{phase name: duration [s]} of the paper's straight-line scenarios (their files share the phases)."""
+    with open(scenario_path(report.STRAIGHT[0])) as stream:
+        return dict((p['name'], p['duration']) for p in yaml.safe_load(stream)['phases'])
+
+
 def load_log_facts(path):
     """The facts of the shared logs the report quotes (benchmarks/results/fidelity_log_facts.yaml)."""
     with open(path) as stream:
@@ -360,7 +368,8 @@ def render_report(measured, logs, ablation, figures_dir, store_path, store_name,
         replays=T.replay_table(m.records, logs, cols), histories=T.history_table(m.records, logs, cols),
         table3=T.table3_table(m.t3, configurations(cols)) if m.t3 else None,
         scenarios=T.scenario_table(m.scen, scenario_columns(timing)) if m.scen else None,
-        schedule=schedule_context(), band_pct=[int(round(100 * b)) for b in S.BANDS],
+        schedule=schedule_context(), example_workers=EXAMPLE_WORKERS, straight_phases=straight_phases(),
+        engine_seed=simulator_config()[2], band_pct=[int(round(100 * b)) for b in S.BANDS],
         held_out_band=H.HELD_OUT_BAND, held_out_cells=H.HELD_OUT_CELLS,
         inferred=dict(range=H.INFERRED_RANGE, mid=math.sqrt(H.INFERRED_RANGE[0] * H.INFERRED_RANGE[1])),
         compared_batch=H.COMPARED_BATCH,

@@ -689,6 +689,28 @@ def test_the_report_rerenders_byte_identical_from_the_stored_figures():
                                'python anafi_lab/cli/measure_fidelity.py --steps ,')
 
 
+def test_the_reading_quotes_the_findings_and_the_stored_replays():
+    """The reading's figures come from the context: a recorded finding and a stored replay figure, changed, show
+    where they are quoted."""
+    import copy
+    import yaml
+    from anafi_lab.reports import fidelity_report
+    repo = paths.checkout()
+    with open(os.path.join(repo, 'benchmarks', 'results', 'fidelity.yaml')) as stream:
+        store = yaml.load(stream, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))
+    facts = fidelity_report.load_log_facts(os.path.join(repo, 'benchmarks', 'results', 'fidelity_log_facts.yaml'))
+    findings = copy.deepcopy(_findings())
+    findings['initial_state']['across_offset_max_cm'] = 77
+    findings['overshoot_m']['yaw_0']['mpc']['paper_timing'] = 0.645
+    for r in store['replays']:
+        if (r['log'], r['variant']) == ('x_straight_5_mpc', 'unstored'):
+            r['ratio']['truth_e_mu'] = 1.234
+    text = fidelity_report.report_from_store(store, 'f', 's.yaml', 's.yaml', facts, findings)
+    assert 'by up to 77 cm across the line' in text
+    assert 'the yaw-0 MPC step overshoots 3.0x Sphinx\'s' in text      # 0.645 / 0.215: computed
+    assert '(1.23 unrounded, above)' in text
+
+
 def _store(best, ratio_best=1.02, ratio_other=1.3):
     """A store of synthetic replays: two logs, every configuration of the report (no paper_timing); ``best``
     scores ``ratio_best`` in every cell, the others ``ratio_other``."""

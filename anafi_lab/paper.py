@@ -14,3 +14,6 @@ ALL_SCENARIOS = STATIC + STRAIGHT + CIRCLE_SCENARIOS + VERTICAL_SCENARIOS
 
 PAPER_TABLE3 = {'mpc': (0.16, 0.36, 0.59, 0.82, 1.41), 'pid': (1.32, 2.67, 4.07, 5.32, 7.00)}
 """The paper's Table 3: mean tracking error [m] on the straight line at 1..5 m/s (simulation)."""
+
+PAPER_CPU_RATIO = 2.59
+"""The paper's computational workload: the PID framework's CPU time over the MPC's."""

@@ -75,6 +75,8 @@ def parse_args(argv):
                         help='YAML of the measured figures (read, updated by the steps run, re-rendered)')
     parser.add_argument('--facts', default=os.path.join(root, 'benchmarks', 'results', 'fidelity_log_facts.yaml'),
                         help='YAML of the facts of the shared logs the report quotes (not measured by a step)')
+    parser.add_argument('--findings', default=os.path.join(root, 'benchmarks', 'results', 'fidelity_findings.yaml'),
+                        help='YAML of the offline findings the report\'s reading quotes (not measured by a step)')
     parser.add_argument('--fitted', default=paths.config_path('anafi_model_fitted.yaml'),
                         help='model YAML with every effect on (missing: calibrate the logs)')
     parser.add_argument('--steps', default=','.join(STEPS),
@@ -179,7 +181,7 @@ def render(args):
     store_name = os.path.relpath(os.path.abspath(args.store), paths.checkout())
     text = report.report_from_store(store, os.path.relpath(args.figures, out_dir),
                                     os.path.relpath(args.store, out_dir), store_name,
-                                    report.load_log_facts(args.facts))
+                                    report.load_log_facts(args.facts), report.load_findings(args.findings))
     write_atomic(args.out, with_real_flights(text, args.out))
 
 

@@ -6,12 +6,15 @@ template ``templates/anafi_model.yaml`` filled with ``model_context``), the cons
 ``report_context``). The contexts are the figures as data, which ``calibrate_model.py`` also stores
 (``stored_context``) so that the texts can be rendered again without the fits (``render_model_yaml``,
 ``render_report``). Only formatting: every number comes from the fits in ``anafi_lab.calibration`` or, for the
-figures of offline checks the texts quote, from ``CHECKS``.
+figures of offline checks the texts quote, from benchmarks/results/calibration_findings.yaml (``checks``).
 """
+import functools
 import inspect
 import math
+import os
 
 import numpy as np
+import yaml
 
 from anafi_lab.calibration import commands, estimate
 from anafi_lab.calibration.drag import steady_state_pitch
@@ -19,6 +22,7 @@ from anafi_lab.calibration.effects import fit_descent
 from anafi_lab.calibration.fit import MODEL_KEYS, table3
 from anafi_lab.calibration.plot import REPLAY_LOG
 from anafi_lab.reports.render import render
+from anafi_sim import paths
 from anafi_sim.mission.reference_log import STATE_NAMES, WRAP_16
 from anafi_sim.sim.bridge import MAX_VERTICAL_SPEED
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF
@@ -93,8 +97,8 @@ def _effect_figures(cal, fitted):
         'quanta': dict(('estimate_quantum_' + key, _quantum_figures(qu, columns, unit)) for key, columns, unit in
                        (('x', ('x',), 'm'), ('y', ('y',), 'm'), ('z', ('z',), 'm'),
                         ('velocity', ('vx', 'vy', 'vz'), 'm/s'))),
-        'angle_exponent': _angle_exponent(qu), 'latitude_deg': CHECKS['latitude_deg'],
-        'float16_margin': CHECKS['float16_margin'], 'quantum_probe': int(round(1.0 / estimate.PROBE_STEP))}
+        'angle_exponent': _angle_exponent(qu), 'latitude_deg': checks()['latitude_deg'],
+        'float16_margin': checks()['float16_margin'], 'quantum_probe': int(round(1.0 / estimate.PROBE_STEP))}
 
 
 def model_context(cal, log_names, fitted=False):
@@ -183,37 +187,19 @@ def format_summary(cal):
 
 
 # --------------------------------------------------------------------------- the Markdown report
-# Figures the report quotes that this calibration does not compute: facts of the reference logs read off them once
-# and the results of checks done offline once (on the date ``check_date``), kept here as data so that the template
-# holds only words. The reference logs and the code do not change them; a new check changes them here.
-CHECKS = {
-    'check_date': '2026-11-25',
-    'sunk_below': 100.0,                  # m: the truth of both garbage logs ends below this depth
-    'wrap_example': 65280.0,              # a wrapped z_anafi of x_straight_3_pid
-    'turn_deg': 180.0,                    # the yaw step of the static yaw-180 logs
-    'climb_from': 1.0, 'climb_to': 5.0,   # m, the altitude step of the static logs
-    'climb_stop_pct': 94.0,               # % of the command where Sphinx's climb ramp stops
-    'turn_tilt_deg': 27.0, 'turn_rate_deg': 100.0,     # the tilt along the nose in the turn, at that yaw rate
-    'stability_frame_rms': (0.35, 0.37), 'first_order_turn_rms': (0.16, 0.18), 'world_tilt_rms': 0.18,
-    'rate_limit_deg': (50.0, 120.0), 'rate_limit_rms': 0.17, 'setpoint_frame_rms': (0.17, 0.19),
-    'bias_state_gain': 0.0, 'bias_state_gain_pct': 1.0,
-    'velocity_error_max': 0.1, 'velocity_error_settle': 10.0, 'line_offset_cm': (4.0, 12.0),
-    'bias_regression_k2': (0.07, 0.09), 'static_step_m': 5.0, 'bias_left': 0.09, 'static_velocity_error': 0.02,
-    'recomputation_bias': (0.91, 1.02), 'top_cell_before': 0.5, 'top_cell_after': 1.1,
-    'constant_attenuation_speeds': (1.0, 4.0), 'constant_attenuation_worse_pct': (13.0, 17.0),
-    'step_tilt_deg': 30.0,
-    'turn_tilt_magnitude_deg': (25.0, 30.0), 'turn_body_rate_ratio': 1.3, 'mpc_command_swing_deg': 5.0,
-    'turn_window_s': 4.0, 'kappa': -0.6, 'kappa_rms_deg': (7.0, 8.0), 'g_alone_rms_deg': 5.0,
-    'no_coupling_rms_deg': (9.0, 10.0), 'shortening_power': 1.04, 'second_order_rms': 0.0343,
-    'second_order_g_alone_rms': 0.0342, 'turn_rates_deg': (100.0, 140.0),
-    'mpc_climb_peak': 2.4, 'vertical_mpc_rms': (0.12, 0.15), 'vertical_pid_rms': 0.034,
-    'mpc_command_gain': (1.06, 1.10), 'mpc_command_gain_rms': (0.09, 0.14), 'prediction_steps': (2, 8),
-    'prediction_best_step': 5, 'pi_loop_mpc_rms': (0.06, 0.11), 'pi_loop_pid_rms': (0.04, 0.06),
-    'two_dof_rms': (0.082, 0.070), 'mpc_start_lag': 0.1,
-    'latitude_deg': 48.8,                 # the latitude at which the position grids are 2^n deg
-    'float16_margin': 4.0,                # the float16 storage at least this much finer than a tested step
-    'grid_span_steps': 20.0,              # the span of the values ``grid_concentration`` needs [steps]
-}
+CHECKS_PATH = ('benchmarks', 'results', 'calibration_findings.yaml')
+"""Below the checkout: the figures the report quotes that this calibration does not compute (facts of the
+reference logs read off them once, results of checks done offline once), kept as data so that the templates hold
+only words."""
+
+
+@functools.lru_cache(maxsize=None)
+def checks():
+    """The figures of ``CHECKS_PATH`` (a dict; the report's context stores a copy)."""
+    with open(os.path.join(paths.checkout(), *CHECKS_PATH)) as stream:
+        return yaml.safe_load(stream)
+
+
 EARTH_RADIUS = 6378137.0                  # m, WGS-84 equatorial: the length of a degree of latitude / longitude
 TABLE3_TOLERANCE = 0.01                   # m, the paper's last digit: a cell matches within half a unit more
 
@@ -266,10 +252,10 @@ def _model_context(cal, logs, plot_name, logs_label):
               'saturated_for': inspect.signature(fit_descent).parameters['settle'].default}
     return {'n_logs': len(logs), 'logs_label': logs_label, 'plot_name': plot_name, 'replay_log': REPLAY_LOG,
             'garbage': [g for report in cal.garbage.values() for g in _garbage(report)],
-            'wrap': {'bits': int(round(math.log(WRAP_16, 2))), 'example': CHECKS['wrap_example'],
-                     'example_value': CHECKS['wrap_example'] - WRAP_16},
+            'wrap': {'bits': int(round(math.log(WRAP_16, 2))), 'example': checks()['wrap_example'],
+                     'example_value': checks()['wrap_example'] - WRAP_16},
             'refit': refit, 'params': dict(p), 'fitted': dict(cal.fitted), 'effects_on': list(cal.effects_on),
-            'effects_off': list(EFFECTS_OFF.items()), 'method': method, 'checks': CHECKS,
+            'effects_off': list(EFFECTS_OFF.items()), 'method': method, 'checks': checks(),
             'max_vertical_speed': MAX_VERTICAL_SPEED, 'descent_speed': cal.effects.descent.max_descent_speed,
             'notes': {'drag_vertical': not cal.drag.drag_vertical_identified or cal.drag.drag_vertical < 0.0,
                       'yaw': cal.commands.yaw is None}}
@@ -397,15 +383,15 @@ def _estimate_effects_context(f):
                     'turn': [(name,) + tuple(v) for name, v in yw.turn.items()]},
             'quanta': {'candidates': (int(round(1.0 / max(candidates))), int(round(1.0 / min(candidates)))),
                        'hit': inspect.signature(estimate.estimate_quantum).parameters['hit'].default,
-                       'storage_margin': CHECKS['float16_margin'], 'grid_range': estimate.GRID_RANGE,
-                       'grid_hit': grid['hit'].default, 'grid_span_steps': CHECKS['grid_span_steps'],
+                       'storage_margin': checks()['float16_margin'], 'grid_range': estimate.GRID_RANGE,
+                       'grid_hit': grid['hit'].default, 'grid_span_steps': checks()['grid_span_steps'],
                        'columns': [{'name': name, 'grid': name in qu.grids, 'on_grid': qu.on_grid[name],
                                     'inverse_step': int(round(1.0 / step)) if step else 0,
                                     'truth_on_grid': qu.truth_on_grid[name], 'samples': qu.samples[name]}
                                    for name, step in qu.steps.items()],
                        'grids': [(name,) + tuple(v) for name, v in qu.grids.items()],
                        'angle_exponent': exponent,
-                       'angle_steps_m': (degree * math.cos(math.radians(CHECKS['latitude_deg'])), degree)}}
+                       'angle_steps_m': (degree * math.cos(math.radians(checks()['latitude_deg'])), degree)}}
 
 
 def report_context(cal, logs, plot_name=None, logs_label='shared/reference_logs'):

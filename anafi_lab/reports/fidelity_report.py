@@ -16,11 +16,13 @@ from anafi_lab.fidelity import variants as V
 from anafi_lab.reports import fidelity_tables as T
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.reports.render import render
-from anafi_lab.engine.engine import DEFAULT_SCHEDULE, mpc_config
+from anafi_lab.engine.engine import DEFAULT_SCHEDULE, mpc_config, simulator_config
+from anafi_sim.mission.trajectory import scenario_path
 from anafi_sim.numeric import fmt
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF, load_model_params
 
 COMMAND = 'python anafi_lab/cli/measure_fidelity.py'
+EXAMPLE_WORKERS = 2      # worker processes of the report's regenerate command (the shared machine's two cores)
 
 Measured = collections.namedtuple('Measured', 'records t3 scen gains selfrep walls meta fitted')
 Measured.__doc__ = ('The measured figures of the store: records ({(log, variant): replay record}), t3 ({(variant, '
@@ -103,6 +105,48 @@ def method_context(records, logs):
                                   for v in ('unstored', 'shipped')),
                 stall_e_max=dict((v, both(v, [(n, 'estimate_e_max') for n in stalled]))
                                  for v in ('nostalls', 'shipped')))
+
+
+STATIC_STEPS = ('static_waypoint_yaw_0_mpc', 'static_waypoint_yaw_180_mpc', 'static_waypoint_yaw_0_pid',
+                'static_waypoint_yaw_180_pid')
+
+
+def _figure(records, log, variant, group, key, scale=1.0):
+    """One stored figure of a replay (``group`` 'ratio' / 'standin' / 'histories'), times ``scale``; None when
+    that replay is missing."""
+    rec = records.get((log, variant))
+    value = rec[group].get(key) if rec else None
+    return None if value is None else scale * value
+
+
+def reading_context(records, logs, fitted):
+    """The stored figures the reading's effect sentences quote: ranges over the MPC lines, cells and attitude /
+    vertical-speed histories [deg, m/s] of the static steps and x_straight_5_mpc, per variant; ``fitted``: the
+    effects-on model (its attitude time constant and attenuation speeds)."""
+    lines_ = [n for n in logs if n.startswith('x_straight_') and n.endswith('_mpc')]
+
+    def span(variant, cell):
+        values = [v for v in (_figure(records, n, variant, 'ratio', cell) for n in lines_) if v is not None]
+        return (min(values), max(values)) if values else (None, None)
+
+    def cells(log, variant):
+        return [_figure(records, log, variant, 'ratio', c) for c in ('estimate_e_mu', 'truth_e_mu')]
+
+    def attitude(log, variant):
+        return [_figure(records, log, variant, 'histories', h, math.degrees(1.0)) for h in ('roll', 'pitch')]
+    x5 = 'x_straight_5_mpc'
+    return dict(
+        fusion_truth_span=dict((v, span(v, 'truth_e_mu')) for v in ('off', 'only_position_fusion', 'shipped')),
+        x5=dict((v, dict((c, _figure(records, x5, v, 'ratio', c)) for c in ('%s_%s' % k for k in R.CELLS)))
+                for v in ('fusion', 'shipped', 'unstored')),
+        x5_standin_truth_e_max=_figure(records, x5, 'shipped', 'standin', 'truth_e_max'),
+        cells=dict((n, dict((v, cells(n, v)) for v in ('shipped', 'on', 'on_pt'))) for n in STATIC_STEPS),
+        attitude=dict((n, dict((v, attitude(n, v)) for v in ('off', 'only_tilt_rate_limit', 'shipped', 'on')))
+                      for n in STATIC_STEPS),
+        vz=[(_figure(records, n, 'off', 'histories', 'vz'),
+             _figure(records, n, 'only_vertical_acceleration_limit', 'histories', 'vz')) for n in STATIC_STEPS],
+        attitude_time_constant=fitted.get('attitude_time_constant'),
+        attenuation_speeds=(fitted.get('tilt_attenuation_speed'), fitted.get('tilt_attenuation_speed_full')))
 
 
 def _age_spread(scen, mpc_v, pid_v):
@@ -278,17 +322,30 @@ def half_float_grid(lows=(64, 128)):
     return [dict(step=float(np.spacing(np.float16(low))), low=low, high=2 * low) for low in lows]
 
 
+def straight_phases():
+    """{phase name: duration [s]} of the paper's straight-line scenarios (their files share the phases)."""
+    with open(scenario_path(report.STRAIGHT[0])) as stream:
+        return dict((p['name'], p['duration']) for p in yaml.safe_load(stream)['phases'])
+
+
 def load_log_facts(path):
     """The facts of the shared logs the report quotes (benchmarks/results/fidelity_log_facts.yaml)."""
     with open(path) as stream:
         return yaml.safe_load(stream)
 
 
-def render_report(measured, logs, ablation, figures_dir, store_path, store_name, facts):
+def load_findings(path):
+    """The findings of offline experiments the report's reading quotes, which no step measures
+    (benchmarks/results/fidelity_findings.yaml)."""
+    with open(path) as stream:
+        return yaml.safe_load(stream)
+
+
+def render_report(measured, logs, ablation, figures_dir, store_path, store_name, facts, findings):
     """The text of docs/fidelity.md from the ``Measured`` figures: ``logs`` (every log name, in order),
     ``ablation`` (the variants of that step, in order), ``figures_dir`` and ``store_path`` (as the report links
     them: relative to the report's directory), ``store_name`` (the store as its commands name it), ``facts``
-    (``load_log_facts``)."""
+    and ``findings`` (``load_log_facts``, ``load_findings``)."""
     m = measured
     timing = m.meta['paper_timing_supported']
     cols = columns(timing)
@@ -306,11 +363,14 @@ def render_report(measured, logs, ablation, figures_dir, store_path, store_name,
                                                                                  key='ratio_late'),
         rank=ranking(m.records, m.t3, logs, cols), t3_timing=table3_timing_context(m.scen),
         held=held_out_context(m.scen, timing), ablation=ablation_context(m.records, logs, ablation),
-        method=method_context(m.records, logs), timing_change=timing_context(m.scen),
+        method=method_context(m.records, logs), reading=reading_context(m.records, logs, m.fitted),
+        findings=findings, timing_change=timing_context(m.scen),
         replays=T.replay_table(m.records, logs, cols), histories=T.history_table(m.records, logs, cols),
         table3=T.table3_table(m.t3, configurations(cols)) if m.t3 else None,
         scenarios=T.scenario_table(m.scen, scenario_columns(timing)) if m.scen else None,
-        schedule=schedule_context(), held_out_band=H.HELD_OUT_BAND, held_out_cells=H.HELD_OUT_CELLS,
+        schedule=schedule_context(), example_workers=EXAMPLE_WORKERS, straight_phases=straight_phases(),
+        engine_seed=simulator_config()[2], band_pct=[int(round(100 * b)) for b in S.BANDS],
+        held_out_band=H.HELD_OUT_BAND, held_out_cells=H.HELD_OUT_CELLS,
         inferred=dict(range=H.INFERRED_RANGE, mid=math.sqrt(H.INFERRED_RANGE[0] * H.INFERRED_RANGE[1])),
         compared_batch=H.COMPARED_BATCH,
         held_out=T.held_out_table(m.scen, held_out_configurations(timing)) if m.scen else None,
@@ -341,13 +401,14 @@ def store_from_measured(measured):
             'self_replay': list(m.selfrep.values())}
 
 
-def report_from_store(store, figures_dir, store_path, store_name, facts):
+def report_from_store(store, figures_dir, store_path, store_name, facts, findings):
     """docs/fidelity.md from a store alone (nothing measured): the logs, the ablation's effects and the timer
     phases are the ones its replays have. ``figures_dir`` / ``store_path``: as the report links them (relative to
     its directory); ``store_name``: the store as the report's commands name it (relative to the checkout);
-    ``facts``: the facts of the logs it quotes (``load_log_facts``)."""
+    ``facts``: the facts of the logs it quotes (``load_log_facts``); ``findings``: the offline findings it quotes
+    (``load_findings``)."""
     measured = measured_from_store(store)
     logs = sorted(set(log for log, _ in measured.records))
     names = set(v for _, v in measured.records)
     ablation = [R.Variant('only_%s' % k, k) for k in EFFECT_GROUPS if 'only_%s' % k in names]
-    return render_report(measured, logs, ablation, figures_dir, store_path, store_name, facts)
+    return render_report(measured, logs, ablation, figures_dir, store_path, store_name, facts, findings)

@@ -24,6 +24,7 @@ import yaml
 
 from anafi_lab.paper import (ALL_SCENARIOS, BEYOND, CIRCLE_SCENARIOS, CIRCLES, CONTROLLERS, KNOWN_CONTROLLERS,  # noqa: F401
                               PAPER_TABLE3, STATIC, STRAIGHT, STRAIGHT_SPEEDS, VERTICAL, VERTICAL_SCENARIOS)
+from anafi_lab.reports.batch_facts import batch_facts
 from anafi_lab.reports.render import markdown_table, render as render_template
 from anafi_sim.mission import step_response
 from anafi_sim.numeric import fmt  # noqa: F401  (the tables' number format; callers use report.fmt)
@@ -272,7 +273,7 @@ def render(records, meta, plots=(), comparison_plots=()):
     """The whole Markdown report. ``meta``: dict with 'command', 'date', 'machine', 'rtf', 'wall_s',
     'mirror', 'pid_mode' (a ROS batch), or 'engine': 'inprocess' with 'workers', 'sim_s' (an in-process batch);
     ``plots``: [(run label, relative PNG path)]; ``comparison_plots``: [(title, relative PNG path)]."""
-    return render_template('batch.md', **context(records, meta, plots, comparison_plots))
+    return render_template('batch.md', **dict(context(records, meta, plots, comparison_plots), **batch_facts()))
 
 
 STATIC_COMPARISON = 'Static waypoints WP0 / WP1, PID and MPC (cf. the paper\'s Fig. 6)'

@@ -65,18 +65,40 @@ ALLOWED = re.compile(r"R\^2|\(c-e\)|Table [23]|eq\. \(?15\)?|issue 2|float16|3-D
                      r"time 0|b = 0|w > 0|of 1 |\(1 \+ c \|v\|\)| 1, as the model|\.0|\(1 - a\)")
 
 
+# Labels the fidelity and batch templates' words may hold: names of logs and scenarios, of the paper's sections,
+# tables and figures and of the static steps (yaw 0 / 180, WP0 / WP1), SO(3), float16 and the 16-bit wrap, the units
+# 1/s and 1/k, the origin of log time, the 0 that starts a range ("0-<figure> ms") and the 1 of a ratio that changes
+# nothing.
+LABELS = re.compile(r"\b(?:x_straight|static_waypoint|straight|circle|vertical)_[\w/.]*|Tables? \d(?:-\d| and \d)?|"
+                    r"Figs?\. \d(?: and \d)?|Sec\. V\.B|\byaw[- ]?(?:0|180)\b|180 deg step|WP[01]|SO\(3\)|16-bit|"
+                    r"float16|1/[sk]\b|t = 0|log time 0|\b0-(?= )|\b1 when|not 1\b")
+PLACEHOLDERS = re.compile(r'\{\{.*?\}\}|\{%.*?%\}|\{#.*?#\}', flags=re.S)
+
+
+def typed_figures(name, allowed):
+    """The lines of template ``name`` whose words (placeholders removed) hold a digit ``allowed`` does not take."""
+    with open(os.path.join(TEMPLATES, name)) as stream:
+        words = PLACEHOLDERS.sub(' ', stream.read())
+    return [line.strip()[:200] for line in words.split('\n') if re.search(r'\d', allowed.sub(' ', line))]
+
+
 def test_template_words_hold_no_figure():
     for name in sorted(os.listdir(TEMPLATES)):
-        if not name.startswith(('calibration', 'anafi_model')):
-            continue
-        with open(os.path.join(TEMPLATES, name)) as stream:
-            text = stream.read()
-        words = re.sub(r'\{\{.*?\}\}|\{%.*?%\}|\{#.*?#\}', ' ', text, flags=re.S)
-        for line in words.split('\n'):
-            left = ALLOWED.sub(' ', line)
-            assert not re.search(r'\d', left), '%s: a figure typed into the words: %r' % (name, line.strip()[:200])
+        if name.startswith(('calibration', 'anafi_model')):
+            assert typed_figures(name, ALLOWED) == [], '%s: a figure typed into the words' % name
+
+
+def test_fidelity_and_batch_template_words_hold_no_figure():
+    names = ['fidelity.md', 'batch.md'] + sorted(os.path.join('fidelity', n)
+                                                 for n in os.listdir(os.path.join(TEMPLATES, 'fidelity')))
+    for name in names:
+        assert typed_figures(name, LABELS) == [], '%s: a figure typed into the words' % name
 
 
 def test_the_allowed_words_do_not_hide_a_figure():
     for typed in ('rms 0.35 rad', 'at 20 Hz', '~94 % of the command', 'k2 ~ 0.07 1/s^2', 'R 84.7 deg/s'):
         assert re.search(r'\d', ALLOWED.sub(' ', typed)), typed
+    for typed in ('lag 0.262 s', 'within +-10 %', '1.4-4.0x Sphinx\'s', 'yaw 8 / 18 / 40 deg', 'Table 3 is 10 / 10',
+                  'x_straight_5_mpc 0.81 -> 0.97', '(0.99 unrounded', '15 s settle', 'the paper: 2.59',
+                  '--workers 2', '(0-20 ms)', 'up to 19 cm'):
+        assert re.search(r'\d', LABELS.sub(' ', typed)), typed

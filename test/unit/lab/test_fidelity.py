@@ -682,7 +682,7 @@ def test_the_report_rerenders_byte_identical_from_the_stored_figures():
         store = yaml.load(stream, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))
     facts = fidelity_report.load_log_facts(os.path.join(repo, 'benchmarks', 'results', 'fidelity_log_facts.yaml'))
     text = fidelity_report.report_from_store(store, 'fidelity', '../benchmarks/results/fidelity.yaml',
-                                             'benchmarks/results/fidelity.yaml', facts)
+                                             'benchmarks/results/fidelity.yaml', facts, _findings())
     with open(os.path.join(repo, 'docs', 'fidelity.md')) as stream:
         committed = stream.read()
     # the "real flights" section is calibrate_conditions.py's (re-rendered from its own figures: test_conditions.py)
@@ -692,6 +692,28 @@ def test_the_report_rerenders_byte_identical_from_the_stored_figures():
         text = conditions.replace_section(text, kept, conditions.FIDELITY_BEGIN, conditions.FIDELITY_END)
     assert text == committed, ('docs/fidelity.md differs from its re-render: '
                                'python anafi_lab/cli/measure_fidelity.py --steps ,')
+
+
+def test_the_reading_quotes_the_findings_and_the_stored_replays():
+    """The reading's figures come from the context: a recorded finding and a stored replay figure, changed, show
+    where they are quoted."""
+    import copy
+    import yaml
+    from anafi_lab.reports import fidelity_report
+    repo = paths.checkout()
+    with open(os.path.join(repo, 'benchmarks', 'results', 'fidelity.yaml')) as stream:
+        store = yaml.load(stream, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))
+    facts = fidelity_report.load_log_facts(os.path.join(repo, 'benchmarks', 'results', 'fidelity_log_facts.yaml'))
+    findings = copy.deepcopy(_findings())
+    findings['initial_state']['across_offset_max_cm'] = 77
+    findings['overshoot_m']['yaw_0']['mpc']['paper_timing'] = 0.645
+    for r in store['replays']:
+        if (r['log'], r['variant']) == ('x_straight_5_mpc', 'unstored'):
+            r['ratio']['truth_e_mu'] = 1.234
+    text = fidelity_report.report_from_store(store, 'f', 's.yaml', 's.yaml', facts, findings)
+    assert 'by up to 77 cm across the line' in text
+    assert 'the yaw-0 MPC step overshoots 3.0x Sphinx\'s' in text      # 0.645 / 0.215: computed
+    assert '(1.23 unrounded, above)' in text
 
 
 def _store(best, ratio_best=1.02, ratio_other=1.3):
@@ -726,6 +748,13 @@ def _facts():
                        'standin_without_stall_deg': 0.2}}
 
 
+def _findings():
+    """The recorded offline findings the reading quotes (benchmarks/results/fidelity_findings.yaml)."""
+    from anafi_lab.reports import fidelity_report
+    return fidelity_report.load_findings(os.path.join(paths.checkout(), 'benchmarks', 'results',
+                                                      'fidelity_findings.yaml'))
+
+
 def test_a_rerender_measures_nothing_and_keeps_the_measuring_run(tmp_path):
     """``--steps ,`` re-renders from the store alone: the store is not rewritten, and the report names the
     command and date of the run that measured the figures."""
@@ -758,13 +787,13 @@ def test_the_ranking_and_the_recommendation_include_the_shipped_defaults():
     """The shipped defaults are ranked with the other configurations (not only the replay methods are left
     out): best when they score best, and quoted beside the best otherwise."""
     from anafi_lab.reports import fidelity_report
-    text = fidelity_report.report_from_store(_store('shipped'), 'f', 's.yaml', 's.yaml', _facts())
+    text = fidelity_report.report_from_store(_store('shipped'), 'f', 's.yaml', 's.yaml', _facts(), _findings())
     assert 'on the shared logs (most cells within +-10 %, then mean |ln ratio|): **shipped defaults**' in text
     assert 'By these measurements the shipped defaults score best (8 / 8 shared-log cells' in text
-    text = fidelity_report.report_from_store(_store('on'), 'f', 's.yaml', 's.yaml', _facts())
+    text = fidelity_report.report_from_store(_store('on'), 'f', 's.yaml', 's.yaml', _facts(), _findings())
     assert 'then mean |ln ratio|): **effects on**' in text
     assert 'By these measurements: **effects on** (8 / 8 shared-log cells within +-10 %' in text
     assert 'the shipped defaults score 0 / 8, ' in text
     # a replay method scoring best is no configuration: not recommended
-    text = fidelity_report.report_from_store(_store('settled'), 'f', 's.yaml', 's.yaml', _facts())
+    text = fidelity_report.report_from_store(_store('settled'), 'f', 's.yaml', 's.yaml', _facts(), _findings())
     assert '**shipped, settled start**' not in text.split('## Recommendation')[1].split('\n\n')[1]

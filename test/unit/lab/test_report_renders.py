@@ -21,3 +21,11 @@ def test_batch_report_rerenders_identical(records, report):
     with open(os.path.join(RESULTS, report)) as stream:
         committed = stream.read()
     assert paper_tables.rerender(os.path.join(RESULTS, records)) == committed
+
+
+def test_the_batch_report_quotes_the_figures_where_they_are_defined():
+    """The static steps' geometry from their scenario files, the distributed PID graph's nodes from pid.launch."""
+    from anafi_lab.reports import batch_facts
+    steps = batch_facts.static_steps()
+    assert steps == {'start': ['0', '0', '1'], 'waypoint': ['3', '2', '5'], 'yaws': ['0', '180']}
+    assert batch_facts.pid_graph_nodes() == 8 and batch_facts.pid_graph_nodes('single') == 1

@@ -2,7 +2,9 @@
 """The paper's "Interface": Sphinx ground-truth telemetry -> ROS (thin node).
 
 Stage: telemetry -> **interface** -> (mirror | controllers).
-Runs ~telemetry_command as one supervised subprocess (anafi_sim.interface.supervisor),
+Runs ~telemetry_command as one supervised subprocess (anafi_sim.interface.supervisor): only one of the
+known tools with its own arguments (anafi_sim.interface.telemetry_command: Sphinx's tlm-data-logger or
+our stand-in, never through a shell; anything else is a bad parameter),
 parses its lines (anafi_sim.telemetry.protocol.TelemetryParser), decimates to ~rate
 and checks them (anafi_sim.interface.ground_truth.GroundTruthInterface), and publishes
 each accepted sample at once, from the reader thread (all publishers are
@@ -41,6 +43,7 @@ from nav_msgs.msg import Odometry
 
 from anafi_sim.interface import ground_truth as gt
 from anafi_sim.interface.supervisor import ProcessSupervisor
+from anafi_sim.interface.telemetry_command import allowed_argv
 
 #: [bytes] longest telemetry line taken (a Sphinx line is < 100 bytes); longer ones are dropped and counted
 MAX_LINE = 4096
@@ -58,7 +61,7 @@ STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
 def read_params():
     """All ~params, validated; raises ValueError with a clear message."""
     reader = private_params()
-    p = {'telemetry_command': reader.command('telemetry_command', DEFAULT_COMMAND),
+    p = {'telemetry_command': allowed_argv(reader.command('telemetry_command', DEFAULT_COMMAND)),
          'prefix': reader.word('prefix', DEFAULT_PREFIX, forbidden=':')}
     for name, default in (('rate', 100.0), ('stale_timeout', 0.5), ('restart_timeout', 2.0),
                           ('backoff_initial', 0.2), ('backoff_max', 5.0)):

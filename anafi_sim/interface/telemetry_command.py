@@ -31,17 +31,18 @@ _HOST = re.compile(r'^[A-Za-z0-9](?:[A-Za-z0-9.-]{0,252})$')
 
 
 def stand_in_paths():
-    """Real paths of the package's stand-in: the source script and the devel / install space executables."""
+    """Real paths of the package's stand-in: the devel / install space executables (first: what the bare name
+    runs, as ``$(find anafi_sim)/anafi_sim/scripts/tlm_data_logger.py`` does in a launch file), the source script."""
     found = []
-    try:
-        from anafi_sim import paths
-        found.append(paths.data_path('scripts', STAND_IN))
-    except Exception:   # no package found: only the workspace executables below
-        pass
     try:
         from catkin.find_in_workspaces import find_in_workspaces
         found += find_in_workspaces(search_dirs=['libexec'], project='anafi_sim', path=STAND_IN)
     except Exception:   # catkin not importable (plain pytest without ROS)
+        pass
+    try:
+        from anafi_sim import paths
+        found.append(paths.data_path('scripts', STAND_IN))
+    except Exception:   # no package found: only the workspace executables above
         pass
     return [os.path.realpath(p) for p in found if os.path.isfile(p)]
 

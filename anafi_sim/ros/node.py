@@ -2,7 +2,8 @@
 
 Stage: ROS wiring only. A node reads its parameters with ``private_params()`` (a checked
 ``ParamReader``), builds its core, wires topics and timers, and starts with ``run_node``: a bad
-parameter (``ParamError``, a ValueError) is one ``rospy.logfatal`` line and a non-zero exit.
+parameter (``ParamError``, a ValueError) is one ``rospy.logfatal`` line and a non-zero exit, or, for a
+node that roslaunch respawns, one FATAL line and an ERROR diagnostic while it stays up (``stay_in_error``).
 
 Diagnostics: ``diagnostic_status`` builds one DiagnosticStatus (values stored as strings),
 ``health_status`` one from a core's ``Health`` (level, message, values) through the one level table
@@ -257,19 +258,25 @@ def start_master_watch(saved, period=MASTER_POLL, exit_code=MASTER_RESTART_EXIT,
 
 
 # ------------------------------------------------------------------ start-up
-def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch_master=True, **init_args):
+def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch_master=True,
+             respawned=False, **init_args):
     """init_node(name, **init_args), then ``factory().run()``.
 
     An exception of ``fatal_errors`` from ``factory`` (a bad parameter: ParamError is a ValueError) is
-    logged with rospy.logfatal and ends the process with ``fatal_exit_code``. What ``run()`` returns is
-    the exit status: None (default) or True -> 0, False -> 1, an int -> that code. ``watch_master``: exit
-    with ``MASTER_RESTART_EXIT`` when the ROS master restarts (see the module doc).
+    logged with rospy.logfatal and ends the process with ``fatal_exit_code``; with ``respawned`` (a node
+    that the launch files start with ``respawn="true"``: exiting would only start it again with the same
+    parameters, FATAL every second) the node stays up instead, in ERROR (``stay_in_error``). What
+    ``run()`` returns is the exit status: None (default) or True -> 0, False -> 1, an int -> that code.
+    ``watch_master``: exit with ``MASTER_RESTART_EXIT`` when the ROS master restarts (see the module doc).
     """
     rospy.init_node(name, **init_args)
     try:
         node = factory()
     except fatal_errors as error:
-        rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
+        if respawned:
+            stay_in_error(error)
+        else:
+            rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
         if init_args.get('disable_signals'):
             rospy.signal_shutdown('bad parameters')
         sys.exit(fatal_exit_code)
@@ -280,6 +287,28 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
     if result is None or result is True:
         return
     sys.exit(1 if result is False else int(result))
+
+
+#: [s] wall time between the ERROR diagnostics of a node that stays up with bad parameters
+BAD_PARAMS_PERIOD = 1.0
+
+
+def stay_in_error(error):
+    """A node with bad parameters that roslaunch would respawn: one FATAL line, then an ERROR diagnostic
+    ``<node>: bad parameters`` every ``BAD_PARAMS_PERIOD`` s (message: the error) until shutdown; nothing
+    else runs (no topic, no timer, no subprocess)."""
+    node = rospy.get_name()
+    message = 'bad parameters: %s' % (error,)
+    rospy.logfatal('%s: %s; staying up in ERROR without running (not exiting: roslaunch would respawn the '
+                   'node with the same parameters); fix the parameter and start it again', node, message)
+    status = diagnostic_status('%s: bad parameters' % node, ERROR, message,
+                               [('action', 'not running; fix the parameter and restart the node')])
+    start_diagnostics_thread(BAD_PARAMS_PERIOD, lambda: [status], diagnostics_publisher(), first=0.2)
+    try:
+        while not rospy.is_shutdown():
+            time.sleep(0.2)
+    except KeyboardInterrupt:   # nodes started with disable_signals
+        pass
 
 
 def _raise_interrupt(signum, frame):

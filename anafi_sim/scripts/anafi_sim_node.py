@@ -23,7 +23,7 @@ anafi_sim/config such as anafi_model_fitted.yaml, or an absolute path).
 up (~sync_settle), then at each control period (~sync_period) /clock stops at
 the period's tick until the command stamped at it arrives on drone/rpyt (at
 most ~sync_timeout s wall, counted on /diagnostics).
-Bad parameters: logfatal, exit code 1.
+Bad parameters: logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 """
 import os
 import time
@@ -253,4 +253,4 @@ class AnafiSimNode(object):
 
 
 if __name__ == '__main__':
-    run_node('anafi_sim', AnafiSimNode)
+    run_node('anafi_sim', AnafiSimNode, respawned=True)

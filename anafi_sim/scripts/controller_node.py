@@ -33,7 +33,7 @@ Parameters: ~controller (mpc | pid), ~rate [Hz] (default the controller's RATE),
 ~state_timeout, ~waypoint_timeout [s], ~geofence_radius, ~min_altitude, ~max_altitude, ~max_waypoint_jump [m]
 (contract.WaypointLimits), ~state_topic, ~waypoint_topic, ~command_topic; mpc: the keys of
 anafi_sim/config/mpc.yaml; pid: ~<loop>/<pid param> of anafi_sim/config/pid.yaml. Bad parameters:
-logfatal, exit code 1.
+logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 
 A new controller: a ``contract.Controller`` subclass and one line in ``ADAPTERS`` with an ``Adapter`` subclass
 naming it (``controller_class``); override ``build`` for more parameters and ``setup``/``after_cycle`` for
@@ -432,7 +432,7 @@ class ControllerNode(object):
 
 def main(controller=None, name='controller'):
     """Run the node (``controller``: the default of ~controller; ``name``: the default node name)."""
-    run_node(name, lambda: ControllerNode(controller))
+    run_node(name, lambda: ControllerNode(controller), respawned=True)
 
 
 if __name__ == '__main__':

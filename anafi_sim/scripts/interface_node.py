@@ -31,7 +31,7 @@ for ~restart_timeout s; lines longer than MAX_LINE bytes are dropped and counted
 
 Namespace /<drone> (default drone name: the namespace's last part; in the
 root namespace the topics go under /<~drone_name>/). Parameters: see
-anafi_sim/config/interface.yaml. Bad parameters: logfatal and exit code 2.
+anafi_sim/config/interface.yaml. Bad parameters: logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 """
 import threading
 import time
@@ -233,4 +233,4 @@ class InterfaceNode(object):
 
 
 if __name__ == '__main__':
-    run_node('interface', InterfaceNode, fatal_exit_code=2)
+    run_node('interface', InterfaceNode, fatal_exit_code=2, respawned=True)

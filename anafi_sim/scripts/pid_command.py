@@ -13,7 +13,8 @@ Safety (anafi_control.pid_wiring.CommandAssembler, docs/reliability.md): pid
 disabled (<pid_namespace>/pid_enable false), an effort missing, older than
 ~effort_timeout s or non-finite -> no command is published (the firmware's
 hover brake stops and holds the drone; an all-zero command would only level
-it and let it coast), counted and reported on /diagnostics (1 Hz wall). Bad parameters: logfatal, exit code 1.
+it and let it coast), counted and reported on /diagnostics (1 Hz wall). Bad parameters: logfatal, then
+the node stays up in ERROR (not respawned: docs/nodes.md).
 """
 import threading
 
@@ -99,4 +100,4 @@ class PidCommandNode(object):
 
 
 if __name__ == '__main__':
-    run_node('pid_command', PidCommandNode)
+    run_node('pid_command', PidCommandNode, respawned=True)

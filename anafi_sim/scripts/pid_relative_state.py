@@ -105,4 +105,4 @@ class RelativeStateNode(object):
 
 
 if __name__ == '__main__':
-    run_node('pid_relative_state', RelativeStateNode)
+    run_node('pid_relative_state', RelativeStateNode, respawned=True)

@@ -4,7 +4,8 @@
 The graph runs on a private ROS master of this test (so that the master itself can be restarted, the last
 case): world.launch (simulated Anafi + interface + kinematic Gazebo world + mirror) + mpc.launch whose state comes through this test
 (``fault/odom``, a relay of drone/odom that the test can corrupt or stop) + a second interface in
-/garbage whose telemetry command prints garbage, a malformed number and a 10 kB line before the real tool.
+/garbage whose telemetry (the stand-in tool connected to ``GARBAGE_PROXY``, a relay of the simulator's
+telemetry port) carries garbage, a malformed number and a 10 kB line before the real telemetry.
 Wall clock, rtf 1, about 2 min.
 
 For each fault (``FAULTS``): the drone flies along x at about 3 m/s (a moving waypoint); the fault is
@@ -97,7 +98,8 @@ LAUNCH = """<launch>
     <node pkg="anafi_sim" type="interface_node.py" name="interface" output="log" respawn="true">
       <rosparam command="load" file="$(find anafi_sim)/anafi_sim/config/interface.yaml"/>
       <param name="drone_name" value="garbage"/>
-      <param name="telemetry_command" value="sh -c 'printf &quot;garbage line\\nomniscient_anafi.worldPosition.x : 1_000\\n&quot;; head -c 10000 /dev/zero | tr &quot;\\\\0&quot; x; echo; exec $(find anafi_sim)/anafi_sim/scripts/tlm_data_logger.py -r 0 inet:127.0.0.1:{port}'"/>
+      <param name="telemetry_command"
+             value="$(find anafi_sim)/anafi_sim/scripts/tlm_data_logger.py -r 0 inet:127.0.0.1:{garbage_port}"/>
     </node>
   </group>
 </launch>
@@ -220,8 +222,11 @@ class TestFaultMatrix(unittest.TestCase):
                                                   os.path.join(cls.workdir, 'log'), join=True)
         cls.port = int(cls.uri.rsplit(':', 1)[1])
         launch = os.path.join(cls.workdir, 'faults.launch')
+        port, garbage_port = harness.free_port(), harness.free_port()
         with open(launch, 'w') as f:
-            f.write(LAUNCH.format(drone=DRONE, port=harness.free_port()))
+            f.write(LAUNCH.format(drone=DRONE, port=port, garbage_port=garbage_port))
+        cls.procs.start('garbage_proxy', [sys.executable, '-c', GARBAGE_PROXY.format(listen=garbage_port,
+                                                                                    upstream=port)], cls.env)
         cls.procs.start('roslaunch', ['roslaunch', '--port', str(cls.port), launch], cls.env)
         # the controller's state comes through this relay, a process of its own (this one is busy measuring)
         cls.procs.start('relay', [sys.executable, '-c', RELAY.format(drone=DRONE)], cls.env)
@@ -653,6 +658,43 @@ while time.time() < end and not state['ok']:
     pub.publish(w)
     time.sleep(0.1)
 sys.exit(0 if state['ok'] else 1)
+"""
+
+#: a TCP relay of the simulator's telemetry port that sends garbage, a malformed number and a 10 kB line
+#: first on every connection (each start of the garbage interface's telemetry tool)
+GARBAGE_PROXY = """
+import socket, threading
+GARBAGE = b'garbage line\\nomniscient_anafi.worldPosition.x : 1_000\\n' + b'x' * 10000 + b'\\n'
+def pump(a, b):
+    try:
+        while True:
+            data = a.recv(65536)
+            if not data:
+                break
+            b.sendall(data)
+    except OSError:
+        pass
+    for s in (a, b):
+        try:
+            s.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+def serve(client):
+    try:
+        upstream = socket.create_connection(('127.0.0.1', {upstream}), timeout=5.0)
+    except OSError:
+        client.close()
+        return
+    upstream.settimeout(None)
+    client.sendall(GARBAGE)
+    pump(upstream, client)
+server = socket.socket()
+server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+server.bind(('127.0.0.1', {listen}))
+server.listen(8)
+while True:
+    client, _ = server.accept()
+    threading.Thread(target=serve, args=(client,), daemon=True).start()
 """
 
 

@@ -116,6 +116,31 @@ def test_run_node_bad_parameters_log_fatal_and_exit(monkeypatch):
     assert log == [('init', 'x'), ('fatal', '/anafi/x: bad parameters: ~rate must be a finite number > 0, got -1')]
 
 
+def test_a_respawned_node_with_bad_parameters_stays_up_in_error_until_shutdown(monkeypatch):
+    log = _stub_start_up(monkeypatch)
+    published, shutdown = [], threading.Event()
+
+    def diagnostics_thread(period, make_statuses, pub, first=None):
+        published.extend(make_statuses())
+        shutdown.set()               # the launch stops the node after its first ERROR diagnostic
+
+    monkeypatch.setattr(node, 'diagnostics_publisher', lambda: None)
+    monkeypatch.setattr(node, 'start_diagnostics_thread', diagnostics_thread)
+    monkeypatch.setattr(rospy, 'is_shutdown', shutdown.is_set)
+
+    def factory():
+        raise ParamError('~rtf must be a finite number > 0, got -1')
+
+    with pytest.raises(SystemExit) as exit_info:
+        node.run_node('x', factory, fatal_exit_code=2, respawned=True)
+    assert exit_info.value.code == 2       # only once stopped: roslaunch does not respawn a node that is up
+    assert log[0] == ('init', 'x') and len(log) == 2 and log[1][0] == 'fatal'
+    assert 'bad parameters: ~rtf must be' in log[1][1] and 'staying up in ERROR' in log[1][1]
+    [status] = published
+    assert status.level == node.ERROR and status.name == '/anafi/x: bad parameters'
+    assert status.message == 'bad parameters: ~rtf must be a finite number > 0, got -1'
+
+
 def test_run_node_runs_the_node(monkeypatch):
     log = _stub_start_up(monkeypatch)
     ran = threading.Event()

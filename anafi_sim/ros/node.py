@@ -311,6 +311,45 @@ def stay_in_error(error):
         pass
 
 
+class Timer(object):
+    """``rospy.Timer`` that survives ROS time jumping backwards, and says so.
+
+    rospy's Timer thread dies with ROSTimeMovedBackwardsException when /clock goes back under
+    /use_sim_time (the simulator respawned, a bag looped): the node keeps running with no cycle at all.
+    This one is started with ``reset=True`` (the period restarts from the new time) and counts the jumps
+    (``jumps_back``; ``last_jump`` [s], how far back): one WARN line per jump naming the node and the
+    timer. ``callback(event)`` as rospy's; an exception from it is logged (throttled) and counted
+    (``callback_errors``), the timer goes on."""
+
+    def __init__(self, period, callback, name='timer'):
+        self.name = name
+        self.jumps_back = 0
+        self.last_jump = 0.0
+        self.callback_errors = 0
+        self._callback = callback
+        self._last = None
+        self._timer = rospy.Timer(rospy.Duration.from_sec(period), self._on_event, reset=True)
+
+    def _on_event(self, event):
+        now = event.current_real
+        if self._last is not None and now < self._last:
+            self.jumps_back += 1
+            self.last_jump = (self._last - now).to_sec()
+            rospy.logwarn('%s: ROS time moved backwards by %.3f s (%d times): %s timer kept running',
+                          rospy.get_name(), self.last_jump, self.jumps_back, self.name)
+        self._last = now
+        try:
+            self._callback(event)
+        except Exception as error:   # a cycle that failed must not end the timer thread
+            self.callback_errors += 1
+            if not rospy.is_shutdown():
+                rospy.logerr_throttle(5.0, '%s: %s timer callback failed (%d times): %s: %s' % (
+                    rospy.get_name(), self.name, self.callback_errors, type(error).__name__, error))
+
+    def shutdown(self):
+        self._timer.shutdown()
+
+
 def end_parent_launch(wait=15.0):
     """End the roslaunch that started this node as Ctrl-C would (SIGINT to the parent process, only if it
     is roslaunch), then wait up to ``wait`` s of wall time for roslaunch to stop this node. For a required

@@ -63,7 +63,7 @@ from anafi_sim.sim.drone_model import DEFAULT_MODEL_FILE, load_model_params
 from anafi_sim.msg import MpcStats
 from anafi_sim.ros import topics
 from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
-from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
+from anafi_sim.ros.node import (Timer, diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 sleep_until_aligned, start_diagnostics_thread)
 from anafi_sim.sim.clock import TIMER_PHASES
 from anafi_sim.ros.wire_types import piloting_command_class
@@ -413,16 +413,21 @@ class ControllerNode(object):
             health = self.core.health()
             extra = [('commands sent', self.commands), ('hover commands', self.hover_commands),
                      ('command periods without a command (silent)', self.silent_cycles),
-                     ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]
+                     ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic),
+                     ('ROS time jumps back (timers kept running)',
+                      max([t.jumps_back for t in getattr(self, 'timers', [])] or [0]))]
             extra += self.adapter.diagnostic_values()
         return [health_status('%s: %s' % (self.adapter.label, rospy.get_name()), health, namespace_id(), extra)]
 
     def run(self):
+        self.timers = []
         start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
         sleep_until_aligned(1.0 / self.rate, self.timer_phase)      # cycles at timer_phase + k / rate
-        timers = [rospy.Timer(rospy.Duration.from_sec(1.0 / self.rate), self._on_cycle)]
+        # survive /clock going back (simulator respawned): the core sees the jump and goes SILENT, then tracks
+        timers = [Timer(1.0 / self.rate, self._on_cycle, 'control')]
         if self.command_rate is not None:
-            timers.append(rospy.Timer(rospy.Duration.from_sec(1.0 / self.command_rate), self._on_command))
+            timers.append(Timer(1.0 / self.command_rate, self._on_command, 'command'))
+        self.timers = timers
         try:
             rospy.spin()
         finally:

@@ -24,8 +24,8 @@ from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler
 from anafi_sim.ros import topics
-from anafi_sim.ros.node import (diagnostic_status, diagnostics_publisher, namespace_id, private_params, run_node,
-                                start_diagnostics_thread)
+from anafi_sim.ros.node import (Timer, diagnostic_status, diagnostics_publisher, namespace_id, private_params,
+                                run_node, start_diagnostics_thread)
 from anafi_sim.ros.wire_types import piloting_command_class
 
 
@@ -87,15 +87,16 @@ class PidCommandNode(object):
             message = 'no command, firmware hover brake: %s' % reason
         values = [('command periods', commands), ('periods without a command', hovers),
                   ('periods without a command last second', hovers - self.last_hovers),
-                  ('refused efforts (non-finite)', bad), ('command topic', self.command_topic)]
+                  ('refused efforts (non-finite)', bad), ('command topic', self.command_topic),
+                  ('ROS time jumps back (timer kept running)', self.timer.jumps_back)]
         values += [('%s effort' % f, 'none' if v is None else ('bad' if v is False else '%g' % v))
                    for f, v in last.items()]
         self.last_hovers = hovers
         return [diagnostic_status('pid_command: %s' % rospy.get_name(), level, message, values, namespace_id())]
 
     def run(self):
+        self.timer = Timer(1.0 / self.rate, self._on_timer, 'command')     # survives /clock going back
         start_diagnostics_thread(1.0, self._diagnostic_statuses, self.pub_diag)
-        rospy.Timer(rospy.Duration(1.0 / self.rate), self._on_timer)
         rospy.spin()
 
 

@@ -37,7 +37,7 @@ from anafi_control.pid_framework import DEFAULTS, relative_state
 from anafi_control.pid_wiring import input_topics, loop_inputs
 from anafi_sim.ros import topics
 from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
-from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
+from anafi_sim.ros.node import (Timer, diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
 
 
@@ -95,12 +95,13 @@ class RelativeStateNode(object):
         with self.lock:
             h = health(self.key, self.reason, list(self.gate.counters.items()))
             extra = [('published cycles', self.published_cycles),
-                     ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]
+                     ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic),
+                     ('ROS time jumps back (timer kept running)', self.timer.jumps_back)]
         return [health_status('pid_relative_state: %s' % rospy.get_name(), h, namespace_id(), extra)]
 
     def run(self):
+        self.timer = Timer(1.0 / self.rate, self._on_timer, 'relative state')     # survives /clock going back
         start_diagnostics_thread(1.0, self._diagnostic_statuses, self.pub_diag)
-        rospy.Timer(rospy.Duration(1.0 / self.rate), self._on_timer)
         rospy.spin()
 
 

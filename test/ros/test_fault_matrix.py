@@ -81,6 +81,10 @@ FAULTS = (
      'tracking (the controller does not use the world)'),
     ('master_restart', 'ROS master killed and restarted on the same port', 'every node exits (code 75) and is '
      'respawned with its parameters; new publishers reach the controller again'),
+    ('clock_jump', '/clock jumps 5 s back under use_sim_time (as when the simulator respawns), on a graph of '
+     'its own: the MPC and the distributed PID, each given a hovering state and a waypoint',
+     'the timers keep running (rospy.Timer died before): the controllers go SILENT (clock_jump) and command '
+     'again; the nodes count the jump ("ROS time jumps back") and log it'),
 )
 
 LAUNCH = """<launch>
@@ -617,6 +621,138 @@ class TestFaultMatrix(unittest.TestCase):
                     'the respawned simulator starts a new flight', recovery)
         del t_back, g
 
+    def test_10_clock_jump(self):
+        """Own master with use_sim_time: the probe drives /clock, jumps it back, counts the commands."""
+        workdir = os.path.join(self.workdir, 'clock_jump')
+        env = harness.ros_env(ros_home=os.path.join(workdir, 'ros_home'), log_dir=os.path.join(workdir, 'log'))
+        env['PATH'] = os.path.dirname(sys.executable) + os.pathsep + env.get('PATH', '')
+        uri = harness.start_master(self.procs, env, name='roscore_clock')
+        launch = os.path.join(workdir, 'clock_jump.launch')
+        with open(launch, 'w') as f:
+            f.write(CLOCK_LAUNCH)
+        port = uri.rsplit(':', 1)[1]
+        self.procs.start('roslaunch_clock', ['roslaunch', '--port', port, launch], env)
+        probe = harness.start([sys.executable, '-c', CLOCK_PROBE], env=env,
+                              log=open(os.path.join(workdir, 'probe.log'), 'w'))
+        rc = probe.wait(150.0)
+        with open(os.path.join(workdir, 'probe.log')) as f:
+            text = f.read()
+        self.procs.stop('roslaunch_clock')
+        self.procs.stop('roscore_clock')
+        lines = [line for line in text.splitlines() if line.startswith('RESULT ')]
+        self.assertEqual(rc, 0, text[-3000:])
+        r = json.loads(lines[-1][len('RESULT '):])
+        for drone in ('m', 'p'):
+            d = r[drone]
+            self.assertGreater(d['before'], 5, r)          # commands in the 2 s before the jump (10 Hz)
+            self.assertGreater(d['after'], 5, r)           # ... and in the last 2 s after it
+        for node, jumps in r['jumps'].items():
+            self.assertGreaterEqual(jumps, 1, r)
+        self.assertGreaterEqual(r['mpc_clock_jumps'], 1, r)     # the MPC's input gate saw it: SILENT, inputs dropped
+        self.record('clock_jump', 'commands in the 2 s before / the last 2 s after: MPC %d / %d, PID %d / %d; '
+                    'first command after the jump: MPC %.1f s, PID %.1f s; "ROS time jumps back": %s; '
+                    'MPC clock_jumps %d'
+                    % (r['m']['before'], r['m']['after'], r['p']['before'], r['p']['after'], r['m']['first'],
+                       r['p']['first'], ', '.join('%s %d' % kv for kv in sorted(r['jumps'].items())),
+                       r['mpc_clock_jumps']),
+                    'not needed (no drone in this graph: the controllers\' own cycles are checked)',
+                    max(r['m']['first'], r['p']['first']))
+
+
+#: the clock-jump graph: the MPC (drone m) and the distributed PID (drone p), on a /clock the probe drives
+CLOCK_LAUNCH = """<launch>
+  <param name="/use_sim_time" value="true"/>
+  <include file="$(find anafi_sim)/anafi_sim/launch/mpc.launch">
+    <arg name="drone_name" value="m"/>
+    <arg name="output" value="log"/>
+  </include>
+  <include file="$(find anafi_sim)/anafi_sim/launch/pid.launch">
+    <arg name="drone_name" value="p"/>
+    <arg name="output" value="log"/>
+  </include>
+</launch>
+"""
+
+#: publishes /clock (100 Hz wall, 1 s of sim time per s), a hovering state and a waypoint per drone; after
+#: 12 s the clock jumps 5 s back; prints RESULT {json}: commands per drone before / after, the first command
+#: after the jump [s wall], the jump counters of the diagnostics, the MPC's message seen after the jump
+CLOCK_PROBE = """
+import json, sys, threading, time
+import rospy
+from rosgraph_msgs.msg import Clock
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
+from anafi_sim.msg import Waypoint
+from anafi_sim.ros.wire_types import piloting_command_class
+rospy.init_node('clock_probe', anonymous=True)
+Command = piloting_command_class()
+lock = threading.Lock()
+times = {'m': [], 'p': []}
+jumps, silent = {}, []
+def on_cmd(drone):
+    def cb(msg):
+        with lock:
+            times[drone].append(time.time())
+    return cb
+def on_diag(msg):
+    for st in msg.status:
+        for kv in st.values:
+            if kv.key.startswith('ROS time jumps back'):
+                node = st.name.split(': ', 1)[-1] if st.name.startswith(('mpc', 'pid')) else st.name
+                with lock:
+                    jumps[node] = max(jumps.get(node, 0), int(kv.value))
+        if st.name.endswith('/m/mpc_controller'):
+            for kv in st.values:
+                if kv.key == 'clock_jumps':
+                    with lock:
+                        silent.append(int(kv.value))
+for d in times:
+    rospy.Subscriber('/%s/drone/rpyt' % d, Command, on_cmd(d), queue_size=50)
+rospy.Subscriber('/diagnostics', DiagnosticArray, on_diag, queue_size=50)
+clock = rospy.Publisher('/clock', Clock, queue_size=10)
+odom = dict((d, rospy.Publisher('/%s/drone/odom' % d, Odometry, queue_size=10)) for d in times)
+wp = dict((d, rospy.Publisher('/%s/position_control/waypoint' % d, Waypoint, queue_size=10)) for d in times)
+t_sim, tick, jump_wall, end = 100.0, 0, None, None
+start = time.time()
+while True:
+    now = time.time()
+    if jump_wall is None and now - start > 12.0:
+        t_sim -= 5.0
+        jump_wall = now
+    if jump_wall is not None and now - jump_wall > 12.0:
+        break
+    t_sim += 0.01
+    tick += 1
+    stamp = rospy.Time.from_sec(t_sim)
+    clock.publish(Clock(clock=stamp))
+    if tick % 3 == 0:
+        for d in times:
+            o = Odometry()
+            o.header.stamp = stamp
+            o.header.frame_id = 'world'
+            o.child_frame_id = '%s/base_link' % d
+            o.pose.pose.position.z = 2.0
+            o.pose.pose.orientation.w = 1.0
+            odom[d].publish(o)
+    if tick % 10 == 0:
+        for d in times:
+            w = Waypoint()
+            if hasattr(w, 'header'):
+                w.header.stamp = stamp
+                w.header.frame_id = 'world'
+            w.z = 2.0
+            wp[d].publish(w)
+    time.sleep(max(0.0, start + tick * 0.01 - time.time()))
+out = {'jumps': jumps, 'mpc_clock_jumps': silent[-1] if silent else -1}
+with lock:
+    for d, ts in times.items():
+        after = [t for t in ts if t > jump_wall]
+        out[d] = {'before': sum(1 for t in ts if jump_wall - 2.0 < t <= jump_wall),
+                  'after': sum(1 for t in ts if t > jump_wall + 10.0),
+                  'first': (after[0] - jump_wall) if after else -1.0}
+print('RESULT ' + json.dumps(out))
+sys.stdout.flush()
+"""
 
 RELAY = """
 import rospy

@@ -247,3 +247,28 @@ def test_log_lines_and_wait_for_clock(monkeypatch):
     node.wait_for_clock(poll=0.0)
     with pytest.raises(StopIteration):
         next(times)
+
+
+def test_the_timer_survives_time_going_back_counts_it_and_survives_a_failing_callback(monkeypatch):
+    made, warned, errors = [], [], []
+    monkeypatch.setattr(rospy, 'Timer', lambda period, cb, reset=False: made.append((period, cb, reset)))
+    monkeypatch.setattr(rospy, 'get_name', lambda: '/anafi/mpc_controller')
+    monkeypatch.setattr(rospy, 'logwarn', lambda fmt, *args: warned.append(fmt % args))
+    monkeypatch.setattr(rospy, 'logerr_throttle', lambda period, text: errors.append(text))
+    calls = []
+
+    def callback(event):
+        calls.append(event.current_real.to_sec())
+        if len(calls) == 3:
+            raise RuntimeError('bad cycle')
+
+    timer = node.Timer(0.1, callback, 'control')
+    [(period, on_event, reset)] = made
+    assert reset is True and abs(period.to_sec() - 0.1) < 1e-12      # rospy resets instead of raising
+    for t in (100.0, 100.1, 95.0, 95.1):
+        on_event(rospy.timer.TimerEvent(None, None, None, rospy.Time.from_sec(t), None))
+    assert [round(c, 6) for c in calls] == [100.0, 100.1, 95.0, 95.1]
+    assert timer.jumps_back == 1 and abs(timer.last_jump - 5.1) < 1e-6
+    assert warned == ['/anafi/mpc_controller: ROS time moved backwards by 5.100 s (1 times): control timer kept '
+                      'running']
+    assert timer.callback_errors == 1 and 'RuntimeError: bad cycle' in errors[0]

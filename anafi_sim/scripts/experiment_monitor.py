@@ -28,7 +28,8 @@ shuts down (exit 0; 1 on failure: not ready within ~ready_timeout s wall (90), t
 within its duration + ~end_margin s (30) of ROS time, no final summary ~final_timeout s (30) wall after
 the end); with ~end_launch (false; experiment.launch: true) a run that ended well first ends the
 roslaunch that started the node as Ctrl-C does (its exit status 0, no red "REQUIRED process has died";
-a failed run still ends as a dead required node). ~scenario / ~scenario_file / ~scenario_dir as the generator (for the scenario's duration);
+a failed run still ends as a dead required node). ~scenario / ~scenario_file / ~scenario_dir as the
+generator (for the scenario's duration);
 ~label: the run's name in the output.
 """
 import fnmatch

@@ -31,7 +31,8 @@ for ~restart_timeout s; lines longer than MAX_LINE bytes are dropped and counted
 
 Namespace /<drone> (default drone name: the namespace's last part; in the
 root namespace the topics go under /<~drone_name>/). Parameters: see
-anafi_sim/config/interface.yaml. Bad parameters: logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
+anafi_sim/config/interface.yaml. Bad parameters: logfatal, then the node stays up in ERROR (not
+respawned: docs/nodes.md).
 """
 import threading
 import time

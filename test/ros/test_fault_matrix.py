@@ -85,6 +85,10 @@ FAULTS = (
      'its own: the MPC and the distributed PID, each given a hovering state and a waypoint',
      'the timers keep running (rospy.Timer died before): the controllers go SILENT (clock_jump) and command '
      'again; the nodes count the jump ("ROS time jumps back") and log it'),
+    ('stderr_flood', '600 MB on the telemetry tool\'s stderr without a newline while it prints samples (a third '
+     'interface, /flood, whose tlm-data-logger found on PATH is a test tool that floods stderr, then runs the '
+     'stand-in)', 'stderr read with the same 4096-byte cap as stdout: the interface\'s memory stays that of an '
+     'interface without the flood, the bytes are counted, samples flow: OK'),
 )
 
 LAUNCH = """<launch>
@@ -104,6 +108,14 @@ LAUNCH = """<launch>
       <param name="drone_name" value="garbage"/>
       <param name="telemetry_command"
              value="$(find anafi_sim)/anafi_sim/scripts/tlm_data_logger.py -r 0 inet:127.0.0.1:{garbage_port}"/>
+    </node>
+  </group>
+  <group ns="flood">
+    <node pkg="anafi_sim" type="interface_node.py" name="interface" output="log" respawn="true">
+      <env name="PATH" value="{fake_bin}:$(env PATH)"/>
+      <rosparam command="load" file="$(find anafi_sim)/anafi_sim/config/interface.yaml"/>
+      <param name="drone_name" value="flood"/>
+      <param name="telemetry_command" value="tlm-data-logger -r 0 inet:127.0.0.1:{port}"/>
     </node>
   </group>
 </launch>
@@ -227,8 +239,14 @@ class TestFaultMatrix(unittest.TestCase):
         cls.port = int(cls.uri.rsplit(':', 1)[1])
         launch = os.path.join(cls.workdir, 'faults.launch')
         port, garbage_port = harness.free_port(), harness.free_port()
+        fake_bin = os.path.join(cls.workdir, 'bin')       # the /flood interface's "Sphinx tool"
+        os.makedirs(fake_bin)
+        with open(os.path.join(fake_bin, 'tlm-data-logger'), 'w') as f:
+            f.write(FLOOD_TOOL.format(python=sys.executable, mb=FLOOD_MB,
+                                      stand_in=paths.data_path('scripts', 'tlm_data_logger.py')))
+        os.chmod(os.path.join(fake_bin, 'tlm-data-logger'), 0o755)
         with open(launch, 'w') as f:
-            f.write(LAUNCH.format(drone=DRONE, port=port, garbage_port=garbage_port))
+            f.write(LAUNCH.format(drone=DRONE, port=port, garbage_port=garbage_port, fake_bin=fake_bin))
         cls.procs.start('garbage_proxy', [sys.executable, '-c', GARBAGE_PROXY.format(listen=garbage_port,
                                                                                     upstream=port)], cls.env)
         cls.procs.start('roslaunch', ['roslaunch', '--port', str(cls.port), launch], cls.env)
@@ -493,6 +511,27 @@ class TestFaultMatrix(unittest.TestCase):
         self.record('telemetry_garbage', 'OK "%s"; per start of the command (%d): parse malformed %d, process '
                     'oversize lines %d; samples published %s' % (e[0][2], starts, malformed, oversize,
                                                                  e[0][3]['samples published']), 'not needed', None)
+
+    def test_08a_stderr_flood(self):
+        g = self.g
+        e, ref = [None], [None]
+
+        def flooded():
+            e[0], ref[0] = g.status('/flood/interface'), g.status('/garbage/interface')
+            return e[0] is not None and ref[0] is not None and e[0][1] == 0 \
+                and e[0][3].get('process last stderr') == 'flood done'
+        harness.require(flooded, 60.0, 'the flood interface OK after the flood', lambda: str(e[0]))
+        rss = dict((n, psutil.Process(harness.node_pid('/%s/interface' % n, self.uri)).memory_info().rss / 2.0 ** 20)
+                   for n in ('flood', 'garbage'))
+        flood_bytes = counter(e[0], 'process stderr bytes')
+        self.assertGreaterEqual(flood_bytes, FLOOD_MB * 2 ** 20, e[0])
+        self.assertLess(rss['flood'], rss['garbage'] + 30.0, rss)     # the flood is not kept
+        self.assertGreater(counter(e[0], 'samples published'), 100, e[0])
+        self.record('stderr_flood', 'OK "%s"; process stderr bytes %d (%d oversize lines), last stderr "%s"; '
+                    'interface RSS %.0f MB (an interface without the flood: %.0f MB); samples published %s'
+                    % (e[0][2], flood_bytes, counter(e[0], 'process stderr oversize lines'),
+                       e[0][3].get('process last stderr'), rss['flood'], rss['garbage'],
+                       e[0][3]['samples published']), 'not needed', None)
 
     def test_08b_simulator_restart(self):
         g = self.g
@@ -794,6 +833,19 @@ while time.time() < end and not state['ok']:
     pub.publish(w)
     time.sleep(0.1)
 sys.exit(0 if state['ok'] else 1)
+"""
+
+#: [MB] written on stderr by the /flood interface's telemetry tool at each start
+FLOOD_MB = 600
+#: the /flood interface's tlm-data-logger: runs the stand-in (stdout: the samples), floods stderr meanwhile
+FLOOD_TOOL = """#!{python}
+import os, subprocess, sys
+tool = subprocess.Popen([{stand_in!r}] + sys.argv[1:])
+chunk = b'E' * (1 << 20)
+for _ in range({mb}):
+    os.write(2, chunk)
+os.write(2, b'\\nflood done\\n')
+sys.exit(tool.wait())
 """
 
 #: a TCP relay of the simulator's telemetry port that sends garbage, a malformed number and a 10 kB line

@@ -23,8 +23,10 @@ Namespace /<drone> (default /anafi). Topics, relative to the namespace:
       no waypoint yet or a failed controller -> nothing is published, so the firmware's hover brake stops
       and holds the drone;
       /diagnostics (1 Hz of wall time: OK tracking or waiting for the first waypoint, WARN holding or silent
-      for missing / stale / non-finite / out-of-limits input or a clock jump, ERROR the controller failed;
-      with counters).
+      for missing / stale / non-finite / out-of-limits input or a clock jump, ERROR the controller failed
+      or a second commander; with counters);
+- in  ~command_topic too: commands of another node there = a second commander of the drone
+      (anafi_control.commanders): ERROR naming it and no command until it is gone (docs/reliability.md).
 - mpc only: mpc/predicted_path and mpc/reference_path (nav_msgs/Path in ~frame_id, the drone positions x_k*
       and waypoint positions z_k over the horizon; built only while someone subscribes), mpc/stats
       (anafi_sim/MpcStats), dynamic_reconfigure (cfg/Mpc.cfg: weights, limits, horizon,
@@ -48,7 +50,8 @@ from dynamic_reconfigure.server import Server
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 
-from anafi_control.contract import TIMEOUT_DEFAULTS, WAITING, health
+from anafi_control.commanders import DOWN, RESUMED
+from anafi_control.contract import LEVEL_ERROR, TIMEOUT_DEFAULTS, WAITING, health
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, RECONFIGURABLE, MpcTracking,
                                         predicted_positions, reference_positions)
@@ -63,6 +66,7 @@ from anafi_sim.sim.drone_model import DEFAULT_MODEL_FILE, load_model_params
 from anafi_sim.msg import MpcStats
 from anafi_sim.ros import topics
 from anafi_sim.ros.conversions import subscribe_inputs, waypoint_limits
+from anafi_sim.ros.commander_watch import CommandTopicWatch
 from anafi_sim.ros.node import (Timer, diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 sleep_until_aligned, start_diagnostics_thread)
 from anafi_sim.sim.clock import TIMER_PHASES
@@ -362,6 +366,7 @@ class ControllerNode(object):
         self.commands = self.hover_commands = self.silent_cycles = 0
         self.Command = piloting_command_class()
         self.pub_cmd = rospy.Publisher(command_topic, self.Command, queue_size=10)
+        self.commanders = CommandTopicWatch(command_topic, self.Command)   # one drone, one commander
         self.pub_diag = diagnostics_publisher()
         self.adapter.setup()
         self.state_topic, self.waypoint_topic = subscribe_inputs(self.core, self.lock, state_topic, waypoint_topic)
@@ -371,6 +376,12 @@ class ControllerNode(object):
 
     # -- cycle and command ----------------------------------------------------------------------
     def _on_cycle(self, _event=None):
+        commanders = self.commanders.check()
+        if commanders == DOWN:     # another node commands this drone: no command (publish checks it too)
+            return
+        if commanders == RESUMED:
+            with self.lock:
+                self.core.reset()
         started = time.perf_counter()
         stamp = rospy.Time.now()
         with self.lock:
@@ -395,7 +406,8 @@ class ControllerNode(object):
         self._publish(command, stamp)
 
     def _publish(self, command, stamp):
-        if command is None:       # failsafe SILENT (or warming up): nothing, the firmware's hover brake acts
+        if command is None or self.commanders.guard.down:
+            # failsafe SILENT (or warming up), or a second commander: nothing, the firmware's hover brake acts
             with self.lock:
                 self.silent_cycles += 1
             return
@@ -417,6 +429,11 @@ class ControllerNode(object):
                      ('ROS time jumps back (timers kept running)',
                       max([t.jumps_back for t in getattr(self, 'timers', [])] or [0]))]
             extra += self.adapter.diagnostic_values()
+        self.commanders.check_presence()
+        extra += self.commanders.values()
+        second = self.commanders.message()
+        if second is not None:
+            health = health._replace(level=LEVEL_ERROR, message=second)
         return [health_status('%s: %s' % (self.adapter.label, rospy.get_name()), health, namespace_id(), extra)]
 
     def run(self):

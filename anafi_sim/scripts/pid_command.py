@@ -13,8 +13,9 @@ Safety (anafi_control.pid_wiring.CommandAssembler, docs/reliability.md): pid
 disabled (<pid_namespace>/pid_enable false), an effort missing, older than
 ~effort_timeout s or non-finite -> no command is published (the firmware's
 hover brake stops and holds the drone; an all-zero command would only level
-it and let it coast), counted and reported on /diagnostics (1 Hz wall). Bad parameters: logfatal, then
-the node stays up in ERROR (not respawned: docs/nodes.md).
+it and let it coast), counted and reported on /diagnostics (1 Hz wall). Commands of another node on
+~command_topic (a second commander, anafi_control.commanders): ERROR naming it and no command until it
+is gone. Bad parameters: logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 """
 import threading
 
@@ -24,6 +25,8 @@ from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler
 from anafi_sim.ros import topics
+from anafi_control.commanders import DOWN
+from anafi_sim.ros.commander_watch import CommandTopicWatch
 from anafi_sim.ros.node import (Timer, diagnostic_status, diagnostics_publisher, namespace_id, private_params,
                                 run_node, start_diagnostics_thread)
 from anafi_sim.ros.wire_types import piloting_command_class
@@ -41,6 +44,7 @@ class PidCommandNode(object):
         self.last_hovers = 0       # hover commands at the previous diagnostic
         self.cls = piloting_command_class()
         self.pub = rospy.Publisher(command_topic, self.cls, queue_size=10)
+        self.commanders = CommandTopicWatch(command_topic, self.cls)   # one drone, one commander
         self.pub_diag = diagnostics_publisher()
         for field, loop in COMMAND_LOOPS.items():
             rospy.Subscriber('%s/%s/control_effort' % (pid_ns, loop), Float64,
@@ -62,6 +66,8 @@ class PidCommandNode(object):
             self.assembler.on_enable(msg.data)
 
     def _on_timer(self, event):
+        if self.commanders.check() == DOWN:    # another node commands this drone: no command
+            return
         stamp = rospy.Time.now()
         with self.lock:
             cmd, reason = self.assembler.command(stamp.to_sec())
@@ -91,6 +97,11 @@ class PidCommandNode(object):
                   ('ROS time jumps back (timer kept running)', self.timer.jumps_back)]
         values += [('%s effort' % f, 'none' if v is None else ('bad' if v is False else '%g' % v))
                    for f, v in last.items()]
+        self.commanders.check_presence()
+        values += self.commanders.values()
+        second = self.commanders.message()
+        if second is not None:
+            level, message = DiagnosticStatus.ERROR, second
         self.last_hovers = hovers
         return [diagnostic_status('pid_command: %s' % rospy.get_name(), level, message, values, namespace_id())]
 

@@ -30,7 +30,8 @@ NODES_DOC = os.path.join(ROOT, 'docs', 'nodes.md')
 ARCHITECTURE_DOC = os.path.join(ROOT, 'docs', 'architecture.md')
 
 #: command-line tools in anafi_sim/scripts (not ROS nodes): a usage line in the README each
-TOOLS = ('calibrate_model.py', 'echo.py', 'evaluate_log.py', 'experiment.py', 'record_bag.py', 'tlm_data_logger.py')
+TOOLS = ('calibrate_model.py', 'check_launch_args.py', 'echo.py', 'evaluate_log.py', 'experiment.py', 'record_bag.py',
+         'tlm_data_logger.py')
 
 #: the ParamReader's reading methods (number, positive, flag, string, ros_name, vector, choice, names, ...)
 READER_METHODS = frozenset(name for name, _ in inspect.getmembers(ParamReader, inspect.isfunction)

@@ -87,6 +87,51 @@ def scenario_file(value):
     return 'no such file'
 
 
+#: [cores] CPU of one drone of a fleet at real time (simulator + telemetry CLI + interface + mirror at 100 Hz
+#: + MPC + generator, and its share of the world and the master): 16.5 % of a core at N = 10 in
+#: benchmarks/results/fleet.md (bench_fleet.py; 20 % alone, 16-17 % from N = 4 on)
+CPU_PER_DRONE = 0.165
+
+
+def available_cores():
+    """CPU cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def fleet_cap(cores=None):
+    """The largest fleet this machine runs at real time: cores / CPU_PER_DRONE (2 cores: 12, the largest
+    fleet that held RTF 1 in benchmarks/results/fleet.md), at least 1."""
+    return max(1, int((available_cores() if cores is None else cores) / CPU_PER_DRONE))
+
+
+def fleet_size_problem(count, max_drones=0, cores=None):
+    """None when ``count`` drones fit (``max_drones`` > 0: the user's own cap instead of ``fleet_cap``), else
+    what is wrong (names the cap, where it comes from and how to override it)."""
+    if max_drones and max_drones > 0:
+        cap, why = int(max_drones), 'max_drones:=%d' % max_drones
+    else:
+        n = available_cores() if cores is None else cores
+        cap = fleet_cap(n)
+        why = ('%d cores / %.3f core per drone (benchmarks/results/fleet.md): slower than real time beyond '
+               'it; max_drones:=N to raise it' % (n, CPU_PER_DRONE))
+    if count > cap:
+        return '%d drones is more than the fleet cap of %d (%s)' % (count, cap, why)
+    return None
+
+
+def drones(value):
+    if not value.isdigit():
+        return 'must be an integer >= 0 (0: the fleet file\'s list)'
+    return None
+
+
+def max_drones(value):
+    return None if value.isdigit() else 'must be an integer >= 0 (0: the cap derived from the CPU cores)'
+
+
 def controller(value):
     return None if value in ('mpc', 'pid', 'preview_mpc') else 'must be mpc, pid or preview_mpc'
 
@@ -102,7 +147,7 @@ RULES = {
     'model_file': model_file, 'scenario': scenario, 'scenario_file': scenario_file, 'controller': controller,
     'pid_mode': pid_mode, 'mirror': flag, 'record': flag, 'plot': flag, 'rviz': flag, 'sync': flag,
     'sync_period': positive, 'sync_timeout': positive, 'progress_period': non_negative,
-    'ready_timeout': positive, 'mirror_rate': positive, 'drones': positive,
+    'ready_timeout': positive, 'mirror_rate': positive, 'drones': drones, 'max_drones': max_drones,
 }
 
 
@@ -120,6 +165,9 @@ def check(args):
         if name == 'scenario' and given.get('scenario_file'):
             continue
         problem = rule(value)
+        if problem is None and name == 'drones' and int(value) > 0:
+            limit = given.get('max_drones', '0')
+            problem = fleet_size_problem(int(value), int(limit) if limit.isdigit() else 0)
         if problem:
             errors.append('launch argument %s:=%s: %s' % (name, value, problem))
     return errors

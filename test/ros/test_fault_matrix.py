@@ -85,6 +85,10 @@ FAULTS = (
      'its own: the MPC and the distributed PID, each given a hovering state and a waypoint',
      'the timers keep running (rospy.Timer died before): the controllers go SILENT (clock_jump) and command '
      'again; the nodes count the jump ("ROS time jumps back") and log it'),
+    ('second_commander', 'a second MPC (node mpc_rival) commands the same drone in flight, then is killed '
+     '(SIGKILL: its registration stays on the master)', 'both controllers stand down: ERROR "second commander: '
+     '<the other> also publishes ...", no command, the firmware brake stops the drone; the survivor commands '
+     'again once the other is gone (quiet 2 s, no longer answering)'),
     ('stderr_flood', '600 MB on the telemetry tool\'s stderr without a newline while it prints samples (a third '
      'interface, /flood, whose tlm-data-logger found on PATH is a test tool that floods stderr, then runs the '
      'stand-in)', 'stderr read with the same 4096-byte cap as stdout: the interface\'s memory stays that of an '
@@ -440,6 +444,45 @@ class TestFaultMatrix(unittest.TestCase):
         self.record('solver_failure', 'ERROR "%s"; solver_failed %d -> %d; commands 0 Hz' % (
             e[2], before, counter(e, 'solver_failed')),
             '%.1f m from %.1f m/s in %.1f s (bound %.1f m)' % (dist, v, secs, bound), rec)
+
+    def test_06c_second_commander(self):
+        g = self.g
+        rival_state = rospy.Publisher('/%s/fault/rival_odom' % DRONE, Odometry, queue_size=10)
+        feed = [False]
+        relay = rospy.Subscriber('/%s/fault/odom' % DRONE, Odometry,
+                                 lambda m: rival_state.publish(m) if feed[0] else None, queue_size=10)
+        rival = self.procs.start('rival', ['rosrun', 'anafi_sim', 'controller_node.py', '__name:=mpc_rival',
+                                           '__ns:=/%s' % DRONE, '_controller:=mpc',
+                                           '_state_topic:=fault/rival_odom'], self.env)
+        try:     # the rival waits without a state (SILENT) until it gets one: then it commands at once
+            harness.require(lambda: g.status('/%s/mpc_rival' % DRONE) is not None, 60.0, 'the rival up')
+            v = self.fly()
+            before = self.controller(0.0)
+            pos0, t0 = g.position(), time.time()
+            feed[0] = True
+            secs, dist = self.wait_stop(t0, pos0)
+            e = self.wait_controller(t0, lambda e: 'second commander' in e[2], 5.0, 'second commander ERROR')
+            self.assertEqual(e[1], 2, e)
+            self.assertIn('mpc_rival', e[2])
+            r = g.status('/%s/mpc_rival' % DRONE, t0)
+            self.assertTrue(r is not None and r[1] == 2 and 'mpc_controller' in r[2], r)
+            self.assertEqual(g.command_rate(), 0.0, 'both stand down: no command')
+            bound = self.bound(v, 0.5)
+            self.assertLess(dist, bound, 'second_commander: %.1f m from %.1f m/s > bound %.1f m' % (dist, v, bound))
+            t_kill = time.time()
+            os.kill(harness.node_pid('/%s/mpc_rival' % DRONE, self.uri), signal.SIGKILL)
+            rec = self.recover(t_kill)
+            after = self.controller(t_kill)
+        finally:
+            feed[0] = False
+            relay.unregister()
+            self.procs.stop('rival')
+        del rival
+        self.record('second_commander', 'ERROR "%s"; the rival ERROR too; commands 0 Hz; second commander '
+                    'episodes %s -> %s, commands heard from other nodes %s' % (
+                        e[2], counter(before, 'second commander episodes'), counter(after, 'second commander episodes'),
+                        counter(after, 'commands heard from other nodes')),
+                    '%.1f m from %.1f m/s in %.1f s (bound %.1f m)' % (dist, v, secs, bound), rec)
 
     def _interface(self, since=0.0):
         return self.g.status('/%s/interface' % DRONE, since)

@@ -51,3 +51,21 @@ def test_the_script_exits_non_zero_with_the_line_and_prints_ok_otherwise():
     assert bad.stderr.strip().splitlines() == ['launch argument rtf:=-1: must be a finite number > 0']
     good = subprocess.run([sys.executable, SCRIPT, 'rtf=2'], capture_output=True, text=True)
     assert good.returncode == 0 and good.stdout == 'ok'
+
+
+def test_the_fleet_cap_comes_from_the_measured_cost_per_drone():
+    from anafi_sim.launch_check import CPU_PER_DRONE, fleet_cap, fleet_size_problem
+    assert fleet_cap(2) == 12 and fleet_cap(1) == 6 and fleet_cap(0.1) == 1
+    assert fleet_size_problem(12, cores=2) is None
+    problem = fleet_size_problem(50, cores=2)
+    assert problem.startswith('50 drones is more than the fleet cap of 12') and 'max_drones:=N' in problem
+    assert '%.3f' % CPU_PER_DRONE in problem and 'benchmarks/results/fleet.md' in problem
+    assert fleet_size_problem(50, max_drones=60) is None and 'max_drones:=20' in fleet_size_problem(30, 20)
+
+
+def test_drones_above_the_cap_fail_the_launch_check():
+    from anafi_sim.launch_check import fleet_cap
+    [line] = check(parse(['drones=%d' % (fleet_cap() + 1), 'max_drones=0']))
+    assert line.startswith('launch argument drones:=') and 'fleet cap' in line
+    assert check(parse(['drones=%d' % (fleet_cap() + 1), 'max_drones=%d' % (fleet_cap() + 1)])) == []
+    assert check(parse(['drones=0'])) == []

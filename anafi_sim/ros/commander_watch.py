@@ -6,7 +6,9 @@ come back too and are ignored). ``check()`` (every control cycle) says DOWN / RE
 ERROR once per episode naming the other nodes; ``check_presence()`` (from the 1 Hz wall-clock diagnostics
 thread) asks the master whether each other node still publishes the topic and still answers (getPid, 1 s
 timeout): a node killed without unregistering, or one that stopped publishing, no longer keeps this one
-down. ``values()`` are the diagnostics values; ``message()`` the ERROR text while down.
+down. ``values()`` are the diagnostics values (with the other publishers of the topic, also idle ones: a
+controller started on a drone that is already commanded hears the commands at once and never commands);
+``message()`` the ERROR text while down.
 """
 import threading
 import time
@@ -15,7 +17,7 @@ import xmlrpc.client
 import rosgraph
 import rospy
 
-from anafi_control.commanders import DOWN, RESUMED, CommanderGuard
+from anafi_control.commanders import DOWN, LISTEN, RESUMED, CommanderGuard
 from anafi_sim.ros.node import _TimeoutTransport
 
 #: [s] XML-RPC timeout of the presence checks (master and the other node)
@@ -37,7 +39,17 @@ class CommandTopicWatch(object):
         self.guard = CommanderGuard(quiet_time)
         self.lock = threading.Lock()
         self._others = []
-        rospy.Subscriber(self.topic, msg_class, self._on_command, queue_size=20)
+        self.silent = True       # the last check said DOWN or LISTEN: publish nothing
+        self.sub = rospy.Subscriber(self.topic, msg_class, self._on_command, queue_size=20)
+
+    def publishers(self):
+        """The other nodes connected to this node as publishers of the command topic (from the subscriber's
+        connections: no master call), sorted; they may be idle (a controller that stood down)."""
+        try:
+            callers = [c.header.get('callerid', '') for c in self.sub.impl.connections if c.header]
+        except Exception:     # rospy internals changed: the commands heard still work
+            return []
+        return sorted(set(c for c in callers if c and c != self.me))
 
     def _on_command(self, msg):
         header = getattr(msg, '_connection_header', None) or {}
@@ -51,6 +63,7 @@ class CommandTopicWatch(object):
         with self.lock:
             state = self.guard.check(time.monotonic())
             others = self.guard.others(time.monotonic()) if state == DOWN else []
+            self.silent = state in (DOWN, LISTEN)
         if state == DOWN and others != self._others:
             rospy.logerr('%s: second commander on %s: %s publishes piloting commands too; standing down (no '
                          'command: the firmware hover brake stops the drone) until it is gone (episode %d)',
@@ -92,5 +105,6 @@ class CommandTopicWatch(object):
 
     def values(self):
         with self.lock:
-            return [('second commander episodes', self.guard.episodes),
-                    ('commands heard from other nodes', self.guard.foreign_commands)]
+            values = [('second commander episodes', self.guard.episodes),
+                      ('commands heard from other nodes', self.guard.foreign_commands)]
+        return values + [('other publishers of the command topic', ' '.join(self.publishers()) or 'none')]

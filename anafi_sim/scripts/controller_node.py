@@ -50,7 +50,7 @@ from dynamic_reconfigure.server import Server
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 
-from anafi_control.commanders import DOWN, RESUMED
+from anafi_control.commanders import DOWN, LISTEN, RESUMED
 from anafi_control.contract import LEVEL_ERROR, TIMEOUT_DEFAULTS, WAITING, health
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, RECONFIGURABLE, MpcTracking,
@@ -377,7 +377,7 @@ class ControllerNode(object):
     # -- cycle and command ----------------------------------------------------------------------
     def _on_cycle(self, _event=None):
         commanders = self.commanders.check()
-        if commanders == DOWN:     # another node commands this drone: no command (publish checks it too)
+        if commanders in (DOWN, LISTEN):   # another node commands this drone, or listening first: no command
             return
         if commanders == RESUMED:
             with self.lock:
@@ -406,7 +406,7 @@ class ControllerNode(object):
         self._publish(command, stamp)
 
     def _publish(self, command, stamp):
-        if command is None or self.commanders.guard.down:
+        if command is None or self.commanders.silent:
             # failsafe SILENT (or warming up), or a second commander: nothing, the firmware's hover brake acts
             with self.lock:
                 self.silent_cycles += 1

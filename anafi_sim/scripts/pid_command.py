@@ -25,7 +25,7 @@ from std_msgs.msg import Bool, Float64
 
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler
 from anafi_sim.ros import topics
-from anafi_control.commanders import DOWN
+from anafi_control.commanders import DOWN, LISTEN
 from anafi_sim.ros.commander_watch import CommandTopicWatch
 from anafi_sim.ros.node import (Timer, diagnostic_status, diagnostics_publisher, namespace_id, private_params,
                                 run_node, start_diagnostics_thread)
@@ -66,7 +66,7 @@ class PidCommandNode(object):
             self.assembler.on_enable(msg.data)
 
     def _on_timer(self, event):
-        if self.commanders.check() == DOWN:    # another node commands this drone: no command
+        if self.commanders.check() in (DOWN, LISTEN):   # another node commands this drone, or listening first
             return
         stamp = rospy.Time.now()
         with self.lock:

@@ -85,10 +85,11 @@ FAULTS = (
      'its own: the MPC and the distributed PID, each given a hovering state and a waypoint',
      'the timers keep running (rospy.Timer died before): the controllers go SILENT (clock_jump) and command '
      'again; the nodes count the jump ("ROS time jumps back") and log it'),
-    ('second_commander', 'a second MPC (node mpc_rival) commands the same drone in flight, then is killed '
-     '(SIGKILL: its registration stays on the master)', 'both controllers stand down: ERROR "second commander: '
-     '<the other> also publishes ...", no command, the firmware brake stops the drone; the survivor commands '
-     'again once the other is gone (quiet 2 s, no longer answering)'),
+    ('second_commander', 'a second MPC (node mpc_rival) started on the flying drone; then an operator (this '
+     'test node) publishes hover commands on drone/rpyt for 2 s', 'one commander at any time: the newcomer '
+     'hears the commands and never commands (ERROR "second commander: ... also publishes ..."), the flying '
+     'controller keeps tracking; the controller yields to the operator (ERROR naming it, no command) and '
+     'tracks again once the operator is gone (quiet 2 s, no longer publishing)'),
     ('stderr_flood', '600 MB on the telemetry tool\'s stderr without a newline while it prints samples (a third '
      'interface, /flood, whose tlm-data-logger found on PATH is a test tool that floods stderr, then runs the '
      'stand-in)', 'stderr read with the same 4096-byte cap as stdout: the interface\'s memory stays that of an '
@@ -447,42 +448,64 @@ class TestFaultMatrix(unittest.TestCase):
 
     def test_06c_second_commander(self):
         g = self.g
-        rival_state = rospy.Publisher('/%s/fault/rival_odom' % DRONE, Odometry, queue_size=10)
-        feed = [False]
-        relay = rospy.Subscriber('/%s/fault/odom' % DRONE, Odometry,
-                                 lambda m: rival_state.publish(m) if feed[0] else None, queue_size=10)
-        rival = self.procs.start('rival', ['rosrun', 'anafi_sim', 'controller_node.py', '__name:=mpc_rival',
-                                           '__ns:=/%s' % DRONE, '_controller:=mpc',
-                                           '_state_topic:=fault/rival_odom'], self.env)
-        try:     # the rival waits without a state (SILENT) until it gets one: then it commands at once
-            harness.require(lambda: g.status('/%s/mpc_rival' % DRONE) is not None, 60.0, 'the rival up')
-            v = self.fly()
-            before = self.controller(0.0)
-            pos0, t0 = g.position(), time.time()
-            feed[0] = True
-            secs, dist = self.wait_stop(t0, pos0)
-            e = self.wait_controller(t0, lambda e: 'second commander' in e[2], 5.0, 'second commander ERROR')
-            self.assertEqual(e[1], 2, e)
-            self.assertIn('mpc_rival', e[2])
-            r = g.status('/%s/mpc_rival' % DRONE, t0)
-            self.assertTrue(r is not None and r[1] == 2 and 'mpc_controller' in r[2], r)
-            self.assertEqual(g.command_rate(), 0.0, 'both stand down: no command')
-            bound = self.bound(v, 0.5)
-            self.assertLess(dist, bound, 'second_commander: %.1f m from %.1f m/s > bound %.1f m' % (dist, v, bound))
-            t_kill = time.time()
-            os.kill(harness.node_pid('/%s/mpc_rival' % DRONE, self.uri), signal.SIGKILL)
-            rec = self.recover(t_kill)
-            after = self.controller(t_kill)
+        Command = piloting_command_class()
+        seen = []       # (wall time, caller) of every command on the drone's command topic
+        sub = rospy.Subscriber('/%s/drone/rpyt' % DRONE, Command, lambda m: seen.append(
+            (time.time(), m._connection_header.get('callerid', ''))), queue_size=50)
+
+        def callers(t0, t1):
+            return sorted(set(c for t, c in list(seen) if t0 <= t < t1))
+        me = rospy.get_name()
+        self.fly()
+        before = self.controller(0.0)
+        # 1. a second MPC started on the flying drone: it hears the commands and never commands
+        t0 = time.time()
+        self.procs.start('rival', ['rosrun', 'anafi_sim', 'controller_node.py', '__name:=mpc_rival',
+                                   '__ns:=/%s' % DRONE, '_controller:=mpc', '_state_topic:=fault/odom'], self.env)
+        try:
+            rival = [None]
+
+            def rival_error():
+                rival[0] = g.status('/%s/mpc_rival' % DRONE, t0)
+                return rival[0] is not None and rival[0][1] == 2 and 'second commander' in rival[0][2]
+            harness.require(rival_error, 60.0, 'the rival in ERROR', lambda: str(rival[0]))
+            self.assertIn('/%s/mpc_controller' % DRONE, rival[0][2])
+            t1 = time.time()
+            main = self.wait_controller(t1, lambda e: 'mpc_rival' in e[3].get(
+                'other publishers of the command topic', ''), 5.0, 'the rival listed by the controller')
+            self.assertEqual((main[1], main[2]), (0, 'tracking'), main)
+            time.sleep(3.0)
+            only = callers(t1, time.time())
+            self.assertEqual(only, ['/%s/mpc_controller' % DRONE], 'commands from one node only')
+            speed = g.speed() or 0.0
+            self.assertGreater(speed, 0.6 * SPEED, 'the drone keeps flying')
+            # 2. an operator takes over (this node publishes hover commands for 2 s): the controller yields
+            teleop = rospy.Publisher('/%s/drone/rpyt' % DRONE, Command, queue_size=10)
+            time.sleep(0.5)
+            t2 = time.time()
+            while time.time() - t2 < 2.0:
+                teleop.publish(Command())
+                time.sleep(0.1)
+            e = self.wait_controller(t2, lambda e: e[1] == 2 and 'second commander' in e[2], 5.0,
+                                     'the controller yields: ERROR second commander')
+            self.assertIn(me, e[2])
+            during = callers(t2 + 0.5, t2 + 2.0)
+            self.assertEqual(during, [me], 'only the operator commands')
+            teleop.unregister()
+            t3 = time.time()
+            rec = self.recover(t3)
+            after = self.controller(t3)
+            self.assertEqual(callers(time.time() - 1.0, time.time()), ['/%s/mpc_controller' % DRONE])
         finally:
-            feed[0] = False
-            relay.unregister()
+            sub.unregister()
             self.procs.stop('rival')
-        del rival
-        self.record('second_commander', 'ERROR "%s"; the rival ERROR too; commands 0 Hz; second commander '
-                    'episodes %s -> %s, commands heard from other nodes %s' % (
-                        e[2], counter(before, 'second commander episodes'), counter(after, 'second commander episodes'),
-                        counter(after, 'commands heard from other nodes')),
-                    '%.1f m from %.1f m/s in %.1f s (bound %.1f m)' % (dist, v, secs, bound), rec)
+        self.record('second_commander', 'newcomer: the rival ERROR "%s", never commands; the controller OK '
+                    '"tracking" (other publishers: %s), commands from %s only, the drone at %.1f m/s; operator: '
+                    'the controller ERROR "%s" within 1 s, only the operator commands; second commander episodes '
+                    '%s -> %s' % (rival[0][2], main[3].get('other publishers of the command topic'), only[0], speed,
+                                  e[2], counter(before, 'second commander episodes'),
+                                  counter(after, 'second commander episodes')),
+                    'not needed (one commander at any time; the operator\'s commands fly the drone)', rec)
 
     def _interface(self, since=0.0):
         return self.g.status('/%s/interface' % DRONE, since)
@@ -755,8 +778,8 @@ CLOCK_LAUNCH = """<launch>
 </launch>
 """
 
-#: publishes /clock (100 Hz wall, 1 s of sim time per s), a hovering state and a waypoint per drone; after
-#: 12 s the clock jumps 5 s back; prints RESULT {json}: commands per drone before / after, the first command
+#: publishes /clock (100 Hz wall, 1 s of sim time per s), a hovering state and a waypoint per drone; once
+#: both controllers command steadily the clock jumps 5 s back; prints RESULT {json}: commands per drone before / after, the first command
 #: after the jump [s wall], the jump counters of the diagnostics, the MPC's message seen after the jump
 CLOCK_PROBE = """
 import json, sys, threading, time
@@ -798,7 +821,9 @@ t_sim, tick, jump_wall, end = 100.0, 0, None, None
 start = time.time()
 while True:
     now = time.time()
-    if jump_wall is None and now - start > 12.0:
+    with lock:      # jump once both controllers have commanded for 2 s (at most 90 s after the start)
+        steady = all(sum(1 for t in ts if t > now - 2.0) >= 15 for ts in times.values())
+    if jump_wall is None and (steady or now - start > 90.0):
         t_sim -= 5.0
         jump_wall = now
     if jump_wall is not None and now - jump_wall > 12.0:

@@ -342,7 +342,8 @@ class Timer(object):
             self._callback(event)
         except Exception as error:   # a cycle that failed must not end the timer thread
             self.callback_errors += 1
-            if not rospy.is_shutdown():
+            # shutting down: rospy closes the topics before is_shutdown() turns true (publish() to a closed topic)
+            if not (rospy.is_shutdown() or rospy.core.is_shutdown_requested()):
                 rospy.logerr_throttle(5.0, '%s: %s timer callback failed (%d times): %s: %s' % (
                     rospy.get_name(), self.name, self.callback_errors, type(error).__name__, error))
 

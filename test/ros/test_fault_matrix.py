@@ -26,8 +26,10 @@ import tempfile
 import threading
 import time
 import unittest
+import xmlrpc.client
 
 import psutil
+import rosgraph
 import rospy
 import rostest
 from diagnostic_msgs.msg import DiagnosticArray
@@ -90,6 +92,11 @@ FAULTS = (
      'hears the commands and never commands (ERROR "second commander: ... also publishes ..."), the flying '
      'controller keeps tracking; the controller yields to the operator (ERROR naming it, no command) and '
      'tracks again once the operator is gone (quiet 2 s, no longer publishing)'),
+    ('hostile_command', 'the attack: the /garbage interface\'s ~telemetry_command set to "sh -c \'touch FILE\'" '
+     '(rosparam), then its XML-RPC shutdown called (roslaunch respawns it with the new parameter)',
+     'refused: the respawned interface runs nothing, stays up in ERROR "bad parameters: telemetry_command: '
+     'refused to run \'sh\' ..." (not respawned again), FILE never created; the parameter put back and the '
+     'node shut down again -> it reads the telemetry, OK'),
     ('stderr_flood', '600 MB on the telemetry tool\'s stderr without a newline while it prints samples (a third '
      'interface, /flood, whose tlm-data-logger found on PATH is a test tool that floods stderr, then runs the '
      'stand-in)', 'stderr read with the same 4096-byte cap as stdout: the interface\'s memory stays that of an '
@@ -598,6 +605,42 @@ class TestFaultMatrix(unittest.TestCase):
                     % (e[0][2], flood_bytes, counter(e[0], 'process stderr oversize lines'),
                        e[0][3].get('process last stderr'), rss['flood'], rss['garbage'],
                        e[0][3]['samples published']), 'not needed', None)
+
+    def test_08d_hostile_command(self):
+        g = self.g
+        name = '/garbage/interface'
+        marker = os.path.join(self.workdir, 'pwned')
+        original = rospy.get_param(name + '/telemetry_command')
+
+        def shutdown():
+            uri = rosgraph.Master(rospy.get_name()).lookupNode(name)
+            xmlrpc.client.ServerProxy(uri).shutdown(rospy.get_name(), 'fault matrix: hostile_command')
+        old = harness.node_pid(name, self.uri)
+        rospy.set_param(name + '/telemetry_command', "sh -c 'touch %s'" % marker)
+        t0 = time.time()
+        shutdown()
+        e, pid = [None], [None]
+
+        def refused():
+            e[0], pid[0] = g.status(name + ': bad parameters', t0), harness.node_pid(name, self.uri)
+            return e[0] is not None and e[0][1] == 2 and 'refused' in e[0][2] and pid[0] not in (None, old)
+        harness.require(refused, 30.0, 'the respawned interface refusing the command', lambda: str(e[0]))
+        self.assertIn("telemetry_command: refused to run 'sh'", e[0][2])
+        time.sleep(3.0)
+        self.assertEqual(harness.node_pid(name, self.uri), pid[0], 'up in ERROR, not respawned again')
+        self.assertFalse(os.path.exists(marker), 'the hostile command ran')
+        rospy.set_param(name + '/telemetry_command', original)
+        t_fixed = time.time()
+        shutdown()
+        ok = [None]
+
+        def flowing():
+            ok[0] = g.status(name + ': ground truth interface', t_fixed)
+            return ok[0] is not None and ok[0][1] == 0 and 'publishing' in ok[0][2]
+        harness.require(flowing, 30.0, 'the interface reading the telemetry again', lambda: str(ok[0]))
+        self.record('hostile_command', 'respawned (pid %d -> %d), ERROR "%s", same pid 3 s later, %s not created; '
+                    'parameter put back: OK "%s"' % (old, pid[0], e[0][2], os.path.basename(marker), ok[0][2]),
+                    'not needed (the drone\'s own interface untouched)', ok[0][0] - t_fixed)
 
     def test_08b_simulator_restart(self):
         g = self.g

@@ -39,6 +39,7 @@ ALLOWED_IMPORTS = {
     _CTL: set(),
     _PATHS: set(),
     'anafi_sim.harness': set(),
+    'anafi_sim.launch_check': {_PATHS},
     _TLM: {_PATHS},
     _SIM: {_TLM, _CTL, _PATHS},
     _IF: {_TLM, _CTL, _PATHS},

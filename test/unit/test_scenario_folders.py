@@ -12,7 +12,7 @@ def test_names_and_paths_inside_the_folders_are_read(tmp_path):
     (own / 'hover.yaml').write_text(open(os.path.join(SCENARIO_DIR, 'static_wp0.yaml')).read())
     folders = [str(own), SCENARIO_DIR]
     assert scenario_in_folders('hover', folders) == os.path.realpath(str(own / 'hover.yaml'))
-    assert load_scenario(scenario_in_folders(str(own / 'hover.yaml'), folders)).name == 'hover'
+    assert load_scenario(scenario_in_folders(str(own / 'hover.yaml'), folders)).name == 'static_wp0'
     shipped = scenario_in_folders(os.path.join(SCENARIO_DIR, 'circle_r2_v1.yaml'), folders)
     assert load_scenario(shipped).name == 'circle_r2_v1'
 

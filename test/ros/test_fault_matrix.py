@@ -21,6 +21,7 @@ import math
 import os
 import shutil
 import signal
+import subprocess
 import sys
 import tempfile
 import threading
@@ -97,6 +98,9 @@ FAULTS = (
      'refused: the respawned interface runs nothing, stays up in ERROR "bad parameters: telemetry_command: '
      'refused to run \'sh\' ..." (not respawned again), FILE never created; the parameter put back and the '
      'node shut down again -> it reads the telemetry, OK'),
+    ('fleet_cap', 'roslaunch anafi_sim fleet.launch drones:=50 (305 processes, 11 GB, the master unresponsive '
+     'for 150 s before)', 'refused before anything starts: one line naming drones and the cap (cores / 0.165 '
+     'core per drone, benchmarks/results/fleet.md), roslaunch exits non-zero, no node started'),
     ('stderr_flood', '600 MB on the telemetry tool\'s stderr without a newline while it prints samples (a third '
      'interface, /flood, whose tlm-data-logger found on PATH is a test tool that floods stderr, then runs the '
      'stand-in)', 'stderr read with the same 4096-byte cap as stdout: the interface\'s memory stays that of an '
@@ -641,6 +645,23 @@ class TestFaultMatrix(unittest.TestCase):
         self.record('hostile_command', 'respawned (pid %d -> %d), ERROR "%s", same pid 3 s later, %s not created; '
                     'parameter put back: OK "%s"' % (old, pid[0], e[0][2], os.path.basename(marker), ok[0][2]),
                     'not needed (the drone\'s own interface untouched)', ok[0][0] - t_fixed)
+
+    def test_08e_fleet_cap(self):
+        from anafi_sim.launch_check import fleet_cap
+        env = dict(self.env, ROS_MASTER_URI='http://127.0.0.1:%d' % harness.free_port())   # no master there
+        t0 = time.time()
+        out = subprocess.run(['roslaunch', 'anafi_sim', 'fleet.launch', 'drones:=50'], env=env,
+                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                             universal_newlines=True, timeout=120)
+        seconds = time.time() - t0
+        lines = [line for line in out.stdout.splitlines() if line.startswith('launch argument drones:=50')]
+        self.assertNotEqual(out.returncode, 0, out.stdout[-2000:])
+        self.assertEqual(len(lines), 1, out.stdout[-2000:])
+        self.assertIn('more than the fleet cap of %d' % fleet_cap(), lines[0])
+        self.assertNotIn('started with pid', out.stdout)               # nothing started, not even a master
+        self.record('fleet_cap', 'exit status %d after %.1f s, nothing started: "%s"' % (out.returncode, seconds,
+                                                                                        lines[0]),
+                    'not needed', None)
 
     def test_08b_simulator_restart(self):
         g = self.g

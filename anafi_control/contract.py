@@ -440,6 +440,12 @@ class Controller(object):
         self.last = out
         return out
 
+    def reset(self):
+        """Forget internal state as a silent cycle does (the node stood down, e.g. for a second commander);
+        the next cycle starts clean."""
+        self.mode = SILENT
+        self._hover(None)
+
     def health(self):
         """Health of the last cycle, with the last reason and the counters as values."""
         return health(self.last.key, self.last.reason,

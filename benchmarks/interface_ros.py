@@ -67,7 +67,7 @@ def bench_ros(parts, duration, rate, tcp_nodelay, log):
         epoch = float(int(time.time())) - 10.0
         feeder = Feeder(server, flight_samples(3000, seed=2), rate, epoch)
         feeder.start()
-        cli = '%s %s -r 0' % (sys.executable, CLI_SCRIPT)
+        cli = '%s -r 0' % CLI_SCRIPT      # the package's stand-in (a known tool: run as is, no interpreter)
 
         ours_rx, paper_rx = Recorder(), Recorder()
         rospy.Subscriber('/anafi/ground_truth/drone_data', DroneData, ours_rx, queue_size=1000, tcp_nodelay=tcp_nodelay)

@@ -13,14 +13,17 @@ last value of its key, a ``rospy.Timer`` publishes ``sphinx/drone_data``
 telemetry: SI, world ENU / body FLU) at ``~rate`` Hz with whatever values are
 current, so one message may mix fields of different samples, as the
 reference's did. Unlike the reference it fills the angular-velocity fields
-with the angular velocity (the reference's bug does not change the cost).
+with the angular velocity (the reference's bug does not change the cost), and
+it builds each pipeline from two processes joined by a pipe instead of handing
+a command line to ``sh`` (no parameter is ever run by a shell; the idle ``sh``
+of each reference pipeline is not counted).
 
 Parameters: ~cli (command printing the telemetry, without its endpoint;
-default ``tlm_data_logger.py -r 0``), ~host (127.0.0.1), ~port (9060),
+default ``tlm_data_logger.py -r 0``; one of the known tools, checked like the
+interface's ~telemetry_command: anafi_sim.interface.telemetry_command), ~host (127.0.0.1), ~port (9060),
 ~prefix (omniscient_anafi.), ~rate (100 Hz). Every pipeline runs in its own
 process group, stopped on shutdown (anafi_sim.processes.stop).
 """
-import shlex
 import subprocess
 import sys
 import threading
@@ -28,6 +31,7 @@ import threading
 import rospy
 
 from anafi_sim import processes
+from anafi_sim.interface.telemetry_command import allowed_argv
 from anafi_sim.msg import DroneData
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, key_map
 
@@ -45,9 +49,11 @@ MSG_FIELDS = {
 }
 
 
-def pipeline_command(cli, host, port, key):
-    """The shell pipeline that prints only ``key``'s lines."""
-    return '%s inet:%s:%d | grep --line-buffered %s' % (cli, host, int(port), shlex.quote(key))
+def pipeline_commands(cli, host, port, key):
+    """(CLI argv, grep argv): the two processes of the pipeline that prints only ``key``'s lines.
+    ValueError when ``cli`` is not one of the known telemetry tools."""
+    cli_argv = allowed_argv('%s inet:%s:%d' % (cli, host, int(port)))
+    return cli_argv, ['grep', '--line-buffered', '--fixed-strings', '--', key]
 
 
 class PaperInterface(object):
@@ -58,20 +64,23 @@ class PaperInterface(object):
         self.procs = []
         self.threads = []
         self.pub = rospy.Publisher('sphinx/drone_data', DroneData, queue_size=50)
-        self.commands = [(pipeline_command(cli, host, port, key), MSG_FIELDS[field])
+        self.commands = [(pipeline_commands(cli, host, port, key), MSG_FIELDS[field])
                          for key, field in key_map(prefix).items()]
         self.period = 1.0 / rate
         self.timer = None
 
     def start(self):
-        for command, msg_field in self.commands:
-            proc = subprocess.Popen(command, shell=True, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                    start_new_session=True)
-            self.procs.append(proc)
+        for (cli_argv, grep_argv), msg_field in self.commands:
+            source = subprocess.Popen(cli_argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                      start_new_session=True)
+            proc = subprocess.Popen(grep_argv, stdin=source.stdout, stdout=subprocess.PIPE, start_new_session=True)
+            source.stdout.close()    # grep holds the pipe: the CLI gets SIGPIPE when grep ends
+            self.procs += [source, proc]
             t = threading.Thread(target=self._read, args=(proc, msg_field), daemon=True)
             t.start()
             self.threads.append(t)
-        rospy.loginfo('paper_interface: %d pipelines started, e.g. %r', len(self.procs), self.commands[0][0])
+        rospy.loginfo('paper_interface: %d pipelines started, e.g. %s | %s', len(self.commands),
+                      ' '.join(self.commands[0][0][0]), ' '.join(self.commands[0][0][1]))
         self.timer = rospy.Timer(rospy.Duration(self.period), self._publish)
 
     def _read(self, proc, msg_field):
@@ -111,7 +120,11 @@ def main():
     if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not rate > 0:
         rospy.logfatal('paper_interface: ~rate must be > 0, got %r', rate)
         return 2
-    node = PaperInterface(cli, host, port, prefix, float(rate))
+    try:
+        node = PaperInterface(cli, host, port, prefix, float(rate))
+    except ValueError as error:
+        rospy.logfatal('paper_interface: ~cli / ~host: %s', error)
+        return 2
     rospy.on_shutdown(node.shutdown)
     try:
         node.start()

@@ -3,10 +3,10 @@
 # tracking demo (the mirrored Anafi following a circle; CONTROLLER=mpc|pid|preview_mpc; CONDITIONS=real_flights: in
 # the wind of the paper's outdoor flights). DEMO_LAUNCH/DEMO_ARGS override.
 #
-# roslaunch ends the demo with a red "REQUIRED process [...] has died!" even when the experiment monitor
-# (the required node) finished its job and exited cleanly. Its output goes through a filter that says
-# which it was: green "[demo] finished" for a clean end, a red line naming the REQUIRED node and how it
-# died otherwise (then the exit status is 1).
+# A run that ended well: the experiment monitor (the required node) ends roslaunch as Ctrl-C would and
+# says "finished: ending the launch" -> a green "[demo] finished". A run that failed: the monitor exits
+# non-zero, roslaunch prints a red "REQUIRED process [...] has died!" -> a red line naming the node and
+# how it died (exit status 1). A bad launch argument: roslaunch's one line naming it, exit status 1.
 set -euo pipefail
 port=$(python -c 'from anafi_sim.processes import free_port; print(free_port())')
 export ROS_MASTER_URI="http://127.0.0.1:$port"
@@ -25,6 +25,10 @@ ESC = re.compile(r"\x1b\[[0-9;]*m")
 required, status = None, 0
 for line in sys.stdin:
     plain = ESC.sub("", line)
+    if "finished: ending the launch" in plain:       # the monitor ends roslaunch as Ctrl-C would
+        sys.stdout.write(line)
+        sys.stdout.write("%s[demo] finished%s\n" % (GREEN, OFF))
+        continue
     m = re.search(r"REQUIRED process \[(.+?)\] has died!", plain)
     if m:
         required = m.group(1).rsplit("-", 1)[0]      # "anafi/experiment_monitor-9" -> node name

@@ -97,5 +97,15 @@ source "$WS/devel/setup.bash"
 export VIRTUAL_ENV="$VENV"
 export PATH="$VENV/bin:\$PATH"
 export ANAFI_SIM_ROOT="$ROOT"
+# Loopback only unless you ask for a network: rospy and roscpp listen on every interface (0.0.0.0) unless
+# ROS_IP / ROS_HOSTNAME is a loopback address. With neither set and a master on this machine, nodes and the
+# master listen on 127.0.0.1 only. Two machines: set ROS_IP (and unset ROS_HOSTNAME) after sourcing this
+# file (docs/two_hosts.md).
+if [ -z "\${ROS_IP:-}" ] && [ -z "\${ROS_HOSTNAME:-}" ]; then
+    case "\${ROS_MASTER_URI:-http://localhost:11311}" in
+        http://localhost:*|http://127.*) export ROS_HOSTNAME=127.0.0.1 ;;
+        *) echo "env.bash: ROS_MASTER_URI=\$ROS_MASTER_URI is another machine: set ROS_IP to this machine's address (docs/two_hosts.md)" >&2 ;;
+    esac
+fi
 ENV
 say "ready: source $ROOT/env.bash"

@@ -17,7 +17,9 @@ escapes: it is counted.
 
 Lines are read with a cap of ``max_line`` bytes: a longer line is dropped
 (counted in ``oversize_lines``, never handed to ``on_line``) and memory stays
-bounded whatever the process prints. ``sample_timeout`` [s] (None: off): the
+bounded whatever the process prints; stderr is read with the same cap (only
+the start of its last line is kept, ``last_stderr``; bytes counted in
+``stderr_bytes``). ``sample_timeout`` [s] (None: off): the
 process is also treated as hung when ``on_line`` has not returned True (= a
 sample was completed) for that long while it prints (garbage only).
 
@@ -85,6 +87,8 @@ class ProcessSupervisor(object):
         self.callback_errors = 0   # exceptions raised by on_line
         self.lines = 0
         self.oversize_lines = 0    # lines longer than max_line bytes, dropped
+        self.stderr_bytes = 0      # bytes read from stderr (only the start of its last line is kept)
+        self.stderr_oversize_lines = 0   # stderr lines longer than max_line bytes (their start kept)
         self.last_exit_code = None
         self.last_stderr = ''
         self.last_error = ''
@@ -126,7 +130,8 @@ class ProcessSupervisor(object):
         return dict(running=self.running, pid=self.pid, attempts=self.attempts, starts=self.starts,
                     restarts=self.restarts, exits=self.exits, hangs=self.hangs,
                     spawn_failures=self.spawn_failures, callback_errors=self.callback_errors,
-                    lines=self.lines, oversize_lines=self.oversize_lines,
+                    lines=self.lines, oversize_lines=self.oversize_lines, stderr_bytes=self.stderr_bytes,
+                    stderr_oversize_lines=self.stderr_oversize_lines,
                     last_exit_code=self.last_exit_code, last_stderr=self.last_stderr,
                     last_error=self.last_error, backoff=self.backoff)
 
@@ -271,13 +276,27 @@ class ProcessSupervisor(object):
                 self._event('callback_error', message=self.last_error)
 
     def _read_stderr(self, proc):
+        """stderr, read with the same cap as stdout: ``last_stderr`` = the start (500 characters) of the last
+        non-empty line; the rest of a longer line is skipped as it comes (counted in ``stderr_bytes``), so
+        memory stays bounded whatever the process prints there."""
+        readline = proc.stderr.readline
+        limit = self.max_line
+        dropping = False          # inside a line longer than max_line: its start is kept, skip to its end
         while True:
             try:
-                raw = proc.stderr.readline()
+                raw = readline(limit)
             except (ValueError, OSError):
                 break
             if not raw:
                 break
+            self.stderr_bytes += len(raw)
+            complete = raw.endswith(b'\n')
+            if dropping:
+                dropping = not complete
+                continue
+            if not complete and len(raw) >= limit:
+                self.stderr_oversize_lines += 1
+                dropping = True
             text = raw.decode('utf-8', 'replace').strip()
             if text:
                 self.last_stderr = text[:500]

@@ -39,6 +39,7 @@ from anafi_sim import paths
 from anafi_sim.mission.model_following import OFFSET_FRAMES, YAW_MODES
 from anafi_sim.mission.trajectory import SCENARIO_DIR, airship_defaults, scenario_from_dict, scenario_path
 from anafi_sim.gazebo.mirror import model_names
+from anafi_sim.interface.telemetry_command import allowed_argv
 
 FLEET_DIR = paths.config_path('fleets')
 """Directory of the shipped fleet files (anafi_sim/config/fleets)."""
@@ -149,6 +150,11 @@ def drone_from_dict(d, what='drone'):
         raise ValueError('%s: telemetry_command must be a string, got %r' % (what, command))
     if command and source != 'sphinx':
         raise ValueError('%s: telemetry_command is for source sphinx only (the stand-in gets its own)' % what)
+    if command:
+        try:
+            allowed_argv(command)   # one of the known tools with its own arguments
+        except ValueError as error:
+            raise ValueError('%s: %s' % (what, error))
     start = _start(d.get('start'), offset, what + ': start')
     return Drone(name, source, start, controller, scenario, waypoint, target, offset, port, command)
 

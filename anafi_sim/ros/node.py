@@ -2,7 +2,8 @@
 
 Stage: ROS wiring only. A node reads its parameters with ``private_params()`` (a checked
 ``ParamReader``), builds its core, wires topics and timers, and starts with ``run_node``: a bad
-parameter (``ParamError``, a ValueError) is one ``rospy.logfatal`` line and a non-zero exit.
+parameter (``ParamError``, a ValueError) is one ``rospy.logfatal`` line and a non-zero exit, or, for a
+node that roslaunch respawns, one FATAL line and an ERROR diagnostic while it stays up (``stay_in_error``).
 
 Diagnostics: ``diagnostic_status`` builds one DiagnosticStatus (values stored as strings),
 ``health_status`` one from a core's ``Health`` (level, message, values) through the one level table
@@ -246,19 +247,25 @@ def start_master_watch(saved, period=MASTER_POLL, exit_code=MASTER_RESTART_EXIT,
 
 
 # ------------------------------------------------------------------ start-up
-def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch_master=True, **init_args):
+def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch_master=True,
+             respawned=False, **init_args):
     """init_node(name, **init_args), then ``factory().run()``.
 
     An exception of ``fatal_errors`` from ``factory`` (a bad parameter: ParamError is a ValueError) is
-    logged with rospy.logfatal and ends the process with ``fatal_exit_code``. What ``run()`` returns is
-    the exit status: None (default) or True -> 0, False -> 1, an int -> that code. ``watch_master``: exit
-    with ``MASTER_RESTART_EXIT`` when the ROS master restarts (see the module doc).
+    logged with rospy.logfatal and ends the process with ``fatal_exit_code``; with ``respawned`` (a node
+    that the launch files start with ``respawn="true"``: exiting would only start it again with the same
+    parameters, FATAL every second) the node stays up instead, in ERROR (``stay_in_error``). What
+    ``run()`` returns is the exit status: None (default) or True -> 0, False -> 1, an int -> that code.
+    ``watch_master``: exit with ``MASTER_RESTART_EXIT`` when the ROS master restarts (see the module doc).
     """
     rospy.init_node(name, **init_args)
     try:
         node = factory()
     except fatal_errors as error:
-        rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
+        if respawned:
+            stay_in_error(error)
+        else:
+            rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
         if init_args.get('disable_signals'):
             rospy.signal_shutdown('bad parameters')
         sys.exit(fatal_exit_code)
@@ -269,6 +276,88 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
     if result is None or result is True:
         return
     sys.exit(1 if result is False else int(result))
+
+
+#: [s] wall time between the ERROR diagnostics of a node that stays up with bad parameters
+BAD_PARAMS_PERIOD = 1.0
+
+
+def stay_in_error(error):
+    """A node with bad parameters that roslaunch would respawn: one FATAL line, then an ERROR diagnostic
+    ``<node>: bad parameters`` every ``BAD_PARAMS_PERIOD`` s (message: the error) until shutdown; nothing
+    else runs (no topic, no timer, no subprocess)."""
+    node = rospy.get_name()
+    message = 'bad parameters: %s' % (error,)
+    rospy.logfatal('%s: %s; staying up in ERROR without running (not exiting: roslaunch would respawn the '
+                   'node with the same parameters); fix the parameter and start it again', node, message)
+    status = diagnostic_status('%s: bad parameters' % node, ERROR, message,
+                               [('action', 'not running; fix the parameter and restart the node')])
+    start_diagnostics_thread(BAD_PARAMS_PERIOD, lambda: [status], diagnostics_publisher(), first=0.2)
+    try:
+        while not rospy.is_shutdown():
+            time.sleep(0.2)
+    except KeyboardInterrupt:   # nodes started with disable_signals
+        pass
+
+
+class Timer(object):
+    """``rospy.Timer`` that survives ROS time jumping backwards, and says so.
+
+    rospy's Timer thread dies with ROSTimeMovedBackwardsException when /clock goes back under
+    /use_sim_time (the simulator respawned, a bag looped): the node keeps running with no cycle at all.
+    This one is started with ``reset=True`` (the period restarts from the new time) and counts the jumps
+    (``jumps_back``; ``last_jump`` [s], how far back): one WARN line per jump naming the node and the
+    timer. ``callback(event)`` as rospy's; an exception from it is logged (throttled) and counted
+    (``callback_errors``), the timer goes on."""
+
+    def __init__(self, period, callback, name='timer'):
+        self.name = name
+        self.jumps_back = 0
+        self.last_jump = 0.0
+        self.callback_errors = 0
+        self._callback = callback
+        self._last = None
+        self._timer = rospy.Timer(rospy.Duration.from_sec(period), self._on_event, reset=True)
+
+    def _on_event(self, event):
+        now = event.current_real
+        if self._last is not None and now < self._last:
+            self.jumps_back += 1
+            self.last_jump = (self._last - now).to_sec()
+            rospy.logwarn('%s: ROS time moved backwards by %.3f s (%d times): %s timer kept running',
+                          rospy.get_name(), self.last_jump, self.jumps_back, self.name)
+        self._last = now
+        try:
+            self._callback(event)
+        except Exception as error:   # a cycle that failed must not end the timer thread
+            self.callback_errors += 1
+            # shutting down: rospy closes the topics before is_shutdown() turns true (publish() to a closed topic)
+            if not (rospy.is_shutdown() or rospy.core.is_shutdown_requested()):
+                rospy.logerr_throttle(5.0, '%s: %s timer callback failed (%d times): %s: %s' % (
+                    rospy.get_name(), self.name, self.callback_errors, type(error).__name__, error))
+
+    def shutdown(self):
+        self._timer.shutdown()
+
+
+def end_parent_launch(wait=15.0):
+    """End the roslaunch that started this node as Ctrl-C would (SIGINT to the parent process, only if it
+    is roslaunch), then wait up to ``wait`` s of wall time for roslaunch to stop this node. For a required
+    node that finished its job: roslaunch then exits 0 without its red "REQUIRED process has died".
+    Returns False (nothing sent) when the parent is not roslaunch."""
+    parent = os.getppid()
+    try:
+        with open('/proc/%d/cmdline' % parent, 'rb') as f:
+            words = f.read().split(b'\0')
+    except OSError:
+        return False
+    if not any(os.path.basename(w) == b'roslaunch' for w in words[:2]):
+        return False
+    os.kill(parent, signal.SIGINT)
+    end = time.monotonic() + wait
+    while not rospy.is_shutdown() and time.monotonic() < end:
+        time.sleep(0.05)
+    return True
 
 
 def _raise_interrupt(signum, frame):

@@ -30,7 +30,7 @@ up (~sync_settle), then at each control period (~sync_period) /clock stops at
 the period's tick until the command stamped at it arrives on drone/rpyt (at
 most ~sync_timeout s wall, counted on /diagnostics); a command with header.stamp 0 (the reference
 implementation's controllers) counts at its time of arrival (counted and named on /diagnostics).
-Bad parameters: logfatal, exit code 1.
+Bad parameters: logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 """
 import os
 import time
@@ -313,4 +313,4 @@ class AnafiSimNode(object):
 
 
 if __name__ == '__main__':
-    run_node('anafi_sim', AnafiSimNode)
+    run_node('anafi_sim', AnafiSimNode, respawned=True)

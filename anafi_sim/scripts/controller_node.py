@@ -24,8 +24,10 @@ Namespace /<drone> (default /anafi). Topics, relative to the namespace:
       no waypoint yet or a failed controller -> nothing is published, so the firmware's hover brake stops
       and holds the drone;
       /diagnostics (1 Hz of wall time: OK tracking or waiting for the first waypoint, WARN holding or silent
-      for missing / stale / non-finite / out-of-limits input or a clock jump, ERROR the controller failed;
-      with counters).
+      for missing / stale / non-finite / out-of-limits input or a clock jump, ERROR the controller failed
+      or a second commander; with counters);
+- in  ~command_topic too: commands of another node there = a second commander of the drone
+      (anafi_control.commanders): ERROR naming it and no command until it is gone (docs/reliability.md).
 - mpc only: mpc/predicted_path and mpc/reference_path (nav_msgs/Path in ~frame_id, the drone positions x_k*
       and waypoint positions z_k over the horizon; built only while someone subscribes), mpc/stats
       (anafi_sim/MpcStats), dynamic_reconfigure (cfg/Mpc.cfg: weights, limits, horizon,
@@ -34,7 +36,7 @@ Parameters: ~controller (mpc | pid), ~rate [Hz] (default the controller's RATE),
 ~state_timeout, ~waypoint_timeout [s], ~geofence_radius, ~min_altitude, ~max_altitude, ~max_waypoint_jump [m]
 (contract.WaypointLimits), ~state_topic, ~waypoint_topic, ~waypoint_type, ~command_topic; mpc: the keys of
 anafi_sim/config/mpc.yaml; pid: ~<loop>/<pid param> of anafi_sim/config/pid.yaml. Bad parameters:
-logfatal, exit code 1.
+logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 
 A new controller: a ``contract.Controller`` subclass and one line in ``ADAPTERS`` with an ``Adapter`` subclass
 naming it (``controller_class``); override ``build`` for more parameters and ``setup``/``after_cycle`` for
@@ -49,7 +51,8 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 
 import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
-from anafi_control.contract import TIMEOUT_DEFAULTS, WAITING, health
+from anafi_control.commanders import DOWN, LISTEN, RESUMED
+from anafi_control.contract import LEVEL_ERROR, TIMEOUT_DEFAULTS, WAITING, health
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, RECONFIGURABLE, MpcTracking,
                                         predicted_positions, reference_positions)
@@ -66,7 +69,8 @@ from anafi_sim.ros.reconfigure import TracedServer
 from anafi_sim import names
 from anafi_sim.ros.conversions import amend_health, subscribe_inputs, waypoint_admission, waypoint_limits
 from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES
-from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
+from anafi_sim.ros.commander_watch import CommandTopicWatch
+from anafi_sim.ros.node import (Timer, diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 sleep_until_aligned, start_diagnostics_thread)
 from anafi_sim.sim.clock import TIMER_PHASES
 from anafi_sim.ros.wire_types import piloting_command_class
@@ -343,6 +347,7 @@ class ControllerNode(object):
         self.commands = self.hover_commands = self.silent_cycles = 0
         self.Command = piloting_command_class()
         self.pub_cmd = rospy.Publisher(command_topic, self.Command, queue_size=10)
+        self.commanders = CommandTopicWatch(command_topic, self.Command)   # one drone, one commander
         self.pub_diag = diagnostics_publisher()
         self.adapter.setup()
         self.admission = waypoint_admission(p)
@@ -354,6 +359,12 @@ class ControllerNode(object):
 
     # -- cycle and command ----------------------------------------------------------------------
     def _on_cycle(self, _event=None):
+        commanders = self.commanders.check()
+        if commanders in (DOWN, LISTEN):   # another node commands this drone, or listening first: no command
+            return
+        if commanders == RESUMED:
+            with self.lock:
+                self.core.reset()
         started = time.perf_counter()
         stamp = rospy.Time.now()
         with self.lock:
@@ -378,7 +389,8 @@ class ControllerNode(object):
         self._publish(command, stamp)
 
     def _publish(self, command, stamp):
-        if command is None:       # failsafe SILENT (or warming up): nothing, the firmware's hover brake acts
+        if command is None or self.commanders.silent:
+            # failsafe SILENT (or warming up), or a second commander: nothing, the firmware's hover brake acts
             with self.lock:
                 self.silent_cycles += 1
             return
@@ -396,16 +408,26 @@ class ControllerNode(object):
             health = amend_health(self.core.health(), self.admission)
             extra = [('commands sent', self.commands), ('hover commands', self.hover_commands),
                      ('command periods without a command (silent)', self.silent_cycles),
-                     ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]
+                     ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic),
+                     ('ROS time jumps back (timers kept running)',
+                      max([t.jumps_back for t in getattr(self, 'timers', [])] or [0]))]
             extra += self.adapter.diagnostic_values()
+        self.commanders.check_presence()
+        extra += self.commanders.values()
+        second = self.commanders.message()
+        if second is not None:
+            health = health._replace(level=LEVEL_ERROR, message=second)
         return [health_status('%s: %s' % (self.adapter.label, rospy.get_name()), health, namespace_id(), extra)]
 
     def run(self):
+        self.timers = []
         start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
         sleep_until_aligned(1.0 / self.rate, self.timer_phase)      # cycles at timer_phase + k / rate
-        timers = [rospy.Timer(rospy.Duration.from_sec(1.0 / self.rate), self._on_cycle)]
+        # survive /clock going back (simulator respawned): the core sees the jump and goes SILENT, then tracks
+        timers = [Timer(1.0 / self.rate, self._on_cycle, 'control')]
         if self.command_rate is not None:
-            timers.append(rospy.Timer(rospy.Duration.from_sec(1.0 / self.command_rate), self._on_command))
+            timers.append(Timer(1.0 / self.command_rate, self._on_command, 'command'))
+        self.timers = timers
         try:
             rospy.spin()
         finally:
@@ -415,7 +437,7 @@ class ControllerNode(object):
 
 def main(controller=None, name='controller'):
     """Run the node (``controller``: the default of ~controller; ``name``: the default node name)."""
-    run_node(name, lambda: ControllerNode(controller))
+    run_node(name, lambda: ControllerNode(controller), respawned=True)
 
 
 if __name__ == '__main__':

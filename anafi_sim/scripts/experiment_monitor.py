@@ -28,7 +28,10 @@ durations, achieved real-time factor, simulator overruns, MPC solve times, contr
 nodes matching ~controller_nodes, fnmatch patterns of absolute node names), prints the summary and
 shuts down (exit 0; 1 on failure: not ready within ~ready_timeout s wall (90), the scenario not ending
 within its duration + ~end_margin s (30) of ROS time, no final summary ~final_timeout s (30) wall after
-the end). ~scenario / ~scenario_file / ~scenario_dir as the generator (for the scenario's duration);
+the end); with ~end_launch (false; experiment.launch: true) a run that ended well first ends the
+roslaunch that started the node as Ctrl-C does (its exit status 0, no red "REQUIRED process has died";
+a failed run still ends as a dead required node). ~scenario / ~scenario_file / ~scenario_dir as the
+generator (for the scenario's duration);
 ~label: the run's name in the output.
 """
 import fnmatch
@@ -50,7 +53,7 @@ from anafi_sim.mission.monitor import FAILED, FINAL, ExperimentMonitor, summary_
 from anafi_sim.mission.trajectory import SCENARIO_DIR, load_scenario
 from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim import names
-from anafi_sim.ros.node import private_params, run_node
+from anafi_sim.ros.node import end_parent_launch, private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
 from anafi_sim.sim.conditions_profile import load_conditions
 
@@ -98,6 +101,7 @@ class ExperimentMonitorNode(object):
         self.evaluator_node = rospy.resolve_name(p.string('evaluator_node', 'evaluator'))
         self.files = dict((k, p.string('%s_file' % k, '')) for k in ('summary', 'csv', 'plot', 'info', 'bag'))
         self.hold = p.flag('hold', True)
+        self.end_launch = p.flag('end_launch', False)
         # the flight conditions the simulator flies in (sim.launch conditions:=NAME): shown on the plot
         conditions = p.string('conditions', '')
         try:
@@ -419,6 +423,9 @@ class ExperimentMonitorNode(object):
         if rospy.is_shutdown() and self.core.state not in (FINAL, FAILED):
             self.core.reason = 'shut down before the end (state %s)' % self.core.state
         ok = self._finish(ok)
+        if ok and self.end_launch:
+            self._say('%s: finished: ending the launch' % self.label)
+            end_parent_launch()
         rospy.signal_shutdown('experiment finished')
         return ok
 

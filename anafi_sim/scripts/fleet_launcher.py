@@ -14,12 +14,14 @@ Parameters: ~fleet (name in anafi_sim/config/fleets or a path; three_circles), ~
 N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
 ~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false; true: rviz.launch
 per drone and rviz on the fleet's generated view ~out_dir/fleet.rviz, anafi_sim/mission/rviz_config.py),
-~stop_timeout (30 s).
+~stop_timeout (30 s), ~max_drones (0: the fleet cap derived from the CPU cores, anafi_sim.launch_check.fleet_cap:
+12 on 2 cores; a larger fleet is refused with a message naming the cap).
 
 Also a command-line tool, to see or check what a fleet file starts without starting it:
 
     fleet_launcher.py FLEET [--drones N] [--out-dir DIR] [--evaluate true|false] [--mirror true|false]
                       [--mirror-rate HZ] [--output log|screen] [--aggregator true|false] [--rviz true|false]
+                      [--max-drones N]
                       (--print | --write-only)
 
 --print: the generated XML on stdout; --write-only: write the files and print the launch file's path (then
@@ -39,15 +41,20 @@ from anafi_sim.mission.fleet import aggregator_analyzers, drone_scenario, fleet_
 from anafi_sim.mission.rviz_config import fleet_rviz
 from anafi_sim.mission.trajectory import scenario_from_dict
 from anafi_sim.processes import free_port, stop
+from anafi_sim.launch_check import fleet_size_problem
 
 DEFAULT_OUT_DIR = os.path.join(os.path.expanduser('~'), '.ros', 'anafi_fleet')
 OUTPUTS = ('log', 'screen')
 
 
 def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output, aggregator, log=sys.stderr.write,
-             rviz=False, conditions=''):
-    """Write the scenarios (and the aggregator groups) and the launch file into out_dir; its path."""
+             rviz=False, conditions='', max_drones=0):
+    """Write the scenarios (and the aggregator groups) and the launch file into out_dir; its path. ValueError
+    for a bad fleet, or one larger than the fleet cap (anafi_sim.launch_check.fleet_size_problem)."""
     fleet = load_fleet(fleet_name, drones)
+    too_many = fleet_size_problem(len(fleet.drones), max_drones)
+    if too_many:
+        raise ValueError(too_many)
     out_dir = os.path.abspath(os.path.expanduser(out_dir))
     os.makedirs(out_dir, exist_ok=True)
     ports, files = {}, {}
@@ -113,7 +120,8 @@ class FleetLauncherNode(object):
                              p.flag('evaluate', True), p.flag('mirror', True), p.positive('mirror_rate', 100.0),
                              p.choice('output', 'log', OUTPUTS), p.flag('aggregator', False),
                              log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False),
-                             conditions=p.string('conditions', '', allow_empty=True))   # ValueError: fatal, exit 2
+                             conditions=p.string('conditions', '', allow_empty=True),
+                             max_drones=p.integer('max_drones', 0, minimum=0))   # ValueError: fatal, exit 2
         self.child = None
         self.code = 0
 
@@ -164,13 +172,15 @@ def tool(argv):
     ap.add_argument('--aggregator', type=flag, default=False, metavar='true|false')
     ap.add_argument('--rviz', type=flag, default=False, metavar='true|false')
     ap.add_argument('--conditions', default='', help='flight-conditions profile NAME for every simulated drone')
+    ap.add_argument('--max-drones', type=int, default=0, help='the fleet cap (0: derived from the CPU cores)')
     what = ap.add_mutually_exclusive_group(required=True)
     what.add_argument('--print', dest='print_only', action='store_true')
     what.add_argument('--write-only', action='store_true')
     args = ap.parse_args(argv)
     try:
         path = generate(args.fleet, args.drones, args.out_dir, args.evaluate, args.mirror, args.mirror_rate,
-                        args.output, args.aggregator, rviz=args.rviz, conditions=args.conditions)
+                        args.output, args.aggregator, rviz=args.rviz, conditions=args.conditions,
+                        max_drones=args.max_drones)
     except ValueError as error:
         sys.stderr.write('fleet_launcher: %s\n' % error)
         return 2

@@ -20,7 +20,8 @@ and the world-loss rule, shared with the airship node). Runs in /<drone>:
   <gazebo_namespace>/model_states) and respawns; deletes its models on shutdown (SIGINT/SIGTERM);
 - /diagnostics every ~diagnostics_period: rate, lag (ground-truth stamp -> sent), rejections, spawns.
 
-Parameters: anafi_sim/config/mirror.yaml. Bad parameters or unreadable URDFs: logfatal, exit code 2.
+Parameters: anafi_sim/config/mirror.yaml. Bad parameters or unreadable URDFs: logfatal, then the node
+stays up in ERROR (not respawned: docs/nodes.md).
 """
 import os
 import threading
@@ -253,4 +254,4 @@ class GazeboMirrorNode(object):
 
 if __name__ == '__main__':
     # Own signal handling (run()) so the models can still be deleted through ROS before rospy shuts down.
-    run_node('gazebo_mirror', GazeboMirrorNode, fatal_exit_code=2, disable_signals=True)
+    run_node('gazebo_mirror', GazeboMirrorNode, fatal_exit_code=2, disable_signals=True, respawned=True)

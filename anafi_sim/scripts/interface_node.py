@@ -2,7 +2,9 @@
 """The paper's "Interface": Sphinx ground-truth telemetry -> ROS (thin node).
 
 Stage: telemetry -> **interface** -> (mirror | controllers).
-Runs ~telemetry_command as one supervised subprocess (anafi_sim.interface.supervisor),
+Runs ~telemetry_command as one supervised subprocess (anafi_sim.interface.supervisor): only one of the
+known tools with its own arguments (anafi_sim.interface.telemetry_command: Sphinx's tlm-data-logger or
+our stand-in, never through a shell; anything else is a bad parameter),
 parses its lines (anafi_sim.telemetry.protocol.TelemetryParser), decimates to ~rate
 and checks them (anafi_sim.interface.ground_truth.GroundTruthInterface), and publishes
 each accepted sample at once, from the reader thread (all publishers are
@@ -39,7 +41,8 @@ Namespace /<drone> (default drone name: the namespace's last part; in the
 root namespace the topics go under /<~drone_name>/). Parameters: see
 anafi_sim/config/interface.yaml. Under the reference implementation's names (compat.launch): node name
 sphinx_interface_node, ~publish_hz = ~rate (wins when set); the node sets ~publish_hz to the rate it
-publishes at, where the reference implementation's MPC reads it. Bad parameters: logfatal and exit code 2.
+publishes at, where the reference implementation's MPC reads it. Bad parameters: logfatal, then the node stays up in ERROR (not respawned:
+docs/nodes.md).
 """
 import shlex
 import threading
@@ -53,6 +56,7 @@ from nav_msgs.msg import Odometry
 from anafi_sim.interface import ground_truth as gt
 from anafi_sim.interface.supervisor import ProcessSupervisor
 from anafi_sim.interface.telemetry_source import WAITING_FOR_SIMULATOR, SimulatorSource, with_port
+from anafi_sim.interface.telemetry_command import allowed_argv
 
 #: [bytes] longest telemetry line taken (a Sphinx line is < 100 bytes); longer ones are dropped and counted
 MAX_LINE = 4096
@@ -71,7 +75,7 @@ STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
 def read_params():
     """All ~params, validated; raises ValueError with a clear message."""
     reader = private_params()
-    p = {'telemetry_command': reader.command('telemetry_command', DEFAULT_COMMAND),
+    p = {'telemetry_command': allowed_argv(reader.command('telemetry_command', DEFAULT_COMMAND)),
          'prefix': reader.word('prefix', DEFAULT_PREFIX, forbidden=':')}
     for name, default in (('rate', 100.0), ('stale_timeout', 0.5), ('restart_timeout', 2.0),
                           ('backoff_initial', 0.2), ('backoff_max', 5.0)):
@@ -279,4 +283,4 @@ class InterfaceNode(object):
 
 
 if __name__ == '__main__':
-    run_node('interface', InterfaceNode, fatal_exit_code=2)
+    run_node('interface', InterfaceNode, fatal_exit_code=2, respawned=True)

@@ -16,7 +16,8 @@ with the real gazebo_msgs types (anafi_sim.ros.gazebo_types, wire-identical):
 
 The world runs on the wall clock scaled by ~rtf (its own loop, never on
 /clock, so it can publish /clock itself). Parameters: see
-anafi_sim/config/kinematic_world.yaml. Bad parameters: logfatal, exit code 2.
+anafi_sim/config/kinematic_world.yaml. Bad parameters: logfatal, then the node stays up in ERROR
+(not respawned: docs/nodes.md).
 """
 import json
 import threading
@@ -218,4 +219,4 @@ class KinematicWorldNode(object):
 
 
 if __name__ == '__main__':
-    run_node('gazebo', KinematicWorldNode, fatal_exit_code=2)
+    run_node('gazebo', KinematicWorldNode, fatal_exit_code=2, respawned=True)

@@ -13,7 +13,9 @@ Safety (anafi_control.pid_wiring.CommandAssembler, docs/reliability.md): pid
 disabled (<pid_namespace>/pid_enable false), an effort missing, older than
 ~effort_timeout s or non-finite -> no command is published (the firmware's
 hover brake stops and holds the drone; an all-zero command would only level
-it and let it coast), counted and reported on /diagnostics (1 Hz wall). Bad parameters: logfatal, exit code 1.
+it and let it coast), counted and reported on /diagnostics (1 Hz wall). Commands of another node on
+~command_topic (a second commander, anafi_control.commanders): ERROR naming it and no command until it
+is gone. Bad parameters: logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 """
 import threading
 
@@ -24,8 +26,10 @@ from std_msgs.msg import Bool, Float64
 import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler
 from anafi_sim import names
-from anafi_sim.ros.node import (diagnostic_status, diagnostics_publisher, namespace_id, private_params, run_node,
-                                start_diagnostics_thread)
+from anafi_control.commanders import DOWN, LISTEN
+from anafi_sim.ros.commander_watch import CommandTopicWatch
+from anafi_sim.ros.node import (Timer, diagnostic_status, diagnostics_publisher, namespace_id, private_params,
+                                run_node, start_diagnostics_thread)
 from anafi_sim.ros.wire_types import piloting_command_class
 
 
@@ -41,6 +45,7 @@ class PidCommandNode(object):
         self.last_hovers = 0       # hover commands at the previous diagnostic
         self.cls = piloting_command_class()
         self.pub = rospy.Publisher(command_topic, self.cls, queue_size=10)
+        self.commanders = CommandTopicWatch(command_topic, self.cls)   # one drone, one commander
         self.pub_diag = diagnostics_publisher()
         for field, loop in COMMAND_LOOPS.items():
             rospy.Subscriber('%s/%s/control_effort' % (pid_ns, loop), Float64,
@@ -62,6 +67,8 @@ class PidCommandNode(object):
             self.assembler.on_enable(msg.data)
 
     def _on_timer(self, event):
+        if self.commanders.check() in (DOWN, LISTEN):   # another node commands this drone, or listening first
+            return
         stamp = rospy.Time.now()
         with self.lock:
             cmd, reason = self.assembler.command(stamp.to_sec())
@@ -87,17 +94,23 @@ class PidCommandNode(object):
             message = 'no command, firmware hover brake: %s' % reason
         values = [('command periods', commands), ('periods without a command', hovers),
                   ('periods without a command last second', hovers - self.last_hovers),
-                  ('refused efforts (non-finite)', bad), ('command topic', self.command_topic)]
+                  ('refused efforts (non-finite)', bad), ('command topic', self.command_topic),
+                  ('ROS time jumps back (timer kept running)', self.timer.jumps_back)]
         values += [('%s effort' % f, 'none' if v is None else ('bad' if v is False else '%g' % v))
                    for f, v in last.items()]
+        self.commanders.check_presence()
+        values += self.commanders.values()
+        second = self.commanders.message()
+        if second is not None:
+            level, message = DiagnosticStatus.ERROR, second
         self.last_hovers = hovers
         return [diagnostic_status('pid_command: %s' % rospy.get_name(), level, message, values, namespace_id())]
 
     def run(self):
+        self.timer = Timer(1.0 / self.rate, self._on_timer, 'command')     # survives /clock going back
         start_diagnostics_thread(1.0, self._diagnostic_statuses, self.pub_diag)
-        rospy.Timer(rospy.Duration(1.0 / self.rate), self._on_timer)
         rospy.spin()
 
 
 if __name__ == '__main__':
-    run_node('pid_command', PidCommandNode)
+    run_node('pid_command', PidCommandNode, respawned=True)

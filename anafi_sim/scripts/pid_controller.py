@@ -22,7 +22,7 @@ dynamic_reconfigure (cfg/Pid.cfg): Kp/Ki/Kd in [-1, 1] x scale 0.1/1/10/100;
 the server is seeded from ~Kp/~Ki/~Kd (split_gain) and its first callback
 is ignored, as in the pid package. Health on /diagnostics (1 Hz wall).
 Bad parameters (lower_limit > upper_limit, non-finite numbers, empty topic
-names, ...): logfatal and exit code 1 at start-up.
+names, ...): logfatal at start-up, then the node stays up in ERROR (not respawned: docs/nodes.md).
 """
 import math
 import threading
@@ -204,4 +204,4 @@ class PidControllerNode(object):
 
 
 if __name__ == '__main__':
-    run_node('controller', PidControllerNode)
+    run_node('controller', PidControllerNode, respawned=True)

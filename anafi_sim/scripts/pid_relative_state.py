@@ -41,7 +41,7 @@ from anafi_control.pid_wiring import input_topics, loop_inputs
 from anafi_sim import names
 from anafi_sim.ros.conversions import amend_health, subscribe_inputs, waypoint_admission, waypoint_limits
 from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES
-from anafi_sim.ros.node import (diagnostics_publisher, health_status, namespace_id, private_params, run_node,
+from anafi_sim.ros.node import (Timer, diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 start_diagnostics_thread)
 
 
@@ -102,14 +102,15 @@ class RelativeStateNode(object):
         with self.lock:
             h = amend_health(health(self.key, self.reason, list(self.gate.counters.items())), self.admission)
             extra = [('published cycles', self.published_cycles),
-                     ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic)]
+                     ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic),
+                     ('ROS time jumps back (timer kept running)', self.timer.jumps_back)]
         return [health_status('pid_relative_state: %s' % rospy.get_name(), h, namespace_id(), extra)]
 
     def run(self):
+        self.timer = Timer(1.0 / self.rate, self._on_timer, 'relative state')     # survives /clock going back
         start_diagnostics_thread(1.0, self._diagnostic_statuses, self.pub_diag)
-        rospy.Timer(rospy.Duration(1.0 / self.rate), self._on_timer)
         rospy.spin()
 
 
 if __name__ == '__main__':
-    run_node('pid_relative_state', RelativeStateNode)
+    run_node('pid_relative_state', RelativeStateNode, respawned=True)

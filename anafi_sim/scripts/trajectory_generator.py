@@ -19,7 +19,8 @@ node's namespace (/<drone>/):
   preview MPC's reference, anafi_control/preview_mpc.py); header.stamp = now, frame ~frame_id;
 - in drone/state (std_msgs/String; ~wait_for_flying: start only once 'flying');
 - in ~command (std_msgs/String): 'start', 'stop', 'restart', 'switch NAME'
-  (NAME = scenario name or YAML path); services ~start, ~stop
+  (NAME = scenario name or YAML path inside the scenario folders: ~scenario_dir, the package's
+  config/scenarios, the folder of ~scenario_file; any other file is refused unread); services ~start, ~stop
   (std_srvs/Trigger) when std_srvs is installed.
 
 Parameters: ~scenario (name, default circle_r2_v1) or ~scenario_file
@@ -31,9 +32,9 @@ stop keep publishing the last position with zero velocity), ~exit_when_done
 exit code 0; 1 when the drone never flew within ~start_timeout), ~frame_id
 (world). A bad scenario or parameter: logfatal and exit 1.
 """
-import threading
-
 import math
+import os
+import threading
 
 import rospy
 import yaml
@@ -45,7 +46,7 @@ import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control l
 from anafi_control.frames import euler_to_quaternion
 
 from anafi_sim.mission.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
-                                              load_scenario)
+                                              load_scenario, scenario_in_folders)
 from anafi_sim import names
 from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES, waypoint_class, waypoint_message
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, namespace_id, private_params,
@@ -78,6 +79,9 @@ class TrajectoryGeneratorNode(object):
         except ValueError as e:
             raise ValueError('%s (scenarios in %s: %s)'
                              % (e, self.scenario_dir, ', '.join(list_scenarios(self.scenario_dir))))
+        # 'switch' reads scenarios from ~scenario_dir, the package's scenarios and ~scenario_file's folder
+        self.switch_folders = [self.scenario_dir, SCENARIO_DIR] + (
+            [os.path.dirname(os.path.abspath(scenario_file))] if scenario_file else [])
         self.gen = TrajectoryGenerator(scenario, hold_when_idle=self.hold_when_idle)
         self.lock = threading.Lock()
         self.drone_state = ''
@@ -146,8 +150,8 @@ class TrajectoryGeneratorNode(object):
                 self.gen.stop(now)
                 return True, 'stopped'
             if verb == 'switch' and len(words) == 2:
-                try:
-                    scenario = load_scenario(words[1].strip(), self.scenario_dir)
+                try:     # a topic anyone can publish on: only files in the scenario folders are read
+                    scenario = load_scenario(scenario_in_folders(words[1].strip(), self.switch_folders))
                 except ValueError as e:
                     return False, str(e)
                 running = self.gen.state == RUNNING

@@ -4,7 +4,8 @@
 The graph runs on a private ROS master of this test (so that the master itself can be restarted, the last
 case): world.launch (simulated Anafi + interface + kinematic Gazebo world + mirror) + mpc.launch whose state comes through this test
 (``fault/odom``, a relay of drone/odom that the test can corrupt or stop) + a second interface in
-/garbage whose telemetry command prints garbage, a malformed number and a 10 kB line before the real tool.
+/garbage whose telemetry (the stand-in tool connected to ``GARBAGE_PROXY``, a relay of the simulator's
+telemetry port) carries garbage, a malformed number and a 10 kB line before the real telemetry.
 Wall clock, rtf 1, about 2 min.
 
 For each fault (``FAULTS``): the drone flies along x at about 3 m/s (a moving waypoint); the fault is
@@ -20,13 +21,16 @@ import math
 import os
 import shutil
 import signal
+import subprocess
 import sys
 import tempfile
 import threading
 import time
 import unittest
+import xmlrpc.client
 
 import psutil
+import rosgraph
 import rospy
 import rostest
 from diagnostic_msgs.msg import DiagnosticArray
@@ -96,6 +100,27 @@ FAULTS = (
      'tracking (the controller does not use the world)'),
     ('master_restart', 'ROS master killed and restarted on the same port', 'every node exits (code 75) and is '
      'respawned with its parameters; new publishers reach the controller again'),
+    ('clock_jump', '/clock jumps 5 s back under use_sim_time (as when the simulator respawns), on a graph of '
+     'its own: the MPC and the distributed PID, each given a hovering state and a waypoint',
+     'the timers keep running (rospy.Timer died before): the controllers go SILENT (clock_jump) and command '
+     'again; the nodes count the jump ("ROS time jumps back") and log it'),
+    ('second_commander', 'a second MPC (node mpc_rival) started on the flying drone; then an operator (this '
+     'test node) publishes hover commands on drone/rpyt for 2 s', 'one commander at any time: the newcomer '
+     'hears the commands and never commands (ERROR "second commander: ... also publishes ..."), the flying '
+     'controller keeps tracking; the controller yields to the operator (ERROR naming it, no command) and '
+     'tracks again once the operator is gone (quiet 2 s, no longer publishing)'),
+    ('hostile_command', 'the attack: the /garbage interface\'s ~telemetry_command set to "sh -c \'touch FILE\'" '
+     '(rosparam), then its XML-RPC shutdown called (roslaunch respawns it with the new parameter)',
+     'refused: the respawned interface runs nothing, stays up in ERROR "bad parameters: telemetry_command: '
+     'refused to run \'sh\' ..." (not respawned again), FILE never created; the parameter put back and the '
+     'node shut down again -> it reads the telemetry, OK'),
+    ('fleet_cap', 'roslaunch anafi_sim fleet.launch drones:=50 (305 processes, 11 GB, the master unresponsive '
+     'for 150 s before)', 'refused before anything starts: one line naming drones and the cap (cores / 0.165 '
+     'core per drone, benchmarks/results/fleet.md), roslaunch exits non-zero, no node started'),
+    ('stderr_flood', '600 MB on the telemetry tool\'s stderr without a newline while it prints samples (a third '
+     'interface, /flood, whose tlm-data-logger found on PATH is a test tool that floods stderr, then runs the '
+     'stand-in)', 'stderr read with the same 4096-byte cap as stdout: the interface\'s memory stays that of an '
+     'interface without the flood, the bytes are counted, samples flow: OK'),
 )
 
 #: a second interface on a garbage telemetry stream (malformed lines, a 10 kB line, then the real stream)
@@ -103,17 +128,27 @@ GARBAGE_GROUP = """  <group ns="garbage">
     <node pkg="anafi_sim" type="interface_node.py" name="interface" output="log" respawn="true">
       <rosparam command="load" file="$(find anafi_sim)/anafi_sim/config/interface.yaml"/>
       <param name="drone_name" value="garbage"/>
-      <param name="telemetry_command" value="sh -c 'printf &quot;garbage line\\nomniscient_anafi.worldPosition.x : 1_000\\n&quot;; head -c 10000 /dev/zero | tr &quot;\\\\0&quot; x; echo; exec $(find anafi_sim)/anafi_sim/scripts/tlm_data_logger.py -r 0 inet:127.0.0.1:{port}'"/>
+      <param name="telemetry_command"
+             value="$(find anafi_sim)/anafi_sim/scripts/tlm_data_logger.py -r 0 inet:127.0.0.1:{garbage_port}"/>
+    </node>
+  </group>
+  <group ns="flood">
+    <node pkg="anafi_sim" type="interface_node.py" name="interface" output="log" respawn="true">
+      <env name="PATH" value="{fake_bin}:$(env PATH)"/>
+      <rosparam command="load" file="$(find anafi_sim)/anafi_sim/config/interface.yaml"/>
+      <param name="drone_name" value="flood"/>
+      <param name="telemetry_command" value="tlm-data-logger -r 0 inet:127.0.0.1:{port}"/>
     </node>
   </group>
 """
 
 
-def launch_text(port):
-    """The graph: world.launch + mpc.launch on the fault relay's state, and the garbage interface."""
+def launch_text(port, garbage_port, fake_bin):
+    """The graph: world.launch + mpc.launch on the fault relay's state, the garbage interface (on the garbage
+    relay of ``garbage_port``) and the stderr-flood interface (its tlm-data-logger found first in ``fake_bin``)."""
     return launch_document([('world.launch', [('drone_name', DRONE), ('telemetry_port', port)]),
                             ('mpc.launch', [('drone_name', DRONE), ('state_topic', 'fault/odom'), ('output', 'log')])],
-                           GARBAGE_GROUP.format(port=port).splitlines(),
+                           GARBAGE_GROUP.format(port=port, garbage_port=garbage_port, fake_bin=fake_bin).splitlines(),
                            head=['  <param name="/use_sim_time" value="false"/>'])
 
 
@@ -245,8 +280,17 @@ class TestFaultMatrix(unittest.TestCase):
                                                   os.path.join(cls.workdir, 'log'), join=True)
         cls.port = int(cls.uri.rsplit(':', 1)[1])
         launch = os.path.join(cls.workdir, 'faults.launch')
+        port, garbage_port = processes.free_port(), processes.free_port()
+        fake_bin = os.path.join(cls.workdir, 'bin')       # the /flood interface's "Sphinx tool"
+        os.makedirs(fake_bin)
+        with open(os.path.join(fake_bin, 'tlm-data-logger'), 'w') as f:
+            f.write(FLOOD_TOOL.format(python=sys.executable, mb=FLOOD_MB,
+                                      stand_in=paths.data_path('scripts', 'tlm_data_logger.py')))
+        os.chmod(os.path.join(fake_bin, 'tlm-data-logger'), 0o755)
         with open(launch, 'w') as f:
-            f.write(launch_text(processes.free_port()))
+            f.write(launch_text(port, garbage_port, fake_bin))
+        cls.procs.start('garbage_proxy', [sys.executable, '-c', GARBAGE_PROXY.format(listen=garbage_port,
+                                                                                    upstream=port)], cls.env)
         cls.procs.start('roslaunch', ['roslaunch', '--port', str(cls.port), launch], cls.env)
         # the controller's state comes through this relay, a process of its own (this one is busy measuring)
         cls.procs.start('relay', [sys.executable, '-c', RELAY.format(drone=DRONE)], cls.env)
@@ -478,6 +522,67 @@ class TestFaultMatrix(unittest.TestCase):
             e[2], before, counter(e, 'solver_failed')),
             '%.1f m from %.1f m/s in %.1f s (bound %.1f m)' % (dist, v, secs, bound), rec)
 
+    def test_06c_second_commander(self):
+        g = self.g
+        Command = piloting_command_class()
+        seen = []       # (wall time, caller) of every command on the drone's command topic
+        sub = rospy.Subscriber('/%s/drone/rpyt' % DRONE, Command, lambda m: seen.append(
+            (time.time(), m._connection_header.get('callerid', ''))), queue_size=50)
+
+        def callers(t0, t1):
+            return sorted(set(c for t, c in list(seen) if t0 <= t < t1))
+        me = rospy.get_name()
+        self.fly()
+        before = self.controller(0.0)
+        # 1. a second MPC started on the flying drone: it hears the commands and never commands
+        t0 = time.time()
+        self.procs.start('rival', ['rosrun', 'anafi_sim', 'controller_node.py', '__name:=mpc_rival',
+                                   '__ns:=/%s' % DRONE, '_controller:=mpc', '_state_topic:=fault/odom'], self.env)
+        try:
+            rival = [None]
+
+            def rival_error():
+                rival[0] = g.status('/%s/mpc_rival' % DRONE, t0)
+                return rival[0] is not None and rival[0][1] == 2 and 'second commander' in rival[0][2]
+            processes.require(rival_error, 60.0, 'the rival in ERROR', lambda: str(rival[0]))
+            self.assertIn('/%s/mpc_controller' % DRONE, rival[0][2])
+            t1 = time.time()
+            main = self.wait_controller(t1, lambda e: 'mpc_rival' in e[3].get(
+                'other publishers of the command topic', ''), 5.0, 'the rival listed by the controller')
+            self.assertEqual((main[1], main[2]), (0, 'tracking'), main)
+            time.sleep(3.0)
+            only = callers(t1, time.time())
+            self.assertEqual(only, ['/%s/mpc_controller' % DRONE], 'commands from one node only')
+            speed = g.speed() or 0.0
+            self.assertGreater(speed, 0.6 * SPEED, 'the drone keeps flying')
+            # 2. an operator takes over (this node publishes hover commands for 2 s): the controller yields
+            teleop = rospy.Publisher('/%s/drone/rpyt' % DRONE, Command, queue_size=10)
+            time.sleep(0.5)
+            t2 = time.time()
+            while time.time() - t2 < 2.0:
+                teleop.publish(Command())
+                time.sleep(0.1)
+            e = self.wait_controller(t2, lambda e: e[1] == 2 and 'second commander' in e[2], 5.0,
+                                     'the controller yields: ERROR second commander')
+            self.assertIn(me, e[2])
+            during = callers(t2 + 0.5, t2 + 2.0)
+            self.assertEqual(during, [me], 'only the operator commands')
+            teleop.unregister()
+            t3 = time.time()
+            rec = self.recover(t3)
+            after = self.controller(t3)
+            self.assertEqual(callers(time.time() - 1.0, time.time()), ['/%s/mpc_controller' % DRONE])
+        finally:
+            sub.unregister()
+            self.procs.stop('rival')
+        self.record('second_commander', 'newcomer: the rival ERROR "%s", never commands; the controller OK '
+                    '"tracking" (other publishers: %s), commands from %s only, the drone at %.1f m/s; operator: '
+                    'the controller ERROR "%s" within 1 s, only the operator commands; second commander episodes '
+                    '%s -> %s' % (rival[0][2], main[3].get('other publishers of the command topic'), only[0], speed,
+                                  e[2], counter(before, 'second commander episodes'),
+                                  counter(after, 'second commander episodes')),
+                    'not needed (one commander at any time; the operator\'s commands fly the drone)', rec)
+
     def _interface(self, since=0.0):
         return self.g.status('/%s/interface' % DRONE, since)
 
@@ -548,6 +653,80 @@ class TestFaultMatrix(unittest.TestCase):
         self.record('telemetry_garbage', 'OK "%s"; per start of the command (%d): parse malformed %d, process '
                     'oversize lines %d; samples published %s' % (e[0][2], starts, malformed, oversize,
                                                                  e[0][3]['samples published']), 'not needed', None)
+
+    def test_08a_stderr_flood(self):
+        g = self.g
+        e, ref = [None], [None]
+
+        def flooded():
+            e[0], ref[0] = g.status('/flood/interface'), g.status('/garbage/interface')
+            return e[0] is not None and ref[0] is not None and e[0][1] == 0 \
+                and e[0][3].get('process last stderr') == 'flood done'
+        processes.require(flooded, 60.0, 'the flood interface OK after the flood', lambda: str(e[0]))
+        rss = dict((n, psutil.Process(processes.node_pid('/%s/interface' % n, self.uri)).memory_info().rss / 2.0 ** 20)
+                   for n in ('flood', 'garbage'))
+        flood_bytes = counter(e[0], 'process stderr bytes')
+        self.assertGreaterEqual(flood_bytes, FLOOD_MB * 2 ** 20, e[0])
+        self.assertLess(rss['flood'], rss['garbage'] + 30.0, rss)     # the flood is not kept
+        self.assertGreater(counter(e[0], 'samples published'), 100, e[0])
+        self.record('stderr_flood', 'OK "%s"; process stderr bytes %d (%d oversize lines), last stderr "%s"; '
+                    'interface RSS %.0f MB (an interface without the flood: %.0f MB); samples published %s'
+                    % (e[0][2], flood_bytes, counter(e[0], 'process stderr oversize lines'),
+                       e[0][3].get('process last stderr'), rss['flood'], rss['garbage'],
+                       e[0][3]['samples published']), 'not needed', None)
+
+    def test_08d_hostile_command(self):
+        g = self.g
+        name = '/garbage/interface'
+        marker = os.path.join(self.workdir, 'pwned')
+        original = rospy.get_param(name + '/telemetry_command')
+
+        def shutdown():
+            uri = rosgraph.Master(rospy.get_name()).lookupNode(name)
+            xmlrpc.client.ServerProxy(uri).shutdown(rospy.get_name(), 'fault matrix: hostile_command')
+        old = processes.node_pid(name, self.uri)
+        rospy.set_param(name + '/telemetry_command', "sh -c 'touch %s'" % marker)
+        t0 = time.time()
+        shutdown()
+        e, pid = [None], [None]
+
+        def refused():
+            e[0], pid[0] = g.status(name + ': bad parameters', t0), processes.node_pid(name, self.uri)
+            return e[0] is not None and e[0][1] == 2 and 'refused' in e[0][2] and pid[0] not in (None, old)
+        processes.require(refused, 30.0, 'the respawned interface refusing the command', lambda: str(e[0]))
+        self.assertIn("telemetry_command: refused to run 'sh'", e[0][2])
+        time.sleep(3.0)
+        self.assertEqual(processes.node_pid(name, self.uri), pid[0], 'up in ERROR, not respawned again')
+        self.assertFalse(os.path.exists(marker), 'the hostile command ran')
+        rospy.set_param(name + '/telemetry_command', original)
+        t_fixed = time.time()
+        shutdown()
+        ok = [None]
+
+        def flowing():
+            ok[0] = g.status(name + ': ground truth interface', t_fixed)
+            return ok[0] is not None and ok[0][1] == 0 and 'publishing' in ok[0][2]
+        processes.require(flowing, 30.0, 'the interface reading the telemetry again', lambda: str(ok[0]))
+        self.record('hostile_command', 'respawned (pid %d -> %d), ERROR "%s", same pid 3 s later, %s not created; '
+                    'parameter put back: OK "%s"' % (old, pid[0], e[0][2], os.path.basename(marker), ok[0][2]),
+                    'not needed (the drone\'s own interface untouched)', ok[0][0] - t_fixed)
+
+    def test_08e_fleet_cap(self):
+        from anafi_sim.launch_check import fleet_cap
+        env = dict(self.env, ROS_MASTER_URI='http://127.0.0.1:%d' % processes.free_port())   # no master there
+        t0 = time.time()
+        out = subprocess.run(['roslaunch', 'anafi_sim', 'fleet.launch', 'drones:=50'], env=env,
+                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                             universal_newlines=True, timeout=120)
+        seconds = time.time() - t0
+        lines = [line for line in out.stdout.splitlines() if line.startswith('launch argument drones:=50')]
+        self.assertNotEqual(out.returncode, 0, out.stdout[-2000:])
+        self.assertEqual(len(lines), 1, out.stdout[-2000:])
+        self.assertIn('more than the fleet cap of %d' % fleet_cap(), lines[0])
+        self.assertNotIn('started with pid', out.stdout)               # nothing started, not even a master
+        self.record('fleet_cap', 'exit status %d after %.1f s, nothing started: "%s"' % (out.returncode, seconds,
+                                                                                        lines[0]),
+                    'not needed', None)
 
     def test_08b_simulator_restart(self):
         g = self.g
@@ -769,6 +948,140 @@ class TestFaultMatrix(unittest.TestCase):
                     'the respawned simulator starts a new flight', recovery)
         del t_back, g
 
+    def test_10_clock_jump(self):
+        """Own master with use_sim_time: the probe drives /clock, jumps it back, counts the commands."""
+        workdir = os.path.join(self.workdir, 'clock_jump')
+        env = processes.ros_env(ros_home=os.path.join(workdir, 'ros_home'), log_dir=os.path.join(workdir, 'log'))
+        env['PATH'] = os.path.dirname(sys.executable) + os.pathsep + env.get('PATH', '')
+        uri = processes.start_master(self.procs, env, name='roscore_clock')
+        launch = os.path.join(workdir, 'clock_jump.launch')
+        with open(launch, 'w') as f:
+            f.write(CLOCK_LAUNCH)
+        port = uri.rsplit(':', 1)[1]
+        self.procs.start('roslaunch_clock', ['roslaunch', '--port', port, launch], env)
+        probe = processes.start([sys.executable, '-c', CLOCK_PROBE], env=env,
+                              log=open(os.path.join(workdir, 'probe.log'), 'w'))
+        rc = probe.wait(150.0)
+        with open(os.path.join(workdir, 'probe.log')) as f:
+            text = f.read()
+        self.procs.stop('roslaunch_clock')
+        self.procs.stop('roscore_clock')
+        lines = [line for line in text.splitlines() if line.startswith('RESULT ')]
+        self.assertEqual(rc, 0, text[-3000:])
+        r = json.loads(lines[-1][len('RESULT '):])
+        for drone in ('m', 'p'):
+            d = r[drone]
+            self.assertGreater(d['before'], 5, r)          # commands in the 2 s before the jump (10 Hz)
+            self.assertGreater(d['after'], 5, r)           # ... and in the last 2 s after it
+        for node, jumps in r['jumps'].items():
+            self.assertGreaterEqual(jumps, 1, r)
+        self.assertGreaterEqual(r['mpc_clock_jumps'], 1, r)     # the MPC's input gate saw it: SILENT, inputs dropped
+        self.record('clock_jump', 'commands in the 2 s before / the last 2 s after: MPC %d / %d, PID %d / %d; '
+                    'first command after the jump: MPC %.1f s, PID %.1f s; "ROS time jumps back": %s; '
+                    'MPC clock_jumps %d'
+                    % (r['m']['before'], r['m']['after'], r['p']['before'], r['p']['after'], r['m']['first'],
+                       r['p']['first'], ', '.join('%s %d' % kv for kv in sorted(r['jumps'].items())),
+                       r['mpc_clock_jumps']),
+                    'not needed (no drone in this graph: the controllers\' own cycles are checked)',
+                    max(r['m']['first'], r['p']['first']))
+
+
+#: the clock-jump graph: the MPC (drone m) and the distributed PID (drone p), on a /clock the probe drives
+CLOCK_LAUNCH = """<launch>
+  <param name="/use_sim_time" value="true"/>
+  <include file="$(find anafi_sim)/anafi_sim/launch/mpc.launch">
+    <arg name="drone_name" value="m"/>
+    <arg name="output" value="log"/>
+  </include>
+  <include file="$(find anafi_sim)/anafi_sim/launch/pid.launch">
+    <arg name="drone_name" value="p"/>
+    <arg name="output" value="log"/>
+  </include>
+</launch>
+"""
+
+#: publishes /clock (100 Hz wall, 1 s of sim time per s), a hovering state and a waypoint per drone; once
+#: both controllers command steadily the clock jumps 5 s back; prints RESULT {json}: commands per drone before / after, the first command
+#: after the jump [s wall], the jump counters of the diagnostics, the MPC's message seen after the jump
+CLOCK_PROBE = """
+import json, sys, threading, time
+import rospy
+from rosgraph_msgs.msg import Clock
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
+from anafi_sim.msg import Waypoint
+from anafi_sim.ros.wire_types import piloting_command_class
+rospy.init_node('clock_probe', anonymous=True)
+Command = piloting_command_class()
+lock = threading.Lock()
+times = {'m': [], 'p': []}
+jumps, silent = {}, []
+def on_cmd(drone):
+    def cb(msg):
+        with lock:
+            times[drone].append(time.time())
+    return cb
+def on_diag(msg):
+    for st in msg.status:
+        for kv in st.values:
+            if kv.key.startswith('ROS time jumps back'):
+                node = st.name.split(': ', 1)[-1] if st.name.startswith(('mpc', 'pid')) else st.name
+                with lock:
+                    jumps[node] = max(jumps.get(node, 0), int(kv.value))
+        if st.name.endswith('/m/mpc_controller'):
+            for kv in st.values:
+                if kv.key == 'clock_jumps':
+                    with lock:
+                        silent.append(int(kv.value))
+for d in times:
+    rospy.Subscriber('/%s/drone/rpyt' % d, Command, on_cmd(d), queue_size=50)
+rospy.Subscriber('/diagnostics', DiagnosticArray, on_diag, queue_size=50)
+clock = rospy.Publisher('/clock', Clock, queue_size=10)
+odom = dict((d, rospy.Publisher('/%s/drone/odom' % d, Odometry, queue_size=10)) for d in times)
+wp = dict((d, rospy.Publisher('/%s/position_control/waypoint' % d, Waypoint, queue_size=10)) for d in times)
+t_sim, tick, jump_wall, end = 100.0, 0, None, None
+start = time.time()
+while True:
+    now = time.time()
+    with lock:      # jump once both controllers have commanded for 2 s (at most 90 s after the start)
+        steady = all(sum(1 for t in ts if t > now - 2.0) >= 15 for ts in times.values())
+    if jump_wall is None and (steady or now - start > 90.0):
+        t_sim -= 5.0
+        jump_wall = now
+    if jump_wall is not None and now - jump_wall > 12.0:
+        break
+    t_sim += 0.01
+    tick += 1
+    stamp = rospy.Time.from_sec(t_sim)
+    clock.publish(Clock(clock=stamp))
+    if tick % 3 == 0:
+        for d in times:
+            o = Odometry()
+            o.header.stamp = stamp
+            o.header.frame_id = 'world'
+            o.child_frame_id = '%s/base_link' % d
+            o.pose.pose.position.z = 2.0
+            o.pose.pose.orientation.w = 1.0
+            odom[d].publish(o)
+    if tick % 10 == 0:
+        for d in times:
+            w = Waypoint()
+            if hasattr(w, 'header'):
+                w.header.stamp = stamp
+                w.header.frame_id = 'world'
+            w.z = 2.0
+            wp[d].publish(w)
+    time.sleep(max(0.0, start + tick * 0.01 - time.time()))
+out = {'jumps': jumps, 'mpc_clock_jumps': silent[-1] if silent else -1}
+with lock:
+    for d, ts in times.items():
+        after = [t for t in ts if t > jump_wall]
+        out[d] = {'before': sum(1 for t in ts if jump_wall - 2.0 < t <= jump_wall),
+                  'after': sum(1 for t in ts if t > jump_wall + 10.0),
+                  'first': (after[0] - jump_wall) if after else -1.0}
+print('RESULT ' + json.dumps(out))
+sys.stdout.flush()
+"""
 
 RELAY = """
 import rospy
@@ -810,6 +1123,56 @@ while time.time() < end and not state['ok']:
     pub.publish(w)
     time.sleep(0.1)
 sys.exit(0 if state['ok'] else 1)
+"""
+
+#: [MB] written on stderr by the /flood interface's telemetry tool at each start
+FLOOD_MB = 600
+#: the /flood interface's tlm-data-logger: runs the stand-in (stdout: the samples), floods stderr meanwhile
+FLOOD_TOOL = """#!{python}
+import os, subprocess, sys
+tool = subprocess.Popen([{stand_in!r}] + sys.argv[1:])
+chunk = b'E' * (1 << 20)
+for _ in range({mb}):
+    os.write(2, chunk)
+os.write(2, b'\\nflood done\\n')
+sys.exit(tool.wait())
+"""
+
+#: a TCP relay of the simulator's telemetry port that sends garbage, a malformed number and a 10 kB line
+#: first on every connection (each start of the garbage interface's telemetry tool)
+GARBAGE_PROXY = """
+import socket, threading
+GARBAGE = b'garbage line\\nomniscient_anafi.worldPosition.x : 1_000\\n' + b'x' * 10000 + b'\\n'
+def pump(a, b):
+    try:
+        while True:
+            data = a.recv(65536)
+            if not data:
+                break
+            b.sendall(data)
+    except OSError:
+        pass
+    for s in (a, b):
+        try:
+            s.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+def serve(client):
+    try:
+        upstream = socket.create_connection(('127.0.0.1', {upstream}), timeout=5.0)
+    except OSError:
+        client.close()
+        return
+    upstream.settimeout(None)
+    client.sendall(GARBAGE)
+    pump(upstream, client)
+server = socket.socket()
+server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+server.bind(('127.0.0.1', {listen}))
+server.listen(8)
+while True:
+    client, _ = server.accept()
+    threading.Thread(target=serve, args=(client,), daemon=True).start()
 """
 
 

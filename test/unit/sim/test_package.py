@@ -37,7 +37,7 @@ _SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN, _LAB = (
     'anafi_sim.sim', 'anafi_sim.telemetry', 'anafi_sim.interface', 'anafi_sim.gazebo', 'anafi_sim.mission',
     'anafi_control', 'anafi_sim.paths', 'anafi_sim.names', 'anafi_sim.processes', 'anafi_sim.numeric',
     'anafi_sim.run_files', 'anafi_lab')
-_FLIGHT_CORES = {_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN}
+_FLIGHT_CORES = {_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN, 'anafi_sim.launch_check'}
 #: the one direction of the data flow: what each stage may import (besides itself). Simulated drone ->
 #: telemetry -> interface -> gazebo mirror | controllers; the mission (scenarios, evaluation) on top;
 #: ros/ (node glue) and scripts/ (nodes) above all cores; anafi_control stands alone; the lab (anafi_lab)
@@ -50,6 +50,7 @@ ALLOWED_IMPORTS = {
     _PROC: set(),
     _NUM: set(),
     _RUN: set(),
+    'anafi_sim.launch_check': {_PATHS},
     _TLM: {_PATHS, _NUM},
     _SIM: {_TLM, _CTL, _PATHS, _NUM},
     _IF: {_TLM, _CTL, _PATHS, _NUM},

@@ -36,7 +36,7 @@ HAND_WRITTEN = ['README.md', 'docs/install.md', 'docs/launch.md', 'docs/nodes.md
                 'docs/experiments.md', 'docs/benchmarks.md', 'docs/fleet.md', 'docs/two_hosts.md', 'docs/reliability.md']
 
 #: command-line tools in anafi_sim/scripts (not ROS nodes): a usage line in the README each
-TOOLS = ('echo.py', 'evaluate_log.py', 'record_bag.py', 'tlm_data_logger.py')
+TOOLS = ('check_launch_args.py', 'echo.py', 'evaluate_log.py', 'record_bag.py', 'tlm_data_logger.py')
 #: the lab's command-line tools (anafi_lab/cli, installed beside the nodes): a usage line in the README each
 LAB_TOOLS = ('calibrate_conditions.py', 'calibrate_model.py', 'experiment.py', 'measure_fidelity.py')
 LAB_CLI_DIR = os.path.join(ROOT, 'anafi_lab', 'cli')

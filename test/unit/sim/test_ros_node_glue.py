@@ -116,6 +116,31 @@ def test_run_node_bad_parameters_log_fatal_and_exit(monkeypatch):
     assert log == [('init', 'x'), ('fatal', '/anafi/x: bad parameters: ~rate must be a finite number > 0, got -1')]
 
 
+def test_a_respawned_node_with_bad_parameters_stays_up_in_error_until_shutdown(monkeypatch):
+    log = _stub_start_up(monkeypatch)
+    published, shutdown = [], threading.Event()
+
+    def diagnostics_thread(period, make_statuses, pub, first=None):
+        published.extend(make_statuses())
+        shutdown.set()               # the launch stops the node after its first ERROR diagnostic
+
+    monkeypatch.setattr(node, 'diagnostics_publisher', lambda: None)
+    monkeypatch.setattr(node, 'start_diagnostics_thread', diagnostics_thread)
+    monkeypatch.setattr(rospy, 'is_shutdown', shutdown.is_set)
+
+    def factory():
+        raise ParamError('~rtf must be a finite number > 0, got -1')
+
+    with pytest.raises(SystemExit) as exit_info:
+        node.run_node('x', factory, fatal_exit_code=2, respawned=True)
+    assert exit_info.value.code == 2       # only once stopped: roslaunch does not respawn a node that is up
+    assert log[0] == ('init', 'x') and len(log) == 2 and log[1][0] == 'fatal'
+    assert 'bad parameters: ~rtf must be' in log[1][1] and 'staying up in ERROR' in log[1][1]
+    [status] = published
+    assert status.level == node.ERROR and status.name == '/anafi/x: bad parameters'
+    assert status.message == 'bad parameters: ~rtf must be a finite number > 0, got -1'
+
+
 def test_run_node_runs_the_node(monkeypatch):
     log = _stub_start_up(monkeypatch)
     ran = threading.Event()
@@ -222,3 +247,28 @@ def test_log_lines_and_wait_for_clock(monkeypatch):
     node.wait_for_clock(poll=0.0)
     with pytest.raises(StopIteration):
         next(times)
+
+
+def test_the_timer_survives_time_going_back_counts_it_and_survives_a_failing_callback(monkeypatch):
+    made, warned, errors = [], [], []
+    monkeypatch.setattr(rospy, 'Timer', lambda period, cb, reset=False: made.append((period, cb, reset)))
+    monkeypatch.setattr(rospy, 'get_name', lambda: '/anafi/mpc_controller')
+    monkeypatch.setattr(rospy, 'logwarn', lambda fmt, *args: warned.append(fmt % args))
+    monkeypatch.setattr(rospy, 'logerr_throttle', lambda period, text: errors.append(text))
+    calls = []
+
+    def callback(event):
+        calls.append(event.current_real.to_sec())
+        if len(calls) == 3:
+            raise RuntimeError('bad cycle')
+
+    timer = node.Timer(0.1, callback, 'control')
+    [(period, on_event, reset)] = made
+    assert reset is True and abs(period.to_sec() - 0.1) < 1e-12      # rospy resets instead of raising
+    for t in (100.0, 100.1, 95.0, 95.1):
+        on_event(rospy.timer.TimerEvent(None, None, None, rospy.Time.from_sec(t), None))
+    assert [round(c, 6) for c in calls] == [100.0, 100.1, 95.0, 95.1]
+    assert timer.jumps_back == 1 and abs(timer.last_jump - 5.1) < 1e-6
+    assert warned == ['/anafi/mpc_controller: ROS time moved backwards by 5.100 s (1 times): control timer kept '
+                      'running']
+    assert timer.callback_errors == 1 and 'RuntimeError: bad cycle' in errors[0]

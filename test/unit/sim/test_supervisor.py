@@ -210,6 +210,22 @@ def test_a_line_without_end_is_capped_dropped_and_counted(rec):
     assert all(len(l) <= 1024 for l, _ in rec.lines) and sup.hangs == 0
 
 
+def test_stderr_is_read_with_the_same_cap_and_only_its_last_line_start_kept(rec):
+    # 2.5 MB on stderr without a newline, then a short line; stdout keeps flowing
+    script = ('import sys, time\n'
+              'for i in range(40):\n    sys.stderr.write("e" * 65536); sys.stderr.flush()\n'
+              'sys.stderr.write("\\nlast words\\n"); sys.stderr.flush()\n'
+              'while True:\n    print("k : 1", flush=True); time.sleep(0.05)\n')
+    sup = make(rec, [PY, '-c', script], restart_timeout=5.0, max_line=1024)
+    try:
+        assert rec.wait_for(lambda: sup.last_stderr == 'last words' and len(rec.lines) >= 3, timeout=10.0)
+    finally:
+        sup.stop()
+    snap = sup.snapshot()
+    assert snap['stderr_bytes'] == 40 * 65536 + len('\nlast words\n') and snap['stderr_oversize_lines'] == 1
+    assert sup.hangs == 0 and sup.oversize_lines == 0
+
+
 def test_endless_bytes_without_samples_count_as_a_hang_with_a_sample_timeout(rec):
     script = 'import sys\nwhile True:\n    sys.stdout.write("y" * 4096); sys.stdout.flush()\n'
     sup = make(rec, [PY, '-c', script], restart_timeout=5.0, sample_timeout=0.5, max_line=1024,

@@ -1,0 +1,184 @@
+"""Launch arguments checked before any node starts (pure: no rospy; light imports, it runs at every launch).
+
+The launch files call ``scripts/check_launch_args.py NAME=VALUE ...`` from a ``<param command=...>``
+tag, which roslaunch runs while it reads the file, before it starts the master or a node. A bad argument
+makes the script print ONE line naming it (``launch argument rtf:=-1: ...``) on stderr and exit non-zero;
+roslaunch then stops at once with a non-zero exit status, instead of a node dying with FATAL and being
+respawned again and again (``sim.launch rtf:=-1``) or an experiment failing 90 s later without naming the
+argument. ``check(args)`` holds the rules, one per argument name (``RULES``); unknown names are an error
+of the launch file itself.
+"""
+import math
+import os
+import re
+
+_BASE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+_FILE_NAME = re.compile(r'^[A-Za-z0-9_.-]+$')
+
+
+def _number(value):
+    try:
+        out = float(value)
+    except ValueError:
+        return None
+    return out if math.isfinite(out) else None
+
+
+def positive(value):
+    x = _number(value)
+    if x is None or x <= 0.0:
+        return 'must be a finite number > 0'
+    return None
+
+
+def non_negative(value):
+    x = _number(value)
+    if x is None or x < 0.0:
+        return 'must be a finite number >= 0'
+    return None
+
+
+def optional_number(value):
+    if value.strip() == '':
+        return None
+    return None if _number(value) is not None else 'must be a finite number or empty'
+
+
+def flag(value):
+    return None if value in ('true', 'false', 'True', 'False', '1', '0') else 'must be true or false'
+
+
+def port(value):
+    if not value.isdigit() or not 0 <= int(value) <= 65535:
+        return 'must be an integer port in 0..65535 (0: any free port)'
+    return None
+
+
+def base_name(value):
+    return None if _BASE_NAME.match(value) else 'must be a ROS base name (a letter, then letters, digits, _)'
+
+
+def _config_dir(*parts):
+    from anafi_sim import paths
+    return paths.config_path(*parts)
+
+
+def model_file(value):
+    """A model YAML in anafi_sim/config (a file name) or an absolute path, that exists."""
+    path = value if os.path.isabs(value) else _config_dir(value)
+    if not (os.path.isabs(value) or _FILE_NAME.match(value)) or not os.path.isfile(path):
+        known = sorted(f for f in os.listdir(_config_dir()) if f.startswith('anafi_model') and f.endswith('.yaml'))
+        return 'no model file %s (known: %s)' % (path, ', '.join(known))
+    return None
+
+
+def scenario(value):
+    """A scenario name of anafi_sim/config/scenarios (a file name without .yaml)."""
+    folder = _config_dir('scenarios')
+    if _FILE_NAME.match(value) and os.path.isfile(os.path.join(folder, value + '.yaml')):
+        return None
+    known = sorted(f[:-5] for f in os.listdir(folder) if f.endswith('.yaml'))
+    return 'no such scenario (known: %s; or scenario_file:=PATH)' % ', '.join(known)
+
+
+def scenario_file(value):
+    if value == '' or os.path.isfile(os.path.expanduser(value)):
+        return None
+    return 'no such file'
+
+
+#: [cores] CPU of one drone of a fleet at real time (simulator + telemetry CLI + interface + mirror at 100 Hz
+#: + MPC + generator, and its share of the world and the master): 16.5 % of a core at N = 10 in
+#: benchmarks/results/fleet.md (bench_fleet.py; 20 % alone, 16-17 % from N = 4 on)
+CPU_PER_DRONE = 0.165
+
+
+def available_cores():
+    """CPU cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def fleet_cap(cores=None):
+    """The largest fleet this machine runs at real time: cores / CPU_PER_DRONE (2 cores: 12, the largest
+    fleet that held RTF 1 in benchmarks/results/fleet.md), at least 1."""
+    return max(1, int((available_cores() if cores is None else cores) / CPU_PER_DRONE))
+
+
+def fleet_size_problem(count, max_drones=0, cores=None):
+    """None when ``count`` drones fit (``max_drones`` > 0: the user's own cap instead of ``fleet_cap``), else
+    what is wrong (names the cap, where it comes from and how to override it)."""
+    if max_drones and max_drones > 0:
+        cap, why = int(max_drones), 'max_drones:=%d' % max_drones
+    else:
+        n = available_cores() if cores is None else cores
+        cap = fleet_cap(n)
+        why = ('%d cores / %.3f core per drone (benchmarks/results/fleet.md): slower than real time beyond '
+               'it; max_drones:=N to raise it' % (n, CPU_PER_DRONE))
+    if count > cap:
+        return '%d drones is more than the fleet cap of %d (%s)' % (count, cap, why)
+    return None
+
+
+def drones(value):
+    if not value.isdigit():
+        return 'must be an integer >= 0 (0: the fleet file\'s list)'
+    return None
+
+
+def max_drones(value):
+    return None if value.isdigit() else 'must be an integer >= 0 (0: the cap derived from the CPU cores)'
+
+
+def controller(value):
+    return None if value in ('mpc', 'pid', 'preview_mpc') else 'must be mpc, pid or preview_mpc'
+
+
+def pid_mode(value):
+    return None if value in ('distributed', 'single') else 'must be distributed or single'
+
+
+#: argument name -> rule (value text -> None when good, else what is wrong)
+RULES = {
+    'rtf': positive, 'use_sim_time': flag, 'telemetry_port': port, 'drone_name': base_name,
+    'initial_x': optional_number, 'initial_y': optional_number, 'initial_yaw': optional_number,
+    'model_file': model_file, 'scenario': scenario, 'scenario_file': scenario_file, 'controller': controller,
+    'pid_mode': pid_mode, 'mirror': flag, 'record': flag, 'plot': flag, 'rviz': flag, 'sync': flag,
+    'sync_period': positive, 'sync_timeout': positive, 'progress_period': non_negative,
+    'ready_timeout': positive, 'mirror_rate': positive, 'drones': drones, 'max_drones': max_drones,
+}
+
+
+def check(args):
+    """``args``: (name, value text) pairs. Returns the error lines (empty when every argument is good);
+    ValueError for an argument name without a rule (a mistake in the launch file). A scenario is not
+    checked when a scenario_file is given (the file wins)."""
+    errors = []
+    given = dict(args)
+    for name, value in args:
+        rule = RULES.get(name)
+        if rule is None:
+            raise ValueError('check_launch_args.py: no rule for the argument %r (known: %s)'
+                             % (name, ', '.join(sorted(RULES))))
+        if name == 'scenario' and given.get('scenario_file'):
+            continue
+        problem = rule(value)
+        if problem is None and name == 'drones' and int(value) > 0:
+            limit = given.get('max_drones', '0')
+            problem = fleet_size_problem(int(value), int(limit) if limit.isdigit() else 0)
+        if problem:
+            errors.append('launch argument %s:=%s: %s' % (name, value, problem))
+    return errors
+
+
+def parse(argv):
+    """['name=value', ...] -> [(name, value)]; ValueError for a word without '='."""
+    out = []
+    for word in argv:
+        name, sep, value = word.partition('=')
+        if not sep or not name:
+            raise ValueError('check_launch_args.py: expected NAME=VALUE, got %r' % (word,))
+        out.append((name, value))
+    return out

@@ -1,0 +1,109 @@
+"""ROS glue of ``anafi_control.commanders.CommanderGuard``: a commanding node watches its own command topic.
+
+``CommandTopicWatch(topic, msg_class)`` subscribes to the node's command topic and feeds the guard with
+the commands of OTHER nodes (the ``callerid`` of each message's connection header; the node's own commands
+come back too and are ignored). ``check()`` (every control cycle) says DOWN / RESUMED / CLEAR and logs an
+ERROR once per episode naming the other nodes; ``check_presence()`` (from the 1 Hz wall-clock diagnostics
+thread) asks the master whether each other node still publishes the topic and still answers (getPid, 1 s
+timeout): a node killed without unregistering, or one that stopped publishing, no longer keeps this one
+down. ``values()`` are the diagnostics values (with the other publishers of the topic, also idle ones: a
+controller started on a drone that is already commanded hears the commands at once and never commands);
+``message()`` the ERROR text while down.
+"""
+import threading
+import time
+
+import rosgraph
+import rospy
+
+from anafi_control.commanders import DOWN, LISTEN, RESUMED, CommanderGuard
+from anafi_sim.processes import xmlrpc_proxy
+
+#: [s] XML-RPC timeout of the presence checks (master and the other node)
+PRESENCE_TIMEOUT = 1.0
+
+
+def _answers(uri, caller, timeout=PRESENCE_TIMEOUT):
+    try:
+        code = xmlrpc_proxy(uri, timeout).getPid(caller)[0]
+    except Exception:       # refused, timed out, not XML-RPC: gone
+        return False
+    return code == 1
+
+
+class CommandTopicWatch(object):
+    def __init__(self, topic, msg_class, quiet_time=2.0):
+        self.topic = rospy.resolve_name(topic)
+        self.me = rospy.get_name()
+        self.guard = CommanderGuard(quiet_time)
+        self.lock = threading.Lock()
+        self._others = []
+        self.silent = True       # the last check said DOWN or LISTEN: publish nothing
+        self.sub = rospy.Subscriber(self.topic, msg_class, self._on_command, queue_size=20)
+
+    def publishers(self):
+        """The other nodes connected to this node as publishers of the command topic (from the subscriber's
+        connections: no master call), sorted; they may be idle (a controller that stood down)."""
+        try:
+            callers = [c.header.get('callerid', '') for c in self.sub.impl.connections if c.header]
+        except Exception:     # rospy internals changed: the commands heard still work
+            return []
+        return sorted(set(c for c in callers if c and c != self.me))
+
+    def _on_command(self, msg):
+        header = getattr(msg, '_connection_header', None) or {}
+        caller = header.get('callerid', '')
+        if caller and caller != self.me:
+            with self.lock:
+                self.guard.on_command(caller, time.monotonic())
+
+    def check(self):
+        """DOWN (publish nothing), RESUMED (reset the controller, then command) or CLEAR, for this cycle."""
+        with self.lock:
+            state = self.guard.check(time.monotonic())
+            others = self.guard.others(time.monotonic()) if state == DOWN else []
+            self.silent = state in (DOWN, LISTEN)
+        if state == DOWN and others != self._others:
+            rospy.logerr('%s: second commander on %s: %s publishes piloting commands too; standing down (no '
+                         'command: the firmware hover brake stops the drone) until it is gone (episode %d)',
+                         self.me, self.topic, ', '.join(others), self.guard.episodes)
+        elif state == RESUMED:
+            rospy.logwarn('%s: the other commander on %s is gone: commanding again', self.me, self.topic)
+        self._others = others
+        return state
+
+    def check_presence(self):
+        """Whether each other commander still publishes the topic and still answers (wall-clock thread)."""
+        with self.lock:
+            callers = list(self.guard.heard)
+        if not callers:
+            return
+        master = rosgraph.Master(self.me)
+        try:
+            publishers = dict(master.getSystemState()[0]).get(self.topic, [])
+        except Exception:     # master unreachable: keep what is known (the quiet time still applies)
+            return
+        for caller in callers:
+            present = False
+            if caller in publishers:
+                try:
+                    present = _answers(master.lookupNode(caller), self.me)
+                except Exception:
+                    present = False
+            with self.lock:
+                self.guard.set_present(caller, present)
+
+    def message(self):
+        """The ERROR message while standing down, else None."""
+        with self.lock:
+            if not self.guard.down:
+                return None
+            others = self.guard.others(time.monotonic())
+        return 'second commander: %s also publishes %s; no command, firmware hover brake until it is gone' % (
+            ', '.join(others) or 'another node', self.topic)
+
+    def values(self):
+        with self.lock:
+            values = [('second commander episodes', self.guard.episodes),
+                      ('commands heard from other nodes', self.guard.foreign_commands)]
+        return values + [('other publishers of the command topic', ' '.join(self.publishers()) or 'none')]

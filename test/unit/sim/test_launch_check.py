@@ -1,0 +1,71 @@
+"""Launch arguments checked before any node starts (anafi_sim.launch_check, scripts/check_launch_args.py)."""
+import os
+import subprocess
+import sys
+
+import pytest
+
+from anafi_sim.launch_check import RULES, check, parse
+from conftest import ROOT
+
+SCRIPT = os.path.join(ROOT, 'anafi_sim', 'scripts', 'check_launch_args.py')
+
+
+def test_the_launch_files_defaults_pass():
+    assert check(parse(['drone_name=anafi', 'rtf=1.0', 'use_sim_time=false', 'telemetry_port=9060',
+                        'initial_x=', 'initial_y=-2.5', 'initial_yaw=', 'model_file=anafi_model.yaml',
+                        'controller=mpc', 'scenario=circle_r2_v1', 'scenario_file=', 'pid_mode=distributed',
+                        'progress_period=0', 'ready_timeout=90', 'sync=false', 'sync_period=0.1'])) == []
+
+
+@pytest.mark.parametrize('arg, words', [
+    ('rtf=-1', ['rtf:=-1', '> 0']), ('rtf=0', ['rtf:=0']), ('rtf=nan', ['rtf:=nan']), ('rtf=fast', ['rtf']),
+    ('scenario=circl_r2_v1', ['scenario:=circl_r2_v1', 'circle_r2_v1']),
+    ('scenario=../../../etc/passwd', ['scenario:=']), ('telemetry_port=70000', ['telemetry_port']),
+    ('drone_name=1drone', ['drone_name']), ('initial_x=1e999', ['initial_x']), ('controller=lqr', ['controller']),
+    ('model_file=nope.yaml', ['model_file', 'anafi_model.yaml']), ('model_file=../sim.yaml', ['model_file']),
+    ('use_sim_time=yes', ['use_sim_time']), ('scenario_file=/no/such.yaml', ['scenario_file']),
+])
+def test_a_bad_argument_is_one_line_naming_it(arg, words):
+    [line] = check(parse([arg]))
+    assert line.startswith('launch argument ') and all(w in line for w in words), line
+
+
+def test_a_scenario_file_wins_over_the_scenario_name(tmp_path):
+    path = tmp_path / 'mine.yaml'
+    path.write_text('x: 1\n')
+    assert check(parse(['scenario=unknown', 'scenario_file=%s' % path])) == []
+
+
+def test_an_argument_without_a_rule_is_a_launch_file_error():
+    with pytest.raises(ValueError, match='no rule'):
+        check(parse(['bogus=1']))
+    with pytest.raises(ValueError, match='NAME=VALUE'):
+        parse(['rtf'])
+    assert 'rtf' in RULES
+
+
+def test_the_script_exits_non_zero_with_the_line_and_prints_ok_otherwise():
+    bad = subprocess.run([sys.executable, SCRIPT, 'rtf=-1', 'drone_name=anafi'], capture_output=True, text=True)
+    assert bad.returncode == 2 and bad.stdout == ''
+    assert bad.stderr.strip().splitlines() == ['launch argument rtf:=-1: must be a finite number > 0']
+    good = subprocess.run([sys.executable, SCRIPT, 'rtf=2'], capture_output=True, text=True)
+    assert good.returncode == 0 and good.stdout == 'ok'
+
+
+def test_the_fleet_cap_comes_from_the_measured_cost_per_drone():
+    from anafi_sim.launch_check import CPU_PER_DRONE, fleet_cap, fleet_size_problem
+    assert fleet_cap(2) == 12 and fleet_cap(1) == 6 and fleet_cap(0.1) == 1
+    assert fleet_size_problem(12, cores=2) is None
+    problem = fleet_size_problem(50, cores=2)
+    assert problem.startswith('50 drones is more than the fleet cap of 12') and 'max_drones:=N' in problem
+    assert '%.3f' % CPU_PER_DRONE in problem and 'benchmarks/results/fleet.md' in problem
+    assert fleet_size_problem(50, max_drones=60) is None and 'max_drones:=20' in fleet_size_problem(30, 20)
+
+
+def test_drones_above_the_cap_fail_the_launch_check():
+    from anafi_sim.launch_check import fleet_cap
+    [line] = check(parse(['drones=%d' % (fleet_cap() + 1), 'max_drones=0']))
+    assert line.startswith('launch argument drones:=') and 'fleet cap' in line
+    assert check(parse(['drones=%d' % (fleet_cap() + 1), 'max_drones=%d' % (fleet_cap() + 1)])) == []
+    assert check(parse(['drones=0'])) == []

@@ -548,8 +548,13 @@ class AnafiModel(object):
             self.thrust = 0.0
             self._queue.clear()
             return
+        gust = self._step_gusts()
+        roll_sp, pitch_sp, yaw_rate_sp, vz_sp = self._setpoints(dt, t, state, gust)
+        trig = self._step_attitude(dt, roll_sp, pitch_sp, yaw_rate_sp)
+        self._step_translation(dt, state, vz_sp, gust, trig)
 
-        # Wind gusts (Ornstein-Uhlenbeck, exact discretisation).
+    def _step_gusts(self):
+        """The wind gusts one step on (Ornstein-Uhlenbeck, exact discretisation); the gust vector [m/s]."""
         gust = self.gust
         if self._gusty:
             noise = self._rng.standard_normal(3)
@@ -558,8 +563,12 @@ class AnafiModel(object):
             gust[0] = d * gust[0] + sc[0] * noise[0]
             gust[1] = d * gust[1] + sc[1] * noise[1]
             gust[2] = d * gust[2] + sc[2] * noise[2]
+        return gust
 
-        # Setpoints: delayed PCMD while flying and commanded, else the firmware's own loops.
+    def _setpoints(self, dt, t, state, gust):
+        """(roll [rad], pitch [rad], yaw rate [rad/s], vz [m/s]) setpoints of this step: the delayed PCMD while
+        flying and commanded, else the firmware's own loops; the wind handling added, then the firmware's
+        limits."""
         yaw_rate_sp = 0.0
         if state == FLYING:
             queue = self._queue
@@ -590,8 +599,11 @@ class AnafiModel(object):
         vz_sp = -vmax if vz_sp < -vmax else (vmax if vz_sp > vmax else vz_sp)
         if self._max_descent > 0.0 and vz_sp < -self._max_descent:
             vz_sp = -self._max_descent              # the firmware descends slower than commanded
+        return roll_sp, pitch_sp, yaw_rate_sp, vz_sp
 
-        # Attitude: first order towards the setpoints; Euler rates -> body rates.
+    def _step_attitude(self, dt, roll_sp, pitch_sp, yaw_rate_sp):
+        """Attitude one step on: first order towards the setpoints; Euler rates -> body rates. Returns the new
+        attitude's (cos roll, sin roll, cos pitch, sin pitch, cos yaw, sin yaw)."""
         roll0, pitch0, yaw0 = self.roll, self.pitch, self.yaw
         # the firmware's roll/pitch loop (frames.tilt_loop_step: with the yaw terms and the rate limit off, the
         # plain first order)
@@ -614,8 +626,12 @@ class AnafiModel(object):
         self.alpha = ((wx - self.wx) / dt, (wy - self.wy) / dt, (wz - self.wz) / dt)
         self.wx, self.wy, self.wz = wx, wy, wz
         self.roll, self.pitch, self.yaw = roll, pitch, yaw
+        return cr, sr, cp, sp, cy, sy
 
-        # Translation: thrust along body z chosen so that vz follows its first-order loop.
+    def _step_translation(self, dt, state, vz_sp, gust, trig):
+        """Translation one step on: thrust along body z chosen so that vz follows its first-order loop; drag
+        against the air (wind and gusts); then ground contact and the flight state machine."""
+        cr, sr, cp, sp, cy, sy = trig
         vx0, vy0, vz0 = self.vx, self.vy, self.vz
         wind = self._wind_mean
         avx = vx0 - wind[0] - gust[0]
@@ -641,8 +657,6 @@ class AnafiModel(object):
         x = self.x + vx * dt
         y = self.y + vy * dt
         z = self.z + vz * dt
-
-        # Ground contact and the flight state machine.
         if z <= 0.0:
             z = 0.0
             if vz < 0.0:

@@ -17,6 +17,7 @@ import time
 
 from anafi_sim import paths
 from anafi_lab.calibration import conditions as cond
+from anafi_lab.reports import conditions_report
 from anafi_sim.mission.reference_log import read_log
 from anafi_sim.sim.drone_model import load_model_params
 
@@ -38,6 +39,8 @@ def parse_args(argv):
                         help='Markdown file whose real-flights replay section is replaced ("" to skip)')
     parser.add_argument('--store', default=os.path.join(root, 'benchmarks', 'results', 'real_flights.yaml'),
                         help='the closed-loop replays\' figures (YAML) to write, or to read with --render-only')
+    parser.add_argument('--findings', default=os.path.join(root, 'benchmarks', 'results', 'conditions_findings.yaml'),
+                        help='the figures of earlier checks the calibration section quotes (YAML)')
     parser.add_argument('--render-only', action='store_true',
                         help='no replays: the figures of --store (the identification is recomputed: seconds)')
     parser.add_argument('--seeds', type=int, default=3, help='gust seeds per closed-loop replay (default 3)')
@@ -99,12 +102,13 @@ def main(argv=None):
     if args.profile:
         write(args.profile, cond.profile_text(settings_list[chosen], combined, handling, COMMAND))
     if args.report:
-        section = cond.report_section(logs, handling, conds, combined, grid, settings_list, chosen, references,
-                                      seeds, off_index, COMMAND)
+        section = conditions_report.calibration_section(logs, handling, conds, combined, grid, settings_list,
+                                                        chosen, references, seeds, off_index, COMMAND,
+                                                        conditions_report.load_findings(args.findings))
         text = open(args.report).read() if os.path.exists(args.report) else ''
         write(args.report, cond.replace_section(text, section))
     if args.fidelity:
-        section = cond.fidelity_section(logs, grid, chosen, references, seeds, COMMAND)
+        section = conditions_report.fidelity_section(logs, grid, chosen, references, seeds, COMMAND)
         text = open(args.fidelity).read() if os.path.exists(args.fidelity) else ''
         write(args.fidelity, cond.replace_section(text, section, cond.FIDELITY_BEGIN, cond.FIDELITY_END))
     print('wall %.0f s' % (time.time() - t0))

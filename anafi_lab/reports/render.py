@@ -22,6 +22,11 @@ def pct(ratio, digits=0):
     return ('%s %%' % text) if text.startswith('-') else ('+%s %%' % text)
 
 
+def na(value, digits=3):
+    """``fmt`` with 'n/a' for a missing value."""
+    return fmt(value, digits, missing='n/a')
+
+
 def markdown_table(header, rows):
     """Markdown lines of a table: header, separator, one line per row (cells as they are, ``str`` of each)."""
     return ['| ' + ' | '.join(str(c) for c in header) + ' |', '|' + '---|' * len(header)] + \
@@ -47,6 +52,7 @@ def environment():
                              keep_trailing_newline=True, autoescape=False)
     env.filters['fmt'] = fmt
     env.filters['pct'] = pct
+    env.filters['na'] = na
     env.globals['table'] = table
     env.filters['paragraph'] = paragraph
     return env

@@ -102,3 +102,16 @@ def test_the_allowed_words_do_not_hide_a_figure():
                   'x_straight_5_mpc 0.81 -> 0.97', '(0.99 unrounded', '15 s settle', 'the paper: 2.59',
                   '--workers 2', '(0-20 ms)', 'up to 19 cm'):
         assert re.search(r'\d', LABELS.sub(' ', typed)), typed
+
+
+# Labels of the real-flight sections' words besides LABELS: their enumeration (1)-(5), the formula's sqrt(6), and
+# the gains K = 0 (no wind handling) and K = 1 (full cancellation), the time constant tau = 0 (instantaneous).
+CONDITIONS_LABELS = re.compile(LABELS.pattern + r"|\([1-5]\)|sqrt\(6\)|K = [01]\b|tau = 0\b|m/s\^2")
+
+
+def test_the_real_flight_templates_hold_no_figure():
+    names = sorted(os.path.join('conditions', n) for n in os.listdir(os.path.join(TEMPLATES, 'conditions')))
+    assert names
+    for name in names:
+        assert typed_figures(name, CONDITIONS_LABELS) == [], '%s: a figure typed into the words' % name
+    assert re.search(r'\d', CONDITIONS_LABELS.sub(' ', 'capped at 10 deg')), 'the labels hide a figure'

@@ -177,7 +177,8 @@ def test_the_replays_store_round_trips_and_renders():
         name = 'log_mpc'
     refs = {'log_mpc': collections.OrderedDict((('e_mu', 1.0), ('e_max', 6.2), ('tilt_mean', 0.25),
                                                 ('e_hold', 0.2)))}
-    text = cond.fidelity_section([Log()], back, 0, refs, [0, 1], 'cmd')
+    from anafi_lab.reports import conditions_report
+    text = conditions_report.fidelity_section([Log()], back, 0, refs, [0, 1], 'cmd')
     assert text.startswith(cond.FIDELITY_BEGIN) and cond.FIDELITY_END in text
     assert '| log_mpc | 0.800 [0.800, 0.800] vs 1.000 (0.80) |' in text
 

@@ -1,4 +1,5 @@
-"""A run's result files: one new folder per run, written atomically, failures marked (pure, no ROS).
+"""A run's result files: one new folder per run, written atomically, failures marked; the one YAML reader and
+writer of the package (pure, no ROS).
 
 - ``new_run_dir(out_dir, name)``: a folder ``out_dir/<name>-<YYYYmmdd-HHMMSS>-<pid>`` that did not exist
   (created exclusively, so two runs started in the same second never share one), and the link
@@ -7,6 +8,8 @@
   flushed, synced and renamed to ``path`` only when complete; on any error (a full disk: ENOSPC) the
   temporary file is removed and the error raised, so ``path`` is either the complete new file or absent.
 - ``atomic_path(path)``: the same for writers that take a path (a CSV writer, matplotlib).
+- ``read_yaml(path, default)`` / ``write_yaml(path, data)``: a YAML file read (``default`` when missing; with
+  ``tolerant`` also when cut or malformed) and written atomically, block style, keys in their order.
 - ``failed_name(path)``: ``RUN.csv`` -> ``RUN.FAILED.csv``: the name of a file of a run that did not end
   with a valid measurement; ``mark_failed(paths)`` renames the ones that exist.
 - ``remove_previous(paths)``: a rerun into the same names first removes the previous run's files, so a
@@ -15,6 +18,8 @@
 import contextlib
 import os
 import time
+
+import yaml
 
 LATEST = 'latest'
 
@@ -92,6 +97,26 @@ def atomic_path(path, suffix=''):
 def atomic_write_text(path, text):
     """``atomic_write`` of a string."""
     atomic_write(path, lambda stream: stream.write(text))
+
+
+def read_yaml(path, default=None, tolerant=False):
+    """The YAML document at ``path``; ``default`` when the file is missing or empty. A malformed or unreadable
+    file raises, or with ``tolerant`` (a run's result file, which may be cut) gives ``default`` too."""
+    if not os.path.isfile(path):
+        return default
+    try:
+        with open(path) as stream:
+            data = yaml.safe_load(stream)
+    except (OSError, yaml.YAMLError):
+        if not tolerant:
+            raise
+        return default
+    return default if data is None else data
+
+
+def write_yaml(path, data):
+    """``data`` as block-style YAML (keys in their order), written atomically."""
+    atomic_write_text(path, yaml.safe_dump(data, default_flow_style=False, sort_keys=False))
 
 
 def failed_name(path):

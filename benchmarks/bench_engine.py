@@ -36,7 +36,7 @@ import sys
 import tempfile
 import time
 
-import yaml
+from anafi_sim.run_files import read_yaml, write_yaml
 
 import bench_sync
 from anafi_sim import paths
@@ -50,17 +50,6 @@ RESULTS = os.path.join(ROOT, 'benchmarks', 'results')
 ROS_BATCH = os.path.join(RESULTS, 'experiments.yaml')
 STEPS = ('batch', 'determinism', 'sweep', 'phases', 'profile')
 
-
-def read_yaml(path, default=None):
-    if not os.path.isfile(path):
-        return default
-    with open(path) as f:
-        return yaml.safe_load(f)
-
-
-def write_yaml(path, data):
-    with open(path, 'w') as f:
-        yaml.safe_dump(data, f, default_flow_style=False, sort_keys=False)
 
 
 # ---------------------------------------------------------------------------------------------- steps

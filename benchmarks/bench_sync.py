@@ -26,7 +26,8 @@ import time
 
 import yaml
 
-from anafi_lab.engine.lockstep import e_mu, lockstep_figures, read_yaml, run_inprocess, run_sync  # noqa: F401
+from anafi_lab.engine.lockstep import e_mu, lockstep_figures, run_inprocess, run_sync  # noqa: F401
+from anafi_sim.run_files import read_yaml
 from anafi_sim.numeric import fmt
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

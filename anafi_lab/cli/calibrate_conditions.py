@@ -15,7 +15,7 @@ import os
 import sys
 import time
 
-from anafi_sim import paths
+from anafi_sim import paths, run_files
 from anafi_lab.calibration import conditions as cond
 from anafi_lab.reports import conditions_report
 from anafi_sim.mission.reference_log import read_log
@@ -55,13 +55,8 @@ def parse_args(argv):
 
 
 def write(path, text):
-    directory = os.path.dirname(path)
-    if directory:
-        os.makedirs(directory, exist_ok=True)
-    tmp = path + '.tmp'
-    with open(tmp, 'w') as stream:
-        stream.write(text)
-    os.replace(tmp, path)
+    """Write ``text`` to ``path`` atomically and say so."""
+    run_files.atomic_write_text(path, text)
     print('wrote %s' % path)
 
 

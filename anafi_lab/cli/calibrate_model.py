@@ -16,11 +16,10 @@ import argparse
 import glob
 import os
 import sys
-import tempfile
 
 import yaml
 
-from anafi_sim import paths
+from anafi_sim import paths, run_files
 from anafi_lab.calibration import conditions, fit, plot
 from anafi_lab.reports import calibration_report as report
 from anafi_sim.mission.reference_log import read_log
@@ -49,17 +48,8 @@ def parse_args(argv):
 
 
 def write(path, text):
-    """Write ``text`` to ``path`` atomically (a temporary file beside it, then renamed)."""
-    folder = os.path.dirname(os.path.abspath(path))
-    handle, temporary = tempfile.mkstemp(dir=folder, prefix='.' + os.path.basename(path) + '.')
-    try:
-        with os.fdopen(handle, 'w') as stream:
-            stream.write(text)
-        os.chmod(temporary, 0o644)
-        os.replace(temporary, path)
-    except BaseException:
-        os.unlink(temporary)
-        raise
+    """Write ``text`` to ``path`` atomically and say so."""
+    run_files.atomic_write_text(path, text)
     print('wrote %s' % path)
 
 

@@ -45,7 +45,7 @@ import time
 
 import yaml
 
-from anafi_sim import paths
+from anafi_sim import paths, run_files
 from anafi_lab.calibration import conditions, estimate, fit
 from anafi_lab.fidelity import replay as F
 from anafi_lab.fidelity import held_out as H
@@ -154,22 +154,7 @@ def strip(rec):
 
 def load_store(path):
     """The store of measured figures at ``path`` ({} when there is none yet)."""
-    if os.path.isfile(path):
-        with open(path) as stream:
-            return yaml.safe_load(stream) or {}
-    return {}
-
-
-
-
-def write_atomic(path, text):
-    """Write ``text`` to ``path`` through a temporary file beside it (a reader never sees half a file)."""
-    directory = os.path.dirname(os.path.abspath(path))
-    os.makedirs(directory, exist_ok=True)
-    tmp = '%s.tmp%d' % (path, os.getpid())
-    with open(tmp, 'w') as stream:
-        stream.write(text)
-    os.replace(tmp, path)
+    return run_files.read_yaml(path, {})
 
 
 def render(args):
@@ -182,7 +167,7 @@ def render(args):
     text = report.report_from_store(store, os.path.relpath(args.figures, out_dir),
                                     os.path.relpath(args.store, out_dir), store_name,
                                     report.load_log_facts(args.facts), report.load_findings(args.findings))
-    write_atomic(args.out, with_real_flights(text, args.out))
+    run_files.atomic_write_text(args.out, with_real_flights(text, args.out))
 
 
 def with_real_flights(text, out):
@@ -299,7 +284,7 @@ def main(argv=None):
             ('wall_s', round(time.perf_counter() - t0, 1))])
         measured = measured._replace(meta=dict(meta), fitted=dict(on))
         # the figures and the report after every step (a later step may be cut short)
-        write_atomic(args.store, yaml.safe_dump(report.store_from_measured(measured), default_flow_style=False,
+        run_files.atomic_write_text(args.store, yaml.safe_dump(report.store_from_measured(measured), default_flow_style=False,
                                                 sort_keys=False))
         render(args)
     print('wrote %s and %s (%.0f s)' % (args.out, args.store, time.perf_counter() - t0))

@@ -84,8 +84,6 @@ import importlib
 import math
 import time
 
-import yaml
-
 from anafi_control.contract import Controller, InputGate
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc_tracking import DEFAULTS as MPC_TRACKING_DEFAULTS, MpcTracking
@@ -94,7 +92,7 @@ from anafi_control.pid_framework import DEFAULTS as PID_DEFAULTS, LOOP_NAMES, Pi
     relative_state
 from anafi_control.preview_mpc import DEFAULTS as PREVIEW_DEFAULTS, PredictionModel, PreviewMpc
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler, input_topics, loop_inputs, loop_topics
-from anafi_sim import names, paths
+from anafi_sim import names, paths, run_files
 from anafi_sim.mission.evaluation import LiveEvaluator
 from anafi_sim.mission.monitor import ExperimentMonitor
 from anafi_lab.engine.event_loop import ACTION, PHYSICS, TIMER, EventLoop, NodeClock, Timer, Topic, to_ns, to_s
@@ -153,10 +151,6 @@ RunResult.__doc__ = ('One run: name, ok (final summary), error (why not), summar
                      '\'final\' or \'incomplete\'), info (run figures), evaluation (Evaluation or None).')
 
 
-def _load_yaml(path):
-    with open(path) as stream:
-        return yaml.safe_load(stream) or {}
-
 
 def make_schedule(overrides=None):
     """DEFAULT_SCHEDULE updated with ``overrides`` (unknown keys and bad values raise ValueError)."""
@@ -194,7 +188,7 @@ def wind_settings(wind):
 def simulator_config(settings=None):
     """(mapping kwargs, model settings, seed) as anafi_sim_node.py reads anafi_sim/config/sim.yaml, with
     ``settings`` (keys of DEFAULT_SETTINGS) overriding the file."""
-    config = _load_yaml(paths.config_path('sim.yaml'))
+    config = run_files.read_yaml(paths.config_path('sim.yaml'), {})
     mapping = dict(max_tilt_deg=float(config.get('max_tilt_deg', MAX_TILT_DEG)),
                    max_vertical_speed=float(config.get('max_vertical_speed', MAX_VERTICAL_SPEED)),
                    max_yaw_rate_deg=float(config.get('max_yaw_rate_deg', MAX_YAW_RATE_DEG)))
@@ -217,7 +211,7 @@ def waypoint_limits(config):
 def mpc_config(overrides=None):
     """The MPC node's parameters as mpc.launch loads them (anafi_sim/config/mpc.yaml) with ``overrides``:
     (flat MPC params, yaw config or None, tracking kwargs, rate [Hz])."""
-    config = _load_yaml(paths.config_path('mpc.yaml'))
+    config = run_files.read_yaml(paths.config_path('mpc.yaml'), {})
     config.update(dict(overrides or {}))
     names = tuple(k for k in MPC_DEFAULTS if k != 'v_max') + ('v_max_x', 'v_max_y', 'v_max_z')
     tracking = ('state_timeout', 'waypoint_timeout', 'twist_in_child_frame', 'cum_reset_distance')
@@ -235,7 +229,7 @@ def pid_config(overrides=None):
     """The PID framework's parameters as pid.launch loads them (anafi_sim/config/pid.yaml) with ``overrides``
     ({loop: {param: value}}, or top-level keys such as the waypoint limits): (loops config validated by
     ``anafi_control.pid_framework.make_config``, limits kwargs for the node that gates the inputs)."""
-    config = _load_yaml(paths.config_path('pid.yaml'))
+    config = run_files.read_yaml(paths.config_path('pid.yaml'), {})
     for key, value in dict(overrides or {}).items():
         if key in LOOP_NAMES:
             if not isinstance(value, dict):
@@ -253,7 +247,7 @@ def pid_config(overrides=None):
 def preview_config(overrides=None):
     """The preview MPC's parameters as experiment.launch loads them (anafi_sim/config/preview_mpc.yaml) with
     ``overrides``: (params for anafi_control.preview_mpc.PreviewMpc, limits kwargs)."""
-    config = _load_yaml(paths.config_path('preview_mpc.yaml'))
+    config = run_files.read_yaml(paths.config_path('preview_mpc.yaml'), {})
     config.update(dict(overrides or {}))
     node_only = ('state_topic', 'waypoint_topic', 'command_topic', 'frame_id', 'reference_topic')
     params = dict((k, v) for k, v in config.items() if k in PREVIEW_DEFAULTS and k not in LIMIT_DEFAULTS)

@@ -10,19 +10,12 @@ import subprocess
 import sys
 import time
 
-import yaml
-
 from anafi_sim import processes
+from anafi_sim.run_files import read_yaml
 
 SIM_STATUS = 'anafi_sim: simulated Anafi'
 """Name prefix of the simulator's /diagnostics status."""
 
-
-def read_yaml(path, default=None):
-    if not os.path.isfile(path):
-        return default
-    with open(path) as f:
-        return yaml.safe_load(f)
 
 
 def lockstep_figures(bag_path):

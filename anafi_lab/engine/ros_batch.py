@@ -27,7 +27,7 @@ import time
 
 import yaml
 
-from anafi_sim import paths, processes
+from anafi_sim import paths, processes, run_files
 from anafi_lab.reports import paper_tables as report
 from anafi_sim.mission import step_response
 from anafi_sim.mission.trajectory import list_scenarios, load_scenario
@@ -44,11 +44,8 @@ def child_env(ros_home, port):
 
 
 def read_yaml(path):
-    try:
-        with open(path) as f:
-            return yaml.safe_load(f)
-    except (IOError, OSError, yaml.YAMLError):
-        return None
+    """A run's result file (None when missing, cut or malformed)."""
+    return run_files.read_yaml(path, tolerant=True)
 
 
 class Run(object):

@@ -26,13 +26,12 @@ import platform
 import sys
 import time
 
-import yaml
-
 from anafi_lab.reports import paper_tables as report
 from anafi_sim.mission import step_response
 from anafi_lab.engine.engine import Engine
 from anafi_sim.mission.reference_log import write_log
 from anafi_sim.mission.trajectory import load_scenario
+from anafi_sim import run_files
 from anafi_sim.numeric import fmt
 
 SYNC_SCHEDULE = collections.OrderedDict([('controller_phase', 0.0), ('generator_phase', 0.005), ('mpc_latency', 0.0)])
@@ -68,10 +67,6 @@ def task_name(task):
     scenario = os.path.splitext(os.path.basename(str(task['scenario'])))[0]
     return '%s_%s' % (scenario, str(task['controller']).split(':')[-1])
 
-
-def _write_yaml(path, data):
-    with open(path, 'w') as stream:
-        yaml.safe_dump(data, stream, default_flow_style=False, sort_keys=False)
 
 
 def run_task(task):
@@ -110,7 +105,7 @@ def run_task(task):
         if not os.path.isdir(out_dir):
             os.makedirs(out_dir, exist_ok=True)
         files['summary'] = os.path.join(out_dir, name + '.yaml')
-        _write_yaml(files['summary'], result.summary)
+        run_files.write_yaml(files['summary'], result.summary)
         if result.evaluation is not None:
             files['csv'] = os.path.join(out_dir, name + '.csv')
             write_log(files['csv'], result.evaluation.full_log)
@@ -348,5 +343,5 @@ def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLER
     report_path = os.path.join(out_dir, 'report.md')
     with open(report_path, 'w') as stream:
         stream.write(report.render(records, meta, plot_list, comparisons))
-    _write_yaml(os.path.join(out_dir, 'experiments.yaml'), {'meta': dict(meta), 'records': records})
+    run_files.write_yaml(os.path.join(out_dir, 'experiments.yaml'), {'meta': dict(meta), 'records': records})
     return records, meta, report_path

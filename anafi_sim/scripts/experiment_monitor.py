@@ -71,16 +71,6 @@ def _yaml(msg):
         return None
 
 
-def _write_yaml(path, data):
-    run_files.atomic_write_text(path, yaml.safe_dump(data, default_flow_style=False, sort_keys=False))
-
-
-def _read_yaml(path):
-    try:
-        with open(path) as f:
-            return yaml.safe_load(f)
-    except (IOError, OSError, yaml.YAMLError):
-        return None
 
 
 class ExperimentMonitorNode(object):
@@ -121,7 +111,7 @@ class ExperimentMonitorNode(object):
             if removed:
                 rospy.logwarn('removed the previous run\'s files %s', ', '.join(removed))
         if self.files['info']:      # a run that never ends (killed) leaves this: RUN.FAILED.run.yaml, state running
-            _write_yaml(run_files.failed_name(self.files['info']), {
+            run_files.write_yaml(run_files.failed_name(self.files['info']), {
                 'state': 'running', 'label': self.label,
                 'reason': 'the run did not end (killed?): its files are partial'})
         self.waypoint_topic = rospy.resolve_name(names.WAYPOINT)
@@ -305,7 +295,7 @@ class ExperimentMonitorNode(object):
             info['state'], info['reason'] = FAILED, self.core.reason
         if self.files['info']:
             try:
-                _write_yaml(self.files['info'], info)
+                run_files.write_yaml(self.files['info'], info)
             except (IOError, OSError) as e:
                 ok = False
                 info['state'] = FAILED
@@ -351,7 +341,7 @@ class ExperimentMonitorNode(object):
         out = []
         path = self.files['summary']
         if path:
-            data = _read_yaml(path)
+            data = run_files.read_yaml(path, tolerant=True)
             if not isinstance(data, dict) or data.get('state') != 'final':
                 out.append('summary %s %s' % (path, 'not written' if not os.path.exists(path)
                                               else 'unreadable or not final'))

@@ -32,11 +32,14 @@ SCENARIO = os.path.join(HERE, 'experiment_short.yaml')
 RUN_TIMEOUT = 130.0       # s wall for the whole launch
 #: live tuning during the run (`rosrun dynamic_reconfigure dynparam set`): node, request, the expected records
 #: (parameter, old, new, outcome). Harmless to the flight: a_max 5 -> 5.5 m/s^2; q_cum_vel asked -1, clamped to
-#: its minimum 0 (its value already); the PID's x_outer Kd_scale asked 0.01, clamped to 0.1 (Kd is 0).
+#: its minimum 0 (its value already); the PID's x_outer Kd_scale asked 0.01, clamped to 0.1 (Kd is 0); the preview
+#: MPC's yaw gain 1.5 -> 1.6, its tilt margin asked 5, clamped to its maximum 1 (from 0.95).
 TUNING = {
     'mpc': ('/anafi/mpc_controller', "{'a_max': 5.5, 'q_cum_vel': -1.0}",
             [('a_max', 5.0, 5.5, 'applied'), ('q_cum_vel', 0.0, 0.0, 'clamped')]),
     'pid': ('/anafi/pid/x_outer', "{'Kd_scale': 0.01}", [('Kd_scale', None, 0.1, 'clamped')]),
+    'preview_mpc': ('/anafi/preview_mpc_controller', "{'yaw_gain': 1.6, 'tilt_margin': 5.0}",
+                    [('yaw_gain', 1.5, 1.6, 'applied'), ('tilt_margin', 0.95, 1.0, 'clamped')]),
 }
 
 

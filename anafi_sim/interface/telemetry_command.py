@@ -100,9 +100,10 @@ def _rate(text):
 def _endpoint(text):
     parts = text.split(':')
     if len(parts) != 3 or parts[0] != 'inet' or not _HOST.match(parts[1]) or not parts[2].isdigit() \
-            or not 1 <= int(parts[2]) <= 65535:
+            or not 0 <= int(parts[2]) <= 65535:
         raise ValueError('telemetry_command: the endpoint must be inet:HOST:PORT (HOST a name or an IPv4 '
-                         'address, PORT in 1..65535), got %r' % (text,))
+                         'address, PORT in 0..65535: 0 = the port the interface learns from ~simulator_node), '
+                         'got %r' % (text,))
     return text
 
 

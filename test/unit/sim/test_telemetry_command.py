@@ -11,6 +11,8 @@ STAND_INS = ['/ws/devel/lib/anafi_sim/tlm_data_logger.py']
 def test_the_sphinx_tool_and_its_arguments_are_passed_as_a_list():
     assert allowed_argv('tlm-data-logger -r 0 inet:127.0.0.1:9060') == [SPHINX_TOOL, '-r', '0', 'inet:127.0.0.1:9060']
     assert allowed_argv(['tlm-data-logger', 'inet:localhost:9060']) == [SPHINX_TOOL, 'inet:localhost:9060']
+    # port 0: the interface puts in the port it learns from ~simulator_node (sim.launch's default command)
+    assert allowed_argv('tlm-data-logger -r 0 inet:127.0.0.1:0')[-1] == 'inet:127.0.0.1:0'
     assert allowed_argv(['/opt/parrot-sphinx/usr/bin/tlm-data-logger', '-r', 10, 'inet:10.0.0.2:9060']) == \
         ['/opt/parrot-sphinx/usr/bin/tlm-data-logger', '-r', '10', 'inet:10.0.0.2:9060']
 
@@ -46,7 +48,7 @@ def test_the_package_stand_in_is_found():
     ('tlm-data-logger -r -1 inet:127.0.0.1:9060', '-r takes a number'),
     ('tlm-data-logger -r nan inet:127.0.0.1:9060', '-r takes a number'),
     ('tlm-data-logger inet:-oProxyCommand=id:9060', 'the endpoint must be'),
-    ('tlm-data-logger inet:127.0.0.1:0', 'the endpoint must be'),
+    ('tlm-data-logger inet:127.0.0.1:70000', 'the endpoint must be'),
     ('tlm-data-logger unix:/tmp/socket', 'the endpoint must be'),
     ('tlm-data-logger', 'takes [-r MS] inet:HOST:PORT'),
     ('', 'empty'),

@@ -96,7 +96,8 @@ from anafi_sim import names, paths, run_files
 from anafi_sim.mission.evaluation import LiveEvaluator
 from anafi_sim.mission.monitor import ExperimentMonitor
 from anafi_lab.engine.event_loop import ACTION, PHYSICS, TIMER, EventLoop, NodeClock, Timer, Topic, to_ns, to_s
-from anafi_sim.mission.trajectory import DONE, Scenario, TrajectoryGenerator, load_scenario
+from anafi_sim.mission.trajectory import Scenario, load_scenario
+from anafi_sim.mission.generator import DONE, TrajectoryGenerator
 from anafi_sim.interface.ground_truth import GroundTruthInterface, odometry
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.sim.clock import TIMER_PHASES, SimClock

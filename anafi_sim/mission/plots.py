@@ -79,6 +79,40 @@ def _decimate(n, max_points=1500):
     return max(1, int(math.ceil(n / float(max_points))))
 
 
+def _error_panel(bottom, log, window, truth, k):
+    """The tracking error over time (vs the estimate, and vs ground truth when ``truth``), e_mu over the window."""
+    t = log.t
+    _shade(bottom, window)
+    e_est = tracking_error(log, 'anafi').e
+    bottom.plot(t[::k], e_est[::k], '-', color=COLORS['estimate'], lw=1.2, label='vs estimate')
+    m = window_mask(t, window)
+    if truth:
+        e_tr = tracking_error(log, 'sphinx').e
+        bottom.plot(t[::k], e_tr[::k], ':', color=COLORS['truth'], lw=1.2, label='vs ground truth')
+    valid = m & np.isfinite(e_est)
+    if valid.any():
+        mu = float(np.mean(e_est[valid]))
+        x0, x1 = (window if window is not None else (t[0], t[-1]))
+        bottom.hlines(mu, x0, x1, colors='k', linestyles='-.', lw=1.0, label='e_mu %.2f m' % mu)
+    bottom.set_xlabel('time [s]')
+    bottom.set_ylabel('e [m]')
+    bottom.grid(True, lw=0.3)
+    bottom.legend(loc='best', fontsize=7, framealpha=0.7)
+
+
+def _wind_arrow(top, wind):
+    """Where the air moves (the steady wind of ``wind``: wind_x, wind_y [m/s]) as an arrow in the corner of the
+    xy panel (axes fraction, x east), with its speed; nothing without wind."""
+    wx, wy = float(wind.get('wind_x', 0.0)), float(wind.get('wind_y', 0.0))
+    speed = float(np.hypot(wx, wy))
+    if speed > 0.0:
+        ux, uy = wx / speed, wy / speed
+        top.annotate('', xy=(0.88 + 0.08 * ux, 0.14 + 0.08 * uy), xytext=(0.88 - 0.08 * ux, 0.14 - 0.08 * uy),
+                     xycoords='axes fraction', arrowprops={'arrowstyle': '->', 'color': 'tab:purple', 'lw': 2})
+        top.text(0.88, 0.01, 'wind %.1f m/s' % speed, transform=top.transAxes, ha='center', va='bottom',
+                 fontsize=7, color='tab:purple')
+
+
 def run_figure(log, window=None, title='', show_truth=True, wind=None):
     """Figure of one run (see the module doc); ``window`` = (t0, t1) s since the first sample or None;
     ``wind``: the run's simulator settings (wind_x, wind_y, gust_std_horizontal, wind_compensation) -> an arrow
@@ -141,32 +175,9 @@ def run_figure(log, window=None, title='', show_truth=True, wind=None):
         top.tick_params(labelbottom=False)
     top.grid(True, lw=0.3)
 
-    bottom = fig.add_subplot(gs[2, 1])
-    _shade(bottom, window)
-    e_est = tracking_error(log, 'anafi').e
-    bottom.plot(t[::k], e_est[::k], '-', color=COLORS['estimate'], lw=1.2, label='vs estimate')
-    m = window_mask(t, window)
-    if truth:
-        e_tr = tracking_error(log, 'sphinx').e
-        bottom.plot(t[::k], e_tr[::k], ':', color=COLORS['truth'], lw=1.2, label='vs ground truth')
-    valid = m & np.isfinite(e_est)
-    if valid.any():
-        mu = float(np.mean(e_est[valid]))
-        x0, x1 = (window if window is not None else (t[0], t[-1]))
-        bottom.hlines(mu, x0, x1, colors='k', linestyles='-.', lw=1.0, label='e_mu %.2f m' % mu)
-    bottom.set_xlabel('time [s]')
-    bottom.set_ylabel('e [m]')
-    bottom.grid(True, lw=0.3)
-    bottom.legend(loc='best', fontsize=7, framealpha=0.7)
+    _error_panel(fig.add_subplot(gs[2, 1]), log, window, truth, k)
     if text:
-        wx, wy = float(wind.get('wind_x', 0.0)), float(wind.get('wind_y', 0.0))
-        speed = float(np.hypot(wx, wy))
-        if speed > 0.0:             # where the air moves, in the xy panel's corner (axes fraction, x east)
-            ux, uy = wx / speed, wy / speed
-            top.annotate('', xy=(0.88 + 0.08 * ux, 0.14 + 0.08 * uy), xytext=(0.88 - 0.08 * ux, 0.14 - 0.08 * uy),
-                         xycoords='axes fraction', arrowprops={'arrowstyle': '->', 'color': 'tab:purple', 'lw': 2})
-            top.text(0.88, 0.01, 'wind %.1f m/s' % speed, transform=top.transAxes, ha='center', va='bottom',
-                     fontsize=7, color='tab:purple')
+        _wind_arrow(top, wind)
     if title or text:
         fig.suptitle(title + (('\n' if title else '') + text if text else ''), fontsize=10 if not text else 9)
     return fig

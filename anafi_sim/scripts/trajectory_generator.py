@@ -45,8 +45,8 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectory
 import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.frames import euler_to_quaternion
 
-from anafi_sim.mission.trajectory import (DONE, IDLE, RUNNING, SCENARIO_DIR, TrajectoryGenerator, list_scenarios,
-                                              load_scenario, scenario_in_folders)
+from anafi_sim.mission.trajectory import SCENARIO_DIR, list_scenarios, load_scenario, scenario_in_folders
+from anafi_sim.mission.generator import DONE, IDLE, RUNNING, TrajectoryGenerator
 from anafi_sim import names
 from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES, waypoint_class, waypoint_message
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, namespace_id, private_params,

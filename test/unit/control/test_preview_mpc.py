@@ -13,8 +13,8 @@ from anafi_control.preview_mpc import (DEFAULTS, RECONFIGURABLE, PredictionModel
                                        check_params, discretise, reference_samples, tilt_acceleration)
 from anafi_control.target_estimator import TargetEstimator
 from anafi_sim import paths
-from anafi_sim.mission.trajectory import Circle, StraightLine, TrajectoryGenerator, VerticalPeriodic, \
-    load_scenario
+from anafi_sim.mission.generator import TrajectoryGenerator
+from anafi_sim.mission.trajectory import Circle, StraightLine, VerticalPeriodic, load_scenario
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.sim.drone_model import AnafiModel, load_model_params
 from conftest import cfg_defaults

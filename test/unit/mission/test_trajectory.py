@@ -12,8 +12,9 @@ import yaml
 
 from anafi_sim.mission import trajectory as tr
 from anafi_sim.mission.trajectory import (Circle, Constant, PerAxis, Ramp, Sine, StaticWaypoint, StraightLine,
-                                  TrajectoryGenerator, VerticalPeriodic, load_scenario, list_scenarios,
-                                  scenario_from_dict, trajectory_from_dict)
+                                          VerticalPeriodic, load_scenario, list_scenarios, scenario_from_dict,
+                                          trajectory_from_dict)
+from anafi_sim.mission.generator import DONE, TrajectoryGenerator
 
 TIMES = [0.0, 0.37, 1.0, 2.5, 4.2, 7.77, 13.1, 29.9]
 
@@ -263,7 +264,7 @@ def test_generator_events_carry_exact_boundary_times():
     wp, events = gen.update(100.0 + sc.duration + 3.0)
     assert [e.kind for e in events] == ['end', 'phase', 'done']
     assert events[0].time == pytest.approx(100.0 + t1)
-    assert gen.state == tr.DONE
+    assert gen.state == DONE
     assert (wp.vx, wp.vy, wp.vz) == (0.0, 0.0, 0.0)         # holds the final position
     assert gen.update(200.0) == (wp, [])
 

@@ -15,8 +15,9 @@ import os
 import sys
 import time
 
-from anafi_sim import paths, run_files
+from anafi_sim import paths
 from anafi_lab.calibration import conditions as cond
+from anafi_lab.cli.calibrate_model import write
 from anafi_lab.reports import conditions_report
 from anafi_sim.mission.reference_log import read_log
 from anafi_sim.sim.drone_model import load_model_params
@@ -53,11 +54,6 @@ def parse_args(argv):
         parser.error('--seeds must be >= 1')
     return args
 
-
-def write(path, text):
-    """Write ``text`` to ``path`` atomically and say so."""
-    run_files.atomic_write_text(path, text)
-    print('wrote %s' % path)
 
 
 def main(argv=None):

@@ -15,7 +15,6 @@ not installed.
 """
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import threading
@@ -35,7 +34,7 @@ from anafi_sim.mission.visualisation import COLOURS
 from anafi_sim.processes import start, stop
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_rviz import SCREEN, colour_mask, read_xwd  # noqa: E402  (the same screen reading)
+from test_rviz import colour_mask, read_xwd, start_xvfb  # noqa: E402  (the same screen reading)
 
 NAMES = ('anafi1', 'anafi2', 'anafi3')
 WINDOW = 30          # px around a drone's projected position searched for its model
@@ -97,18 +96,7 @@ class TestFleetRviz(unittest.TestCase):
         shutil.rmtree(cls.tmp, ignore_errors=True)
 
     def start_xvfb(self):
-        read_fd, write_fd = os.pipe()
-        fbdir = os.path.join(self.tmp, 'fb')
-        os.makedirs(fbdir)
-        xvfb = subprocess.Popen(['Xvfb', '-displayfd', str(write_fd), '-fbdir', fbdir, '-screen', '0',
-                                 '%dx%dx24' % SCREEN, '-nolisten', 'tcp'], pass_fds=(write_fd,),
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        self.procs.append(xvfb)
-        os.close(write_fd)
-        with os.fdopen(read_fd) as f:
-            display = f.readline().strip()
-        self.assertTrue(display, 'Xvfb did not report its display')
-        return ':' + display, os.path.join(fbdir, 'Xvfb_screen0')
+        return start_xvfb(self.tmp, self.procs)
 
     def found(self, image, view, colour):
         """{drone: (projected (col, row) in the screen or None, dark pixels around it)} and the view box."""

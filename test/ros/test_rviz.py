@@ -48,6 +48,24 @@ MIN_PIXELS = {'trail': 100, 'reference': 100, 'predicted': 100, 'waypoint': 40}
 MIN_DARK = 30         # pixels of the drone model, in the 3D view
 
 
+def start_xvfb(tmp, procs):
+    """An Xvfb server of ``SCREEN`` writing its frame buffer below ``tmp`` (added to ``procs``): (display,
+    path of the frame buffer file)."""
+    read_fd, write_fd = os.pipe()
+    fbdir = os.path.join(tmp, 'fb')
+    os.makedirs(fbdir)
+    xvfb = subprocess.Popen(['Xvfb', '-displayfd', str(write_fd), '-fbdir', fbdir, '-screen', '0',
+                             '%dx%dx24' % SCREEN, '-nolisten', 'tcp'], pass_fds=(write_fd,),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    procs.append(xvfb)
+    os.close(write_fd)
+    with os.fdopen(read_fd) as f:
+        display = f.readline().strip()
+    if not display:
+        raise AssertionError('Xvfb did not report its display')
+    return ':' + display, os.path.join(fbdir, 'Xvfb_screen0')
+
+
 def read_xwd(path):
     """RGB uint8 array (h, w, 3) of an XWD file as Xvfb -fbdir writes it (ZPixmap, 24/32 bits per pixel)."""
     with open(path, 'rb') as f:
@@ -131,18 +149,7 @@ class TestRviz(unittest.TestCase):
         shutil.rmtree(cls.tmp, ignore_errors=True)
 
     def start_xvfb(self):
-        read_fd, write_fd = os.pipe()
-        fbdir = os.path.join(self.tmp, 'fb')
-        os.makedirs(fbdir)
-        xvfb = subprocess.Popen(['Xvfb', '-displayfd', str(write_fd), '-fbdir', fbdir, '-screen', '0',
-                                 '%dx%dx24' % SCREEN, '-nolisten', 'tcp'], pass_fds=(write_fd,),
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        self.procs.append(xvfb)
-        os.close(write_fd)
-        with os.fdopen(read_fd) as f:
-            display = f.readline().strip()
-        self.assertTrue(display, 'Xvfb did not report its display')
-        return ':' + display, os.path.join(fbdir, 'Xvfb_screen0')
+        return start_xvfb(self.tmp, self.procs)
 
     def test_screenshot_shows_drone_and_paths(self):
         for tool in ('rviz', 'Xvfb'):

@@ -1,0 +1,243 @@
+"""Where a node instance lives in the ROS graph: its name, its ~params and its topics (the nodes' one handle).
+
+Stage: ROS wiring only. A node class takes a ``NodeContext`` and asks it, never rospy's globals, for its
+parameters (``ctx.params()``, a checked ParamReader over ``<name>/...``), its names (``ctx.resolve``) and its
+publishers, subscribers and services. Two kinds:
+
+- ``NodeContext.process()``: the process's own node (what ``rospy.init_node`` made; the per-drone layout,
+  one node per process as in the paper). Names resolve through rospy, remappings included; publishers and
+  subscribers are plain rospy ones.
+- ``NodeContext(name, bus)``: one of the instances a host process runs (the shared layout of a fleet:
+  ``scripts/fleet_host.py``). Its names resolve against ``name`` (e.g. /anafi1/interface), so every drone
+  keeps its own topics, parameters and services. Messages between instances of one host go through the
+  host's ``LocalBus``: handed over in the process (no serialisation, no socket), on one dispatcher thread,
+  in publication order. Other processes still see every topic: a publication goes to rospy as well when a
+  subscriber outside the host listens (or the topic is latched), and each local subscription also subscribes
+  through rospy for publishers outside the host (its copies of the host's own publications are dropped by
+  the publisher's caller id).
+
+A delivered message is shared by every local subscriber, as with roscpp's nodelets: callbacks read it and
+do not change it.
+"""
+import collections
+import threading
+
+import rosgraph.names
+import rospy
+import tf2_ros
+from tf2_msgs.msg import TFMessage
+
+from anafi_sim.ros.params import ParamReader
+
+
+class NodeContext(object):
+    """A node instance: ``name`` (global, e.g. /anafi1/interface), ``bus`` (a LocalBus: hosted; None: the
+    process's own node)."""
+
+    def __init__(self, name, bus=None):
+        self.name = rosgraph.names.canonicalize_name(name)
+        self.namespace = rosgraph.names.namespace(self.name)
+        self.bus = bus
+
+    @classmethod
+    def process(cls):
+        """The process's own node (after rospy.init_node)."""
+        return cls(rospy.get_name())
+
+    @property
+    def hosted(self):
+        return self.bus is not None
+
+    @property
+    def namespace_id(self):
+        """The namespace without its slashes, 'anafi' at the root (hardware ids, default drone names)."""
+        return self.namespace.strip('/') or 'anafi'
+
+    def resolve(self, name):
+        """A global name: ~x -> <name>/x, relative -> <namespace>/x (the process's node: rospy's resolution)."""
+        if self.bus is None:
+            return rospy.resolve_name(name)
+        return rosgraph.names.resolve_name(name, self.name)
+
+    # ------------------------------------------------------------------ parameters
+    def private(self, name):
+        """The global name of the private parameter ``name``."""
+        return rosgraph.names.ns_join(self.name, name)
+
+    def params(self):
+        """A ParamReader over the instance's private parameters."""
+        return ParamReader(lambda name, default: rospy.get_param(self.private(name), default))
+
+    def get_param(self, name, default=None):
+        """A private parameter's raw value (``default`` when unset)."""
+        return rospy.get_param(self.private(name), default)
+
+    def has_param(self, name):
+        return rospy.has_param(self.private(name))
+
+    def set_param(self, name, value):
+        rospy.set_param(self.private(name), value)
+
+    # ------------------------------------------------------------------ topics and services
+    def publisher(self, name, data_class, **kwargs):
+        """rospy.Publisher's arguments; hosted: a LocalPublisher on the host's bus."""
+        if self.bus is None:
+            return rospy.Publisher(name, data_class, **kwargs)
+        return self.bus.publisher(self.resolve(name), data_class, **kwargs)
+
+    def subscriber(self, name, data_class, callback, **kwargs):
+        """rospy.Subscriber's arguments; hosted: a subscription on the host's bus (and through rospy)."""
+        if self.bus is None:
+            return rospy.Subscriber(name, data_class, callback, **kwargs)
+        return self.bus.subscriber(self.resolve(name), data_class, callback, **kwargs)
+
+    def service(self, name, service_class, handler):
+        return rospy.Service(self.resolve(name), service_class, handler)
+
+    def send_static_transforms(self, transforms):
+        """Static transforms on /tf_static (hosted: the union of every instance's, one latched message)."""
+        if self.bus is None:
+            tf2_ros.StaticTransformBroadcaster().sendTransform(transforms)
+        else:
+            self.bus.send_static_transforms(transforms)
+
+
+class LocalPublisher(object):
+    """A publisher of a host: local subscribers get the message in the process; rospy gets it when another
+    process listens (or the topic is latched)."""
+
+    def __init__(self, bus, topic, pub, latch):
+        self.bus = bus
+        self.topic = topic
+        self.pub = pub
+        self.latch = latch
+        self.name = topic
+        self.resolved_name = topic
+
+    def external_connections(self):
+        """Subscribers of this topic outside the host (rospy's connections, less the host's own)."""
+        own = self.bus.caller_id
+        return sum(1 for c in list(self.pub.impl.connections) if getattr(c, 'endpoint_id', None) != own)
+
+    def get_num_connections(self):
+        return self.external_connections() + len(self.bus.local_callbacks(self.topic))
+
+    def publish(self, msg):
+        self.bus.deliver(self.topic, msg, self.latch)
+        if self.latch or self.external_connections():
+            self.pub.publish(msg)
+
+    def unregister(self):
+        self.pub.unregister()
+
+
+class LocalSubscription(object):
+    """A subscription of a host: its local callback and its rospy subscriber (publishers elsewhere)."""
+
+    def __init__(self, bus, topic, entry, sub):
+        self.bus = bus
+        self.topic = topic
+        self.entry = entry
+        self.sub = sub
+        self.name = topic
+        self.resolved_name = topic
+
+    def get_num_connections(self):
+        return self.sub.get_num_connections()
+
+    def unregister(self):
+        self.bus.remove(self.topic, self.entry)
+        self.sub.unregister()
+
+
+class LocalBus(object):
+    """In-process delivery between the instances of one host process (``caller_id``: the host's node name,
+    which the copies of its own publications that come back through rospy carry)."""
+
+    def __init__(self, caller_id, on_error=None):
+        self.caller_id = caller_id
+        self.on_error = on_error           # (topic, exception) of a failing callback; None: log
+        self._lock = threading.Lock()
+        self._subscribers = {}             # topic -> tuple of callbacks
+        self._latched = {}                 # topic -> last message of a latched publisher
+        self._queue = collections.deque()
+        self._ready = threading.Condition(threading.Lock())
+        self._static = collections.OrderedDict()    # (parent, child) -> TransformStamped
+        self._static_pub = None
+        self.delivered = 0
+        self.callback_errors = 0
+        self._thread = threading.Thread(target=self._dispatch, name='local_bus', daemon=True)
+        self._thread.start()
+
+    def publisher(self, topic, data_class, latch=False, **kwargs):
+        return LocalPublisher(self, topic, rospy.Publisher(topic, data_class, latch=latch, **kwargs), latch)
+
+    def subscriber(self, topic, data_class, callback, **kwargs):
+        entry = [callback]        # a list: identity for removal even when the same callback is added twice
+        with self._lock:
+            self._subscribers[topic] = self._subscribers.get(topic, ()) + (entry,)
+            latched = self._latched.get(topic)
+        if latched is not None:
+            self._enqueue(topic, (entry,), latched)
+        own = self.caller_id
+
+        def from_elsewhere(msg):
+            header = getattr(msg, '_connection_header', None) or {}
+            if header.get('callerid') != own:      # the host's own publications arrived locally already
+                callback(msg)
+        sub = rospy.Subscriber(topic, data_class, from_elsewhere, **kwargs)
+        return LocalSubscription(self, topic, entry, sub)
+
+    def remove(self, topic, entry):
+        with self._lock:
+            self._subscribers[topic] = tuple(e for e in self._subscribers.get(topic, ()) if e is not entry)
+
+    def local_callbacks(self, topic):
+        return self._subscribers.get(topic, ())
+
+    def deliver(self, topic, msg, latch=False):
+        """Hand ``msg`` to the local subscribers of ``topic`` (on the dispatcher thread)."""
+        if latch:
+            with self._lock:
+                self._latched[topic] = msg
+        entries = self._subscribers.get(topic)
+        if entries:
+            self._enqueue(topic, entries, msg)
+
+    def _enqueue(self, topic, entries, msg):
+        with self._ready:
+            self._queue.append((topic, entries, msg))
+            self._ready.notify()
+
+    def _dispatch(self):
+        queue = self._queue
+        while True:
+            with self._ready:
+                while not queue:
+                    self._ready.wait()
+                topic, entries, msg = queue.popleft()
+            for entry in entries:
+                try:
+                    entry[0](msg)
+                except Exception as error:     # one instance's failing callback must not stop the others
+                    self.callback_errors += 1
+                    if self.on_error is not None:
+                        self.on_error(topic, error)
+                    else:
+                        rospy.logerr_throttle(5.0, 'host: a callback of %s failed (%d so far): %s: %s' % (
+                            topic, self.callback_errors, type(error).__name__, error))
+            self.delivered += 1
+
+    def pending(self):
+        """Messages waiting for the dispatcher."""
+        return len(self._queue)
+
+    def send_static_transforms(self, transforms):
+        """Add ``transforms`` to the host's static transforms and publish them all (one latched message)."""
+        with self._lock:
+            for t in transforms:
+                self._static[(t.header.frame_id, t.child_frame_id)] = t
+            if self._static_pub is None:
+                self._static_pub = rospy.Publisher('/tf_static', TFMessage, queue_size=100, latch=True)
+            msg = TFMessage(transforms=list(self._static.values()))
+        self._static_pub.publish(msg)

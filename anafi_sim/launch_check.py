@@ -107,7 +107,7 @@ def fleet_cap(cores=None):
     return max(1, int((available_cores() if cores is None else cores) / CPU_PER_DRONE))
 
 
-def fleet_size_problem(count, max_drones=0, cores=None):
+def fleet_size_problem(count, max_drones=0, cores=None, layout=None):
     """None when ``count`` drones fit (``max_drones`` > 0: the user's own cap instead of ``fleet_cap``), else
     what is wrong (names the cap, where it comes from and how to override it)."""
     if max_drones and max_drones > 0:

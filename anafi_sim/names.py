@@ -42,6 +42,7 @@ PID_ENABLE = 'pid_enable'               # std_msgs/Bool (latched), under PID_NAM
 # --- global ---------------------------------------------------------------------------------------------
 CLOCK = '/clock'
 DIAGNOSTICS = '/diagnostics'
+TF = '/tf'                              # tf2_msgs/TFMessage
 
 # --- Gazebo's ROS API (gazebo_ros, or the kinematic world), relative to GAZEBO_NAMESPACE ----------------
 GAZEBO_NAMESPACE = '/gazebo'

@@ -13,6 +13,7 @@ Fleet file schema (every key optional except ``drones`` unless ``drones:=N`` is 
     description: text
     defaults: {controller: mpc, scenario: circle_r2_v1}   # every drone's settings unless it sets its own
     row: {spacing: 6.0, axis: y}    # drones:=N -> anafi1..anafiN, drone i at (i - 1) * spacing along axis
+    layout: per_drone               # per_drone (a process per node) | shared (hosts: mission/fleet_layout.py)
     drones:
       - name: anafi1                # a ROS name: namespace, tf prefix, models <name> and <name>_camera
         source: sim                 # sim (stand-in, default) | sphinx (the real Sphinx drone: at most one)
@@ -39,6 +40,7 @@ from anafi_sim import paths
 from anafi_sim.mission.model_following import OFFSET_FRAMES, YAW_MODES
 from anafi_sim.mission.trajectory import SCENARIO_DIR, airship_defaults, scenario_from_dict, scenario_path
 from anafi_sim.gazebo.mirror import model_names
+from anafi_sim.mission.fleet_layout import DEFAULT_LAYOUT, check_layout
 from anafi_sim.interface.telemetry_command import allowed_argv
 
 FLEET_DIR = paths.config_path('fleets')
@@ -49,7 +51,7 @@ CONTROLLERS = ('mpc', 'pid', 'pid_single', 'preview_mpc', 'none')
 DRONE_KEYS = ('name', 'source', 'start', 'controller', 'scenario', 'waypoint', 'target', 'offset',
               'telemetry_port', 'telemetry_command')
 DEFAULT_KEYS = tuple(k for k in DRONE_KEYS if k not in ('name', 'start', 'telemetry_port'))
-FLEET_KEYS = ('name', 'description', 'defaults', 'row', 'drones')
+FLEET_KEYS = ('name', 'description', 'defaults', 'row', 'drones', 'layout')
 TARGET_KEYS = ('model', 'offset_frame', 'yaw_mode', 'yaw_offset')
 RESERVED_MODELS = ('ground_plane', 'airship')
 NAME_RE = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
@@ -64,7 +66,7 @@ Drone.__doc__ = ('One drone of a fleet: name, source (sim | sphinx), start (x, y
                  '(int or None = choose at launch), telemetry_command (sphinx source; \'\' = the interface\'s '
                  'default).')
 
-Fleet = collections.namedtuple('Fleet', 'name description drones')
+Fleet = collections.namedtuple('Fleet', 'name description drones layout')
 
 
 def _number(value, what):
@@ -195,8 +197,10 @@ def fleet_from_dict(data, name='fleet', drones=0, what=None):
             if not isinstance(entries, list) or not entries:
                 raise ValueError('drones must be a non-empty list (or give drones:=N)')
             entries = [dict(copy.deepcopy(defaults), **e) if isinstance(e, dict) else e for e in entries]
+        layout = data.get('layout', DEFAULT_LAYOUT)
         fleet = Fleet(str(data.get('name', name)), str(data.get('description', '')),
-                      tuple(drone_from_dict(e, 'drone %d' % (i + 1)) for i, e in enumerate(entries)))
+                      tuple(drone_from_dict(e, 'drone %d' % (i + 1)) for i, e in enumerate(entries)),
+                      check_layout(layout) if isinstance(layout, str) else check_layout(repr(layout)))
         check_fleet(fleet)
         return fleet
     except ValueError as e:

@@ -17,7 +17,8 @@ publishers, subscribers and services. Two kinds:
   the publisher's caller id).
 
 A delivered message is shared by every local subscriber, as with roscpp's nodelets: callbacks read it and
-do not change it.
+do not change it. Its ``_connection_header`` names the publishing instance as 'callerid', as rospy's
+received messages name the publishing node.
 """
 import collections
 import threading
@@ -83,7 +84,7 @@ class NodeContext(object):
         """rospy.Publisher's arguments; hosted: a LocalPublisher on the host's bus."""
         if self.bus is None:
             return rospy.Publisher(name, data_class, **kwargs)
-        return self.bus.publisher(self.resolve(name), data_class, **kwargs)
+        return self.bus.publisher(self.resolve(name), data_class, owner=self.name, **kwargs)
 
     def subscriber(self, name, data_class, callback, **kwargs):
         """rospy.Subscriber's arguments; hosted: a subscription on the host's bus (and through rospy)."""
@@ -106,8 +107,9 @@ class LocalPublisher(object):
     """A publisher of a host: local subscribers get the message in the process; rospy gets it when another
     process listens (or the topic is latched)."""
 
-    def __init__(self, bus, topic, pub, latch):
+    def __init__(self, bus, topic, pub, latch, owner):
         self.bus = bus
+        self.header = {'callerid': owner, 'topic': topic}
         self.topic = topic
         self.pub = pub
         self.latch = latch
@@ -123,6 +125,7 @@ class LocalPublisher(object):
         return self.external_connections() + len(self.bus.local_callbacks(self.topic))
 
     def publish(self, msg):
+        msg._connection_header = self.header    # as rospy marks a received message: who published it
         self.bus.deliver(self.topic, msg, self.latch)
         if self.latch or self.external_connections():
             self.pub.publish(msg)
@@ -169,8 +172,11 @@ class LocalBus(object):
         self._thread = threading.Thread(target=self._dispatch, name='local_bus', daemon=True)
         self._thread.start()
 
-    def publisher(self, topic, data_class, latch=False, **kwargs):
-        return LocalPublisher(self, topic, rospy.Publisher(topic, data_class, latch=latch, **kwargs), latch)
+    def publisher(self, topic, data_class, latch=False, owner=None, **kwargs):
+        """A LocalPublisher of ``topic``; ``owner``: the publishing instance's name (the callerid local
+        subscribers see in the message's ``_connection_header``; default the host's)."""
+        pub = rospy.Publisher(topic, data_class, latch=latch, **kwargs)
+        return LocalPublisher(self, topic, pub, latch, owner or self.caller_id)
 
     def subscriber(self, topic, data_class, callback, **kwargs):
         entry = [callback]        # a list: identity for removal even when the same callback is added twice

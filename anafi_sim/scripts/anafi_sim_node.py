@@ -46,7 +46,8 @@ from anafi_control.frames import euler_to_quaternion
 from anafi_sim import paths
 from anafi_sim import names
 from anafi_sim.ros import conversions
-from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
+from anafi_sim.ros.context import NodeContext
+from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, run_node,
                                 start_diagnostics_thread)
 from anafi_sim.ros.wire_types import paper_state_class, piloting_command_class
 from anafi_sim.sim.bridge import CAMERA_FRAME_ID, MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
@@ -75,8 +76,11 @@ def sim_time(t):
 
 
 class AnafiSimNode(object):
-    def __init__(self):
-        p = private_params()
+    """One simulated Anafi (``ctx``: the NodeContext it runs in; None: the process's node)."""
+
+    def __init__(self, ctx=None):
+        self.ctx = ctx = ctx or NodeContext.process()
+        p = ctx.params()
         rate = p.number('rate', 200.0, minimum=200.0)   # physics [Hz]
         rtf = p.positive('rtf', 1.0)
         publish_clock = p.flag('publish_clock', False)
@@ -91,7 +95,7 @@ class AnafiSimNode(object):
         sync = self._sync_settings(p, publish_clock)
         model = self._model(p, seed)
 
-        ns = rospy.get_namespace()
+        ns = ctx.namespace
         self.drone = p.string('drone_name', ns.strip('/') or 'anafi')
         base = '/%s/' % self.drone if ns == '/' else ''
         self.child_frame = '%s/base_link' % self.drone
@@ -167,13 +171,13 @@ class AnafiSimNode(object):
                 host, port, error, '; another simulator uses it: give another port, or 0 for any free one'
                 if port else ''))
         rospy.on_shutdown(self.server.stop)
-        rospy.set_param('~telemetry_stream_id', self.stream_id)
-        rospy.set_param('~telemetry_bound_port', self.server.port)
+        self.ctx.set_param('telemetry_stream_id', self.stream_id)
+        self.ctx.set_param('telemetry_bound_port', self.server.port)
 
     def _connect(self, base, publish_clock, publish_state_enu):
         """The anafi_ros-like topics (under ``base``; with ``publish_state_enu`` also position_control/state_enu),
         /clock, /diagnostics and the command subscriptions."""
-        pub = rospy.Publisher
+        pub = self.ctx.publisher
         self.pub_clock = pub(names.CLOCK, Clock, queue_size=10) if publish_clock else None
         self.pub_odom = pub(base + names.ESTIMATE, Odometry, queue_size=10)
         self.pub_pose = pub(base + names.POSE_ENU, PoseStamped, queue_size=10)
@@ -188,9 +192,10 @@ class AnafiSimNode(object):
         self.pub_state = pub(base + names.DRONE_STATE, String, queue_size=1, latch=True)
         self.pub_truth = pub(base + names.SIM_TRUTH, Odometry, queue_size=20)
         self.pub_diag = diagnostics_publisher(queue_size=5)
-        rospy.Subscriber(base + names.COMMAND, piloting_command_class(), self._on_rpyt, queue_size=20)
-        rospy.Subscriber(base + names.TAKEOFF, Empty, lambda _: self.sim.on_event('takeoff'), queue_size=5)
-        rospy.Subscriber(base + names.LAND, Empty, lambda _: self.sim.on_event('land'), queue_size=5)
+        sub = self.ctx.subscriber
+        sub(base + names.COMMAND, piloting_command_class(), self._on_rpyt, queue_size=20)
+        sub(base + names.TAKEOFF, Empty, lambda _: self.sim.on_event('takeoff'), queue_size=5)
+        sub(base + names.LAND, Empty, lambda _: self.sim.on_event('land'), queue_size=5)
 
     # ------------------------------------------------------------ callbacks
     def _on_rpyt(self, msg):
@@ -208,6 +213,8 @@ class AnafiSimNode(object):
         return msg
 
     def _publish_truth(self, s, stamp):
+        if not self.pub_truth.get_num_connections():
+            return
         msg = self._header(Odometry(), stamp)
         msg.child_frame_id = self.child_frame
         msg.pose.pose = conversions.pose((s.x, s.y, s.z), euler_to_quaternion(s.roll, s.pitch, s.yaw))
@@ -215,22 +222,33 @@ class AnafiSimNode(object):
         self.pub_truth.publish(msg)
 
     def _publish_estimate(self, e, stamp):
+        """The bridge's estimate topics; a message nobody subscribes to is not built."""
+        def wanted(pub):
+            return pub is not None and pub.get_num_connections() > 0
         pose = conversions.pose(e.position, e.orientation)
-        odom = self._header(Odometry(), stamp)
-        odom.child_frame_id = self.child_frame
-        odom.pose.pose = pose
-        odom.twist.twist = conversions.twist(e.body_velocity, (0.0, 0.0, 0.0))
-        self.pub_odom.publish(odom)
-        self.pub_pose.publish(self._header(PoseStamped(pose=pose), stamp))
-        self.pub_attitude.publish(self._header(QuaternionStamped(quaternion=pose.orientation), stamp))
-        self.pub_speed.publish(self._header(Vector3Stamped(vector=Vector3(*e.velocity)), stamp))
-        self.pub_altitude.publish(Float32(e.position[2]))
-        self.pub_rpy.publish(self._header(Vector3Stamped(vector=Vector3(*e.rpy_deg)), stamp))
-        self.pub_camera.publish(self._header(QuaternionStamped(quaternion=Quaternion(*e.camera_orientation)), stamp,
-                                             CAMERA_FRAME_ID))
-        self.pub_camera_base.publish(self._header(QuaternionStamped(quaternion=Quaternion(*e.camera_base_orientation)),
-                                                  stamp, CAMERA_FRAME_ID))
-        if self.pub_state_enu is not None:
+        if wanted(self.pub_odom):
+            odom = self._header(Odometry(), stamp)
+            odom.child_frame_id = self.child_frame
+            odom.pose.pose = pose
+            odom.twist.twist = conversions.twist(e.body_velocity, (0.0, 0.0, 0.0))
+            self.pub_odom.publish(odom)
+        if wanted(self.pub_pose):
+            self.pub_pose.publish(self._header(PoseStamped(pose=pose), stamp))
+        if wanted(self.pub_attitude):
+            self.pub_attitude.publish(self._header(QuaternionStamped(quaternion=pose.orientation), stamp))
+        if wanted(self.pub_speed):
+            self.pub_speed.publish(self._header(Vector3Stamped(vector=Vector3(*e.velocity)), stamp))
+        if wanted(self.pub_altitude):
+            self.pub_altitude.publish(Float32(e.position[2]))
+        if wanted(self.pub_rpy):
+            self.pub_rpy.publish(self._header(Vector3Stamped(vector=Vector3(*e.rpy_deg)), stamp))
+        if wanted(self.pub_camera):
+            self.pub_camera.publish(self._header(QuaternionStamped(quaternion=Quaternion(*e.camera_orientation)),
+                                                 stamp, CAMERA_FRAME_ID))
+        if wanted(self.pub_camera_base):
+            self.pub_camera_base.publish(self._header(
+                QuaternionStamped(quaternion=Quaternion(*e.camera_base_orientation)), stamp, CAMERA_FRAME_ID))
+        if wanted(self.pub_state_enu):
             self.pub_state_enu.publish(self._state_enu(pose, e.velocity, stamp))
 
     def _state_enu(self, pose, velocity, stamp):
@@ -309,6 +327,10 @@ class AnafiSimNode(object):
             r = sim.lockstep.report()
             rospy.loginfo('anafi_sim: lockstep: %d periods waited, %d timeouts, %d times silent; wait mean %.4f s, '
                           'max %.3f s wall', r.waits, r.timeouts, r.disarms, r.wait_wall_mean, r.wait_wall_max)
+        self.server.stop()
+
+    def shutdown(self):
+        """Stop serving telemetry (the host calls it before ROS shuts down)."""
         self.server.stop()
 
 

@@ -38,6 +38,7 @@ import time
 import yaml
 
 from anafi_sim.mission.fleet import aggregator_analyzers, drone_scenario, fleet_path, launch_xml, load_fleet
+from anafi_sim.mission.fleet_layout import LAYOUTS, NodeSpec, check_layout, shared_layout
 from anafi_sim.mission.rviz_config import fleet_rviz
 from anafi_sim.mission.trajectory import scenario_from_dict
 from anafi_sim.processes import free_port, stop
@@ -48,11 +49,13 @@ OUTPUTS = ('log', 'screen')
 
 
 def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output, aggregator, log=sys.stderr.write,
-             rviz=False, conditions='', max_drones=0):
+             rviz=False, conditions='', max_drones=0, layout=''):
     """Write the scenarios (and the aggregator groups) and the launch file into out_dir; its path. ValueError
-    for a bad fleet, or one larger than the fleet cap (anafi_sim.launch_check.fleet_size_problem)."""
+    for a bad fleet, or one larger than the fleet cap (anafi_sim.launch_check.fleet_size_problem). ``layout``:
+    per_drone | shared ('' = the fleet file's, per_drone by default; anafi_sim.mission.fleet_layout)."""
     fleet = load_fleet(fleet_name, drones)
-    too_many = fleet_size_problem(len(fleet.drones), max_drones)
+    layout = check_layout(layout or fleet.layout)
+    too_many = fleet_size_problem(len(fleet.drones), max_drones, layout=layout)
     if too_many:
         raise ValueError(too_many)
     out_dir = os.path.abspath(os.path.expanduser(out_dir))
@@ -85,12 +88,36 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
                      output=output, source=fleet_path(fleet_name), aggregator_file=aggregator_file,
                      rviz=rviz, rviz_file=rviz_file, conditions=conditions)
     path = os.path.join(out_dir, 'fleet.launch')
+    if layout == 'shared':
+        xml = shared_launch(xml, out_dir, output, fleet.name)
     with open(path, 'w') as f:
         f.write(xml)
     for drone in fleet.drones:
         log('fleet %s: %s (%s, %s%s)\n' % (fleet.name, drone.name, drone.source, drone.controller,
                                            ', telemetry port %d' % ports[drone.name] if drone.name in ports else ''))
+    log('fleet %s: %s layout\n' % (fleet.name, layout))
     return path
+
+
+def shared_launch(per_drone_xml, out_dir, output, title):
+    """The shared layout's launch XML (its parameters written to out_dir/fleet.params.yaml): roslaunch expands
+    the per-drone launch (out_dir/fleet.per_drone.launch, kept for reading) into nodes and parameters, and
+    anafi_sim.mission.fleet_layout puts the hostable nodes into hosts."""
+    import roslaunch.config
+    per_drone = os.path.join(out_dir, 'fleet.per_drone.launch')
+    with open(per_drone, 'w') as f:
+        f.write(per_drone_xml)
+    config = roslaunch.config.load_config_default([per_drone], None, verbose=False)
+    nodes = [NodeSpec(n.package, n.type, n.name, n.namespace, n.args, n.output, n.respawn, n.respawn_delay,
+                      n.required, n.launch_prefix, n.cwd, list(n.env_args), list(n.remap_args))
+             for n in config.nodes]
+    params = dict((key, p.value) for key, p in config.params.items()
+                  if key not in ('/rosdistro', '/rosversion'))
+    params_file = os.path.join(out_dir, 'fleet.params.yaml')
+    xml, document = shared_layout(nodes, params, params_file, output=output, title='fleet ' + title)
+    with open(params_file, 'w') as f:
+        yaml.safe_dump(document, f, default_flow_style=False, sort_keys=True)
+    return xml
 
 
 # ------------------------------------------------------------------------------------ the node
@@ -121,7 +148,8 @@ class FleetLauncherNode(object):
                              p.choice('output', 'log', OUTPUTS), p.flag('aggregator', False),
                              log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False),
                              conditions=p.string('conditions', '', allow_empty=True),
-                             max_drones=p.integer('max_drones', 0, minimum=0))   # ValueError: fatal, exit 2
+                             max_drones=p.integer('max_drones', 0, minimum=0),
+                             layout=p.string('layout', ''))   # ValueError: fatal, exit 2
         self.child = None
         self.code = 0
 
@@ -173,6 +201,8 @@ def tool(argv):
     ap.add_argument('--rviz', type=flag, default=False, metavar='true|false')
     ap.add_argument('--conditions', default='', help='flight-conditions profile NAME for every simulated drone')
     ap.add_argument('--max-drones', type=int, default=0, help='the fleet cap (0: derived from the CPU cores)')
+    ap.add_argument('--layout', default='', choices=('',) + LAYOUTS,
+                    help='per_drone | shared (default: the fleet file\'s, else per_drone)')
     what = ap.add_mutually_exclusive_group(required=True)
     what.add_argument('--print', dest='print_only', action='store_true')
     what.add_argument('--write-only', action='store_true')
@@ -180,7 +210,7 @@ def tool(argv):
     try:
         path = generate(args.fleet, args.drones, args.out_dir, args.evaluate, args.mirror, args.mirror_rate,
                         args.output, args.aggregator, rviz=args.rviz, conditions=args.conditions,
-                        max_drones=args.max_drones)
+                        max_drones=args.max_drones, layout=args.layout)
     except ValueError as error:
         sys.stderr.write('fleet_launcher: %s\n' % error)
         return 2

@@ -38,7 +38,8 @@ from anafi_sim.gazebo.spawn import SpawnDriver
 from anafi_sim.msg import DroneData
 from anafi_sim import names
 from anafi_sim.ros import conversions, gazebo_types
-from anafi_sim.ros.node import (diagnostics_publisher, health_status, log_lines, private_params, run_node,
+from anafi_sim.ros.context import NodeContext
+from anafi_sim.ros.node import (diagnostics_publisher, health_status, log_lines, run_node,
                                 run_until_interrupted, start_diagnostics_thread)
 
 LOG_REPEAT = 5.0  # s between repeated "Gazebo not available" log lines
@@ -58,10 +59,10 @@ def _load_model(path, what):
     return xml
 
 
-def read_params():
-    """All ~params, validated; raises ValueError with a clear message."""
-    r = private_params()
-    namespace = rospy.get_namespace().strip('/')
+def read_params(ctx):
+    """All ~params of the instance ``ctx`` (a NodeContext), validated; raises ValueError with a clear message."""
+    r = ctx.params()
+    namespace = ctx.namespace.strip('/')
     p = {
         'drone_name': r.string('drone_name', namespace.split('/')[-1] if namespace else 'anafi', allow_empty=False),
         'rate': r.positive('rate', 100.0),
@@ -93,8 +94,9 @@ def read_params():
 class GazeboMirrorNode(object):
     """Wires the Mirror core to ROS; one lock guards the core (callbacks, the main loop and diagnostics)."""
 
-    def __init__(self):
-        self.p = params = read_params()
+    def __init__(self, ctx=None):
+        self.ctx = ctx = ctx or NodeContext.process()
+        self.p = params = read_params(ctx)
         drone_model, camera_model = model_names(params['drone_name'], params['drone_model_name'],
                                                 params['camera_model_name'])
         self.models = {drone_model: namespaced_model_xml(_load_model(params['urdf_file'], 'urdf_file'),
@@ -118,7 +120,7 @@ class GazeboMirrorNode(object):
         self.SpawnModel = gazebo_types.spawn_model_class()
         self.DeleteModel = gazebo_types.delete_model_class()
         self.SetModelState = gazebo_types.set_model_state_class()
-        master = rosgraph.Master(rospy.get_name())
+        master = rosgraph.Master(ctx.name)
         self.spawner = SpawnDriver(
             self.core.spawn, contact=lambda timeout: rospy.wait_for_service(self.spawn_service, timeout=timeout),
             lookup=lambda: master.lookupService(self.spawn_service), spawn=self._spawn, delete=self._delete,
@@ -128,18 +130,17 @@ class GazeboMirrorNode(object):
         self._set_proxy = None
         self.state_pub = None
         if not params['use_service']:
-            self.state_pub = rospy.Publisher(self.state_service, self.ModelState, queue_size=10, tcp_nodelay=True)
+            self.state_pub = ctx.publisher(self.state_service, self.ModelState, queue_size=10, tcp_nodelay=True)
         self.diag_pub = diagnostics_publisher()
-        self.odom_sub = rospy.Subscriber(params['odom_topic'], Odometry, self.on_odom, queue_size=1,
-                                         tcp_nodelay=True)
+        self.odom_sub = ctx.subscriber(params['odom_topic'], Odometry, self.on_odom, queue_size=1, tcp_nodelay=True)
         if params['camera_attitude_source'] == 'bridge':
-            self.data_sub = rospy.Subscriber(params['camera_attitude_topic'], QuaternionStamped,
-                                             self.on_camera_attitude, queue_size=1, tcp_nodelay=True)
+            self.data_sub = ctx.subscriber(params['camera_attitude_topic'], QuaternionStamped,
+                                           self.on_camera_attitude, queue_size=1, tcp_nodelay=True)
         else:
-            self.data_sub = rospy.Subscriber(params['drone_data_topic'], DroneData, self.on_drone_data,
-                                             queue_size=1, tcp_nodelay=True)
-        self.states_sub = rospy.Subscriber(names.gazebo(names.MODEL_STATES, ns), gazebo_types.model_states_class(),
-                                           self.on_model_states, queue_size=1)
+            self.data_sub = ctx.subscriber(params['drone_data_topic'], DroneData, self.on_drone_data,
+                                           queue_size=1, tcp_nodelay=True)
+        self.states_sub = ctx.subscriber(names.gazebo(names.MODEL_STATES, ns), gazebo_types.model_states_class(),
+                                         self.on_model_states, queue_size=1)
         self._last_model_states = 0.0
         rospy.loginfo('mirror: %s -> models %s at up to %g Hz via the %s %s', params['odom_topic'],
                       ', '.join(sorted(self.models)), params['rate'],
@@ -232,7 +233,7 @@ class GazeboMirrorNode(object):
         with self.lock:
             health = self.core.health(rospy.get_time())
         mode = 'service (synchronous, per cycle)' if self.p['use_service'] else 'topic (asynchronous)'
-        return [health_status('%s: gazebo mirror' % rospy.get_name(), health, self.p['drone_name'],
+        return [health_status('%s: gazebo mirror' % self.ctx.name, health, self.p['drone_name'],
                               [('mode', mode), ('service call failures', str(self.service_failures))])]
 
     def spin(self):
@@ -244,8 +245,15 @@ class GazeboMirrorNode(object):
             time.sleep(0.05)
 
     def run(self):
-        """spin() until SIGINT / SIGTERM, then delete the models (while ROS still works) and shut down."""
-        run_until_interrupted(self.spin, self.delete_models, 'mirror stopped')
+        """spin() until SIGINT / SIGTERM, then delete the models (while ROS still works) and shut down; hosted:
+        spin() only (the host calls shutdown() before ROS shuts down)."""
+        if self.ctx.hosted:
+            self.spin()
+        else:
+            run_until_interrupted(self.spin, self.delete_models, 'mirror stopped')
+
+    def shutdown(self):
+        self.delete_models()
 
     def delete_models(self):
         if self.p['delete_on_shutdown']:

@@ -49,9 +49,9 @@ import threading
 import time
 
 import rospy
-import tf2_ros
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
+from tf2_msgs.msg import TFMessage
 
 from anafi_sim.interface import ground_truth as gt
 from anafi_sim.interface.supervisor import ProcessSupervisor
@@ -63,8 +63,9 @@ MAX_LINE = 4096
 from anafi_sim.msg import DroneData
 from anafi_sim import names
 from anafi_sim.ros import conversions
+from anafi_sim.ros.context import NodeContext
 from anafi_sim.ros.wire_types import SPHINX_FIELDS, sphinx_class
-from anafi_sim.ros.node import diagnostics_publisher, health_status, private_params, run_node, \
+from anafi_sim.ros.node import diagnostics_publisher, health_status, run_node, \
     start_diagnostics_thread
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, TelemetryParser
 
@@ -72,15 +73,15 @@ DEFAULT_COMMAND = 'tlm-data-logger -r 0 inet:127.0.0.1:9060'
 STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
 
 
-def read_params():
-    """All ~params, validated; raises ValueError with a clear message."""
-    reader = private_params()
+def read_params(ctx):
+    """All ~params of the instance ``ctx`` (a NodeContext), validated; raises ValueError with a clear message."""
+    reader = ctx.params()
     p = {'telemetry_command': allowed_argv(reader.command('telemetry_command', DEFAULT_COMMAND)),
          'prefix': reader.word('prefix', DEFAULT_PREFIX, forbidden=':')}
     for name, default in (('rate', 100.0), ('stale_timeout', 0.5), ('restart_timeout', 2.0),
                           ('backoff_initial', 0.2), ('backoff_max', 5.0)):
         p[name] = reader.positive(name, default)
-    if rospy.has_param('~publish_hz'):        # the reference implementation's name of ~rate wins when set
+    if ctx.has_param('publish_hz'):        # the reference implementation's name of ~rate wins when set
         p['rate'] = reader.positive('publish_hz', p['rate'])
     p['publish_body_fixed'] = reader.flag('publish_body_fixed', False)
     if p['backoff_max'] < p['backoff_initial']:
@@ -88,7 +89,7 @@ def read_params():
                          % (p['backoff_max'], p['backoff_initial']))
     p['camera_offset'] = reader.vector('camera_offset', [0.1, 0.0, 0.0], 3)   # [m]
     p['frame_id'] = reader.ros_name('frame_id', 'world')
-    namespace = rospy.get_namespace().strip('/')
+    namespace = ctx.namespace.strip('/')
     p['drone_name'] = reader.base_name('drone_name', namespace.split('/')[-1] if namespace else 'anafi')
     p['stamp_with_sample_time'] = reader.flag('stamp_with_sample_time', False)
     p['simulator_node'] = reader.string('simulator_node', '')
@@ -108,34 +109,36 @@ def _transform(stamp, parent, child, translation, rotation):
 
 
 class InterfaceNode(object):
-    def __init__(self):
-        self.p = params = read_params()
+    """The interface of one drone (``ctx``: the NodeContext it runs in; None: the process's node)."""
+
+    def __init__(self, ctx=None):
+        self.ctx = ctx = ctx or NodeContext.process()
+        self.p = params = read_params(ctx)
         drone = params['drone_name']
         self.frame_id = params['frame_id']
         self.base_link = drone + '/base_link'
         self.stability_axes = drone + '/stability_axes'
         self.camera = drone + '/camera'
         self.body_fixed = drone + '/body_fixed' if params['publish_body_fixed'] else None
-        rospy.set_param('~publish_hz', params['rate'])     # read by the reference implementation's MPC
+        ctx.set_param('publish_hz', params['rate'])     # read by the reference implementation's MPC
         self.parser = TelemetryParser(prefix=params['prefix'])
         self.core = gt.GroundTruthInterface(publish_rate=params['rate'], stale_timeout=params['stale_timeout'])
         self.lock = threading.Lock()  # parser + core: reader thread vs diagnostics thread
         self.publish_errors = 0
         self.last_publish_error = ''
         base = params['topic_base']
-        self.pub_data = rospy.Publisher(base + names.DRONE_DATA, DroneData, queue_size=50)
+        self.pub_data = ctx.publisher(base + names.DRONE_DATA, DroneData, queue_size=50)
         self.sphinx_class = sphinx_class()
-        self.pub_sphinx = rospy.Publisher(base + names.SPHINX_DATA, self.sphinx_class, queue_size=50)
-        self.pub_odom = rospy.Publisher(base + names.GROUND_TRUTH, Odometry, queue_size=50)
+        self.pub_sphinx = ctx.publisher(base + names.SPHINX_DATA, self.sphinx_class, queue_size=50)
+        self.pub_odom = ctx.publisher(base + names.GROUND_TRUTH, Odometry, queue_size=50)
         self.pub_diag = diagnostics_publisher()
-        self.tf = tf2_ros.TransformBroadcaster()
-        self.static_tf = tf2_ros.StaticTransformBroadcaster()
-        self.static_tf.sendTransform(_transform(rospy.Time(0), self.camera, drone + '/camera_optical',
-                                                (0.0, 0.0, 0.0), gt.CAMERA_OPTICAL_ROTATION))
-        self.diag_name = '%s: ground truth interface' % rospy.get_name()
+        self.pub_tf = ctx.publisher(names.TF, TFMessage, queue_size=100)
+        ctx.send_static_transforms([_transform(rospy.Time(0), self.camera, drone + '/camera_optical',
+                                               (0.0, 0.0, 0.0), gt.CAMERA_OPTICAL_ROTATION)])
+        self.diag_name = '%s: ground truth interface' % ctx.name
         self.source = None
         if params['simulator_node']:     # our simulator: its bound port and stream id, read before each start
-            self.source = SimulatorSource(params['simulator_node'], lambda name: rospy.get_param(name, None))
+            self.source = SimulatorSource(params['simulator_node'], lambda name: rospy.get_param(ctx.resolve(name), None))
             with_port(shlex.split(params['telemetry_command']) if isinstance(params['telemetry_command'], str)
                       else params['telemetry_command'], 1)    # ValueError now if it has no inet:HOST:PORT
         self.supervisor = ProcessSupervisor(   # ValueError for a command string shlex cannot split
@@ -151,6 +154,10 @@ class InterfaceNode(object):
         self.supervisor.start()
         start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
         rospy.spin()
+        self.supervisor.stop()
+
+    def shutdown(self):
+        """Stop the telemetry process (the host calls it before ROS shuts down)."""
         self.supervisor.stop()
 
     # -- supervisor callbacks (supervisor threads) ---------------------------------------
@@ -224,45 +231,47 @@ class InterfaceNode(object):
 
     # -- publishing --------------------------------------------------------------------
     def publish(self, s):
+        """One accepted sample -> ground_truth/odom, ground_truth/drone_data, sphinx/drone_data and tf; a
+        message nobody subscribes to is not built (publishing it would do nothing)."""
         stamp = rospy.Time.from_sec(s.timestamp) if self.p['stamp_with_sample_time'] else rospy.Time.now()
-
-        d = DroneData()
-        d.header.stamp = stamp
-        d.header.frame_id = self.frame_id
-        d.posX, d.posY, d.posZ = s.x, s.y, s.z
-        d.velXENU, d.velYENU, d.velZENU = s.vx, s.vy, s.vz
-        d.attitudeX, d.attitudeY, d.attitudeZ = s.roll, s.pitch, s.yaw
-        d.velXABC, d.velYABC, d.velZABC = s.body_vx, s.body_vy, s.body_vz
-        d.angVelXABC, d.angVelYABC, d.angVelZABC = s.body_wx, s.body_wy, s.body_wz
-        d.accXABC, d.accYABC, d.accZABC = s.body_ax, s.body_ay, s.body_az
-        d.angAccXABC, d.angAccYABC, d.angAccZABC = s.body_alpha_x, s.body_alpha_y, s.body_alpha_z
-        d.timeStamp = s.timestamp
-        d.gimbalPitchMotorAngle = s.gimbal_pitch
-        d.gimbalRollMotorAngle = s.gimbal_roll
-
         odo = gt.odometry(s)
-        o = Odometry()
-        o.header.stamp = stamp
-        o.header.frame_id = self.frame_id
-        o.child_frame_id = self.base_link
-        o.pose.pose = conversions.pose(odo.position, odo.orientation)
-        o.twist.twist = conversions.twist(odo.linear, odo.angular)
-
-        t_sa, q_sa = gt.stability_axes_pose(s.x, s.y, s.z, s.yaw)
-        t_bl, q_bl = gt.base_link_in_stability_axes(s.roll, s.pitch)
-        t_cam, q_cam = gt.camera_in_base_link(s.gimbal_roll, s.gimbal_pitch, self.p['camera_offset'])
-        transforms = [_transform(stamp, self.frame_id, self.stability_axes, t_sa, q_sa),
-                      _transform(stamp, self.stability_axes, self.base_link, t_bl, q_bl),
-                      _transform(stamp, self.base_link, self.camera, t_cam, q_cam)]
-        if self.body_fixed is not None:     # the reference implementation's frame: the drone pose in one transform
-            transforms.append(_transform(stamp, self.frame_id, self.body_fixed, odo.position, odo.orientation))
-
-        sphinx = self.sphinx_class(**dict((f, getattr(d, f)) for f in SPHINX_FIELDS))
-
-        self.pub_odom.publish(o)
-        self.pub_data.publish(d)
-        self.pub_sphinx.publish(sphinx)
-        self.tf.sendTransform(transforms)
+        if self.pub_odom.get_num_connections():
+            o = Odometry()
+            o.header.stamp = stamp
+            o.header.frame_id = self.frame_id
+            o.child_frame_id = self.base_link
+            o.pose.pose = conversions.pose(odo.position, odo.orientation)
+            o.twist.twist = conversions.twist(odo.linear, odo.angular)
+            self.pub_odom.publish(o)
+        data = self.pub_data.get_num_connections()
+        if data or self.pub_sphinx.get_num_connections():
+            d = DroneData()
+            d.header.stamp = stamp
+            d.header.frame_id = self.frame_id
+            d.posX, d.posY, d.posZ = s.x, s.y, s.z
+            d.velXENU, d.velYENU, d.velZENU = s.vx, s.vy, s.vz
+            d.attitudeX, d.attitudeY, d.attitudeZ = s.roll, s.pitch, s.yaw
+            d.velXABC, d.velYABC, d.velZABC = s.body_vx, s.body_vy, s.body_vz
+            d.angVelXABC, d.angVelYABC, d.angVelZABC = s.body_wx, s.body_wy, s.body_wz
+            d.accXABC, d.accYABC, d.accZABC = s.body_ax, s.body_ay, s.body_az
+            d.angAccXABC, d.angAccYABC, d.angAccZABC = s.body_alpha_x, s.body_alpha_y, s.body_alpha_z
+            d.timeStamp = s.timestamp
+            d.gimbalPitchMotorAngle = s.gimbal_pitch
+            d.gimbalRollMotorAngle = s.gimbal_roll
+            if data:
+                self.pub_data.publish(d)
+            if self.pub_sphinx.get_num_connections():
+                self.pub_sphinx.publish(self.sphinx_class(**dict((f, getattr(d, f)) for f in SPHINX_FIELDS)))
+        if self.pub_tf.get_num_connections():
+            t_sa, q_sa = gt.stability_axes_pose(s.x, s.y, s.z, s.yaw)
+            t_bl, q_bl = gt.base_link_in_stability_axes(s.roll, s.pitch)
+            t_cam, q_cam = gt.camera_in_base_link(s.gimbal_roll, s.gimbal_pitch, self.p['camera_offset'])
+            transforms = [_transform(stamp, self.frame_id, self.stability_axes, t_sa, q_sa),
+                          _transform(stamp, self.stability_axes, self.base_link, t_bl, q_bl),
+                          _transform(stamp, self.base_link, self.camera, t_cam, q_cam)]
+            if self.body_fixed is not None:     # the reference implementation's frame: the pose in one transform
+                transforms.append(_transform(stamp, self.frame_id, self.body_fixed, odo.position, odo.orientation))
+            self.pub_tf.publish(TFMessage(transforms=transforms))
 
     # -- diagnostics (the glue's thread, wall clock) -------------------------------------
     def diagnostic_statuses(self):

@@ -1,0 +1,161 @@
+#!/usr/bin/env python3
+"""Fleet host node: every drone's instance of some nodes in one process (the shared layout of a fleet).
+
+Stage: wiring only, like a roscpp nodelet manager. ``~instances`` lists the node instances this process runs,
+each as the node it replaces: ``{name: /anafi1/interface, type: interface_node.py}`` (the types in
+``HOSTABLE``). Each instance is the same node class as in the per-drone layout, built with a NodeContext of
+its own name (anafi_sim/ros/context.py): its ~params are read from the master under its name (fleet_launcher.py
+writes them, from the same launch files as the per-drone layout), and it keeps its own topics, services,
+telemetry port and stream id and /diagnostics statuses. Messages between the instances of this host go through
+its LocalBus (in the process; other processes still get every topic they subscribe to).
+
+Failure isolation: an instance whose parameters are bad is not started (one FATAL line naming it, its drone's
+status ERROR on /diagnostics); an instance whose run() raises stops alone (ERROR line and status, counter), as
+does a failing callback (counted, logged; the bus goes on). The others fly on: a drone whose simulator share
+stopped has no telemetry (its interface goes stale, its mirror holds its models), a drone whose controller
+share stopped gets no command (the simulated firmware hovers after its command time-out).
+
+Parameters: ~instances (list of {name, type}; required), ~diagnostics_period (1.0 s).
+Publishes /diagnostics: '<host>: fleet host' (instances running / failed, bus deliveries and callback errors)
+and, for an instance that failed, '<instance>: hosted instance' ERROR.
+"""
+import os
+import runpy
+import threading
+import time
+import traceback
+
+import rospy
+
+from anafi_sim.ros.context import LocalBus, NodeContext
+from anafi_sim.ros.node import (ERROR, OK, WARN, diagnostic_status, diagnostics_publisher, run_node,
+                                run_until_interrupted, start_diagnostics_thread)
+
+#: node type (the script a per-drone launch file starts) -> (the script defining it, the class, its arguments
+#: before the context)
+HOSTABLE = {
+    'anafi_sim_node.py': ('anafi_sim_node.py', 'AnafiSimNode', ()),
+    'interface_node.py': ('interface_node.py', 'InterfaceNode', ()),
+    'gazebo_mirror_node.py': ('gazebo_mirror_node.py', 'GazeboMirrorNode', ()),
+    'controller_node.py': ('controller_node.py', 'ControllerNode', (None,)),
+    'trajectory_generator.py': ('trajectory_generator.py', 'TrajectoryGeneratorNode', ()),
+}
+
+
+def _script_namespace(script, cache={}):
+    """The module namespace of a sibling node script (loaded once, not as __main__)."""
+    if script not in cache:
+        cache[script] = runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)), script))
+    return cache[script]
+
+
+def read_instances(raw):
+    """``~instances`` -> [(name, type)]; ValueError naming the entry that is not {name: /global/name, type: a
+    HOSTABLE type} or a name given twice."""
+    if not isinstance(raw, list) or not raw:
+        raise ValueError('~instances must be a non-empty list of {name, type}, got %r' % (raw,))
+    out, seen = [], set()
+    for i, entry in enumerate(raw):
+        if not isinstance(entry, dict) or set(entry) != {'name', 'type'}:
+            raise ValueError('~instances[%d] must be {name, type}, got %r' % (i, entry))
+        name, kind = entry['name'], entry['type']
+        if not isinstance(name, str) or not name.startswith('/') or name in seen:
+            raise ValueError('~instances[%d]: name must be a global ROS name given once, got %r' % (i, name))
+        if kind not in HOSTABLE:
+            raise ValueError('~instances[%d] (%s): type must be one of %s, got %r'
+                             % (i, name, ', '.join(sorted(HOSTABLE)), kind))
+        seen.add(name)
+        out.append((name, kind))
+    return out
+
+
+class Instance(object):
+    """One hosted node instance and what became of it."""
+
+    def __init__(self, name, kind):
+        self.name, self.kind = name, kind
+        self.node = None
+        self.error = ''          # why it is not running ('' while it runs)
+        self.thread = None
+
+
+class FleetHost(object):
+    def __init__(self):
+        ctx = NodeContext.process()
+        p = ctx.params()
+        self.period = p.positive('diagnostics_period', 1.0)
+        self.instances = [Instance(n, k) for n, k in read_instances(ctx.get_param('instances'))]
+        self.callback_errors = {}
+        self.bus = LocalBus(rospy.get_name(), on_error=self._on_callback_error)
+        self.pub_diag = diagnostics_publisher()
+        for inst in self.instances:
+            self._build(inst)
+        running = [i.name for i in self.instances if not i.error]
+        rospy.loginfo('fleet host: %d of %d instances built: %s', len(running), len(self.instances),
+                      ', '.join(running))
+
+    def _build(self, inst):
+        script, cls, args = HOSTABLE[inst.kind]
+        try:
+            node_class = _script_namespace(script)[cls]
+            inst.node = node_class(*(args + (NodeContext(inst.name, self.bus),)))
+        except Exception as error:   # bad parameters (ValueError) or anything else: this instance only
+            inst.error = 'not started: %s: %s' % (type(error).__name__, error)
+            rospy.logfatal('fleet host: %s (%s) %s', inst.name, inst.kind, inst.error)
+            if not isinstance(error, ValueError):
+                rospy.logerr('fleet host: %s', traceback.format_exc())
+
+    def _on_callback_error(self, topic, error):
+        self.callback_errors[topic] = self.callback_errors.get(topic, 0) + 1
+        rospy.logerr_throttle(5.0, 'fleet host: a callback on %s failed (%d times): %s: %s' % (
+            topic, self.callback_errors[topic], type(error).__name__, error))
+
+    def _run_instance(self, inst):
+        try:
+            inst.node.run()
+        except Exception as error:
+            if not rospy.is_shutdown():
+                inst.error = 'stopped: %s: %s' % (type(error).__name__, error)
+                rospy.logerr('fleet host: %s %s\n%s', inst.name, inst.error, traceback.format_exc())
+
+    def diagnostic_statuses(self):
+        failed = [i for i in self.instances if i.error]
+        level = OK if not failed else (WARN if len(failed) < len(self.instances) else ERROR)
+        statuses = [diagnostic_status(
+            '%s: fleet host' % rospy.get_name(), level,
+            '%d instances running' % (len(self.instances) - len(failed)) + (
+                ', %d failed: %s' % (len(failed), ', '.join(i.name for i in failed)) if failed else ''),
+            [('instances', str(len(self.instances))), ('failed', str(len(failed))),
+             ('bus deliveries', str(self.bus.delivered)), ('bus pending', str(self.bus.pending())),
+             ('callback errors', str(self.bus.callback_errors))])]
+        for inst in failed:
+            statuses.append(diagnostic_status('%s: hosted instance' % inst.name, ERROR, inst.error,
+                                              [('type', inst.kind), ('host', rospy.get_name())],
+                                              hardware_id=inst.name.strip('/').split('/')[0]))
+        return statuses
+
+    def spin(self):
+        for inst in self.instances:
+            if inst.node is not None:
+                inst.thread = threading.Thread(target=self._run_instance, args=(inst,), name=inst.name, daemon=True)
+                inst.thread.start()
+        start_diagnostics_thread(self.period, self.diagnostic_statuses, self.pub_diag, first=0.0)
+        while not rospy.is_shutdown():
+            time.sleep(0.2)
+
+    def shutdown(self):
+        """Every instance's clean-up through ROS (e.g. the mirrors delete their models), then ROS stops."""
+        for inst in self.instances:
+            cleanup = getattr(inst.node, 'shutdown', None)
+            if cleanup is not None:
+                try:
+                    cleanup()
+                except Exception as error:
+                    rospy.logerr('fleet host: %s shutdown: %s: %s', inst.name, type(error).__name__, error)
+
+    def run(self):
+        run_until_interrupted(self.spin, self.shutdown, 'fleet host stopped')
+
+
+if __name__ == '__main__':
+    run_node('fleet_host', FleetHost, fatal_exit_code=2, disable_signals=True)

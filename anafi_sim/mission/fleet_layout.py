@@ -28,6 +28,16 @@ HOSTS = collections.OrderedDict([
     ('fleet_ground_truth', ('interface_node.py', 'gazebo_mirror_node.py')),
 ])
 
+#: node type -> (the script that defines its node class, the class, its arguments before the NodeContext):
+#: what scripts/fleet_host.py builds for an instance of that type
+HOSTABLE = {
+    'anafi_sim_node.py': ('anafi_sim_node.py', 'AnafiSimNode', ()),
+    'interface_node.py': ('interface_node.py', 'InterfaceNode', ()),
+    'gazebo_mirror_node.py': ('gazebo_mirror_node.py', 'GazeboMirrorNode', ()),
+    'controller_node.py': ('controller_node.py', 'ControllerNode', (None,)),
+    'trajectory_generator.py': ('trajectory_generator.py', 'TrajectoryGeneratorNode', ()),
+}
+
 NodeSpec = collections.namedtuple('NodeSpec', 'package type name namespace args output respawn respawn_delay '
                                               'required launch_prefix cwd env_args remap_args')
 """One node of the expanded launch (roslaunch.core.Node's fields that the layout keeps)."""
@@ -38,6 +48,26 @@ def check_layout(layout):
     if layout not in LAYOUTS:
         raise ValueError('layout must be one of %s, got %r' % (', '.join(LAYOUTS), layout))
     return layout
+
+
+def read_instances(raw):
+    """A host's ``~instances`` -> [(name, type)]; ValueError naming the entry that is not {name: /global/name,
+    type: a HOSTABLE type} or a name given twice."""
+    if not isinstance(raw, list) or not raw:
+        raise ValueError('~instances must be a non-empty list of {name, type}, got %r' % (raw,))
+    out, seen = [], set()
+    for i, entry in enumerate(raw):
+        if not isinstance(entry, dict) or set(entry) != {'name', 'type'}:
+            raise ValueError('~instances[%d] must be {name, type}, got %r' % (i, entry))
+        name, kind = entry['name'], entry['type']
+        if not isinstance(name, str) or not name.startswith('/') or name in seen:
+            raise ValueError('~instances[%d]: name must be a global ROS name given once, got %r' % (i, name))
+        if kind not in HOSTABLE:
+            raise ValueError('~instances[%d] (%s): type must be one of %s, got %r'
+                             % (i, name, ', '.join(sorted(HOSTABLE)), kind))
+        seen.add(name)
+        out.append((name, kind))
+    return out
 
 
 def full_name(node):

@@ -39,6 +39,7 @@ class NodeContext(object):
         self.name = rosgraph.names.canonicalize_name(name)
         self.namespace = rosgraph.names.namespace(self.name)
         self.bus = bus
+        self.wiring = {'publishes': [], 'subscribes': [], 'services': []}   # global names, in creation order
 
     @classmethod
     def process(cls):
@@ -82,17 +83,20 @@ class NodeContext(object):
     # ------------------------------------------------------------------ topics and services
     def publisher(self, name, data_class, **kwargs):
         """rospy.Publisher's arguments; hosted: a LocalPublisher on the host's bus."""
+        self.wiring['publishes'].append(self.resolve(name))
         if self.bus is None:
             return rospy.Publisher(name, data_class, **kwargs)
         return self.bus.publisher(self.resolve(name), data_class, owner=self.name, **kwargs)
 
     def subscriber(self, name, data_class, callback, **kwargs):
         """rospy.Subscriber's arguments; hosted: a subscription on the host's bus (and through rospy)."""
+        self.wiring['subscribes'].append(self.resolve(name))
         if self.bus is None:
             return rospy.Subscriber(name, data_class, callback, **kwargs)
         return self.bus.subscriber(self.resolve(name), data_class, callback, **kwargs)
 
     def service(self, name, service_class, handler):
+        self.wiring['services'].append(self.resolve(name))
         return rospy.Service(self.resolve(name), service_class, handler)
 
     def send_static_transforms(self, transforms):

@@ -3,7 +3,7 @@
 
 Stage: wiring only, like a roscpp nodelet manager. ``~instances`` lists the node instances this process runs,
 each as the node it replaces: ``{name: /anafi1/interface, type: interface_node.py}`` (the types in
-``HOSTABLE``). Each instance is the same node class as in the per-drone layout, built with a NodeContext of
+anafi_sim.mission.fleet_layout.HOSTABLE). Each instance is the same node class as in the per-drone layout, built with a NodeContext of
 its own name (anafi_sim/ros/context.py): its ~params are read from the master under its name (fleet_launcher.py
 writes them, from the same launch files as the per-drone layout), and it keeps its own topics, services,
 telemetry port and stream id and /diagnostics statuses. Messages between the instances of this host go through
@@ -15,7 +15,9 @@ does a failing callback (counted, logged; the bus goes on). The others fly on: a
 stopped has no telemetry (its interface goes stale, its mirror holds its models), a drone whose controller
 share stopped gets no command (the simulated firmware hovers after its command time-out).
 
-Parameters: ~instances (list of {name, type}; required), ~diagnostics_period (1.0 s).
+Parameters: ~instances (list of {name, type}; required), ~diagnostics_period (1.0 s). Sets ~wiring: per instance
+the global names of the topics it publishes and subscribes and its services (the master sees them as the
+host's; tests and users see here which drone's instance uses which).
 Publishes /diagnostics: '<host>: fleet host' (instances running / failed, bus deliveries and callback errors)
 and, for an instance that failed, '<instance>: hosted instance' ERROR.
 """
@@ -27,19 +29,11 @@ import traceback
 
 import rospy
 
+from anafi_sim.mission.fleet_layout import HOSTABLE, read_instances
 from anafi_sim.ros.context import LocalBus, NodeContext
 from anafi_sim.ros.node import (ERROR, OK, WARN, diagnostic_status, diagnostics_publisher, run_node,
                                 run_until_interrupted, start_diagnostics_thread)
 
-#: node type (the script a per-drone launch file starts) -> (the script defining it, the class, its arguments
-#: before the context)
-HOSTABLE = {
-    'anafi_sim_node.py': ('anafi_sim_node.py', 'AnafiSimNode', ()),
-    'interface_node.py': ('interface_node.py', 'InterfaceNode', ()),
-    'gazebo_mirror_node.py': ('gazebo_mirror_node.py', 'GazeboMirrorNode', ()),
-    'controller_node.py': ('controller_node.py', 'ControllerNode', (None,)),
-    'trajectory_generator.py': ('trajectory_generator.py', 'TrajectoryGeneratorNode', ()),
-}
 
 
 def _script_namespace(script, cache={}):
@@ -49,32 +43,13 @@ def _script_namespace(script, cache={}):
     return cache[script]
 
 
-def read_instances(raw):
-    """``~instances`` -> [(name, type)]; ValueError naming the entry that is not {name: /global/name, type: a
-    HOSTABLE type} or a name given twice."""
-    if not isinstance(raw, list) or not raw:
-        raise ValueError('~instances must be a non-empty list of {name, type}, got %r' % (raw,))
-    out, seen = [], set()
-    for i, entry in enumerate(raw):
-        if not isinstance(entry, dict) or set(entry) != {'name', 'type'}:
-            raise ValueError('~instances[%d] must be {name, type}, got %r' % (i, entry))
-        name, kind = entry['name'], entry['type']
-        if not isinstance(name, str) or not name.startswith('/') or name in seen:
-            raise ValueError('~instances[%d]: name must be a global ROS name given once, got %r' % (i, name))
-        if kind not in HOSTABLE:
-            raise ValueError('~instances[%d] (%s): type must be one of %s, got %r'
-                             % (i, name, ', '.join(sorted(HOSTABLE)), kind))
-        seen.add(name)
-        out.append((name, kind))
-    return out
-
-
 class Instance(object):
     """One hosted node instance and what became of it."""
 
     def __init__(self, name, kind):
         self.name, self.kind = name, kind
         self.node = None
+        self.ctx = None
         self.error = ''          # why it is not running ('' while it runs)
         self.thread = None
 
@@ -90,6 +65,7 @@ class FleetHost(object):
         self.pub_diag = diagnostics_publisher()
         for inst in self.instances:
             self._build(inst)
+        rospy.set_param('~wiring', dict((i.name, i.ctx.wiring) for i in self.instances if i.ctx is not None))
         running = [i.name for i in self.instances if not i.error]
         rospy.loginfo('fleet host: %d of %d instances built: %s', len(running), len(self.instances),
                       ', '.join(running))
@@ -98,7 +74,8 @@ class FleetHost(object):
         script, cls, args = HOSTABLE[inst.kind]
         try:
             node_class = _script_namespace(script)[cls]
-            inst.node = node_class(*(args + (NodeContext(inst.name, self.bus),)))
+            inst.ctx = NodeContext(inst.name, self.bus)
+            inst.node = node_class(*(args + (inst.ctx,)))
         except Exception as error:   # bad parameters (ValueError) or anything else: this instance only
             inst.error = 'not started: %s: %s' % (type(error).__name__, error)
             rospy.logfatal('fleet host: %s (%s) %s', inst.name, inst.kind, inst.error)

@@ -9,6 +9,8 @@
    every node under /<a>/ publishes and subscribes only topics under /<a>/ or shared ones (/diagnostics,
    /rosout, /tf, /tf_static, /clock, /gazebo/...), and every topic under /<a>/ has only /<a>/ nodes at
    both ends; each drone's chain is complete (simulator, interface, mirror, controller, generator).
+   In the shared layout (fleet_shared.test, ~layout shared) the master sees the fleet hosts' ends: each
+   host's ~wiring says which instance uses which topic, and those instances are checked as nodes.
 """
 import math
 import threading
@@ -105,27 +107,24 @@ class FleetTest(unittest.TestCase):
         master = rosgraph.Master('/test_fleet')
         chain = ('anafi_sim', 'interface', 'gazebo_mirror', 'trajectory_generator')
         want = set('/%s/%s' % (n, c) for n in self.names for c in chain)
-        self.assertTrue(wait_for(lambda: want <= set(rosgraph.names.ns_join('/', n) for n in self._nodes(master)),
-                                 30.0, 0.5), 'nodes: %s' % sorted(self._nodes(master)))
-        pubs, subs, _ = master.getSystemState()
+        self.assertTrue(wait_for(lambda: want <= self._nodes(master), 30.0, 0.5),
+                        'nodes: %s' % sorted(self._nodes(master)))
+        hosts = self._hosts(master)
+        self.assertEqual(bool(hosts), rospy.get_param('~layout', 'per_drone') == 'shared',
+                         'fleet hosts: %s' % sorted(hosts))
         ends = 0
-        for role, entries in (('publishes', pubs), ('subscribes', subs)):
-            for topic, nodes in entries:
-                t_ns = namespace(topic)
-                for node in nodes:
-                    if node == rospy.get_name():   # this test listens to every drone
-                        continue
-                    n_ns = namespace(node)
-                    if n_ns in self.names:
-                        ends += 1
-                        shared = topic in SHARED or topic.startswith('/gazebo/')
-                        self.assertTrue(t_ns == n_ns or shared,
-                                        '%s (drone %s) %s %s' % (node, n_ns, role, topic))
-                    if t_ns in self.names:
-                        self.assertEqual(n_ns if n_ns in self.names else t_ns, t_ns,
-                                         '%s of drone %s has %s node %s' % (topic, t_ns, role, node))
-                        self.assertNotEqual(n_ns, '', '%s of drone %s: root node %s %s it'
-                                            % (topic, t_ns, node, role))
+        for node, role, topic in self._ends(master):
+            if node == rospy.get_name():   # this test listens to every drone
+                continue
+            t_ns, n_ns = namespace(topic), namespace(node)
+            if n_ns in self.names:
+                ends += 1
+                shared = topic in SHARED or topic.startswith('/gazebo/')
+                self.assertTrue(t_ns == n_ns or shared, '%s (drone %s) %s %s' % (node, n_ns, role, topic))
+            if t_ns in self.names:
+                self.assertEqual(n_ns if n_ns in self.names else t_ns, t_ns,
+                                 '%s of drone %s has %s node %s' % (topic, t_ns, role, node))
+                self.assertNotEqual(n_ns, '', '%s of drone %s: root node %s %s it' % (topic, t_ns, node, role))
         self.assertGreater(ends, 20 * len(self.names))
         for name in self.names:
             controller = [n for n in self._nodes(master) if n.startswith('/%s/' % name)
@@ -133,9 +132,38 @@ class FleetTest(unittest.TestCase):
             self.assertTrue(controller, 'no controller node in /%s' % name)
 
     @staticmethod
-    def _nodes(master):
+    def _hosts(master):
+        """{host node: its ~wiring} of the fleet hosts (shared layout): per instance the topics it uses."""
         pubs, subs, srvs = master.getSystemState()
-        return set(n for entries in (pubs, subs, srvs) for _, nodes in entries for n in nodes)
+        nodes = set(n for entries in (pubs, subs, srvs) for _, ns in entries for n in ns)
+        return dict((n, rospy.get_param(n + '/wiring')) for n in nodes if rospy.has_param(n + '/wiring'))
+
+    @classmethod
+    def _ends(cls, master):
+        """[(node, 'publishes' | 'subscribes', topic)] from the master's system state; a fleet host's ends are
+        its instances' (its ~wiring), and every topic the master has for a host is one of its instances'
+        (or the host's own /diagnostics, /rosout)."""
+        pubs, subs, _ = master.getSystemState()
+        hosts = cls._hosts(master)
+        out = []
+        for role, entries in (('publishes', pubs), ('subscribes', subs)):
+            for topic, nodes in entries:
+                for node in nodes:
+                    if node not in hosts:
+                        out.append((node, role, topic))
+                        continue
+                    used = set(t for w in hosts[node].values() for t in w[role])
+                    assert topic in used or topic in SHARED, '%s %s %s: no instance of it does' % (node, role, topic)
+        for wiring in hosts.values():
+            for instance, w in wiring.items():
+                out += [(instance, role, topic) for role in ('publishes', 'subscribes') for topic in w[role]]
+        return out
+
+    @classmethod
+    def _nodes(cls, master):
+        pubs, subs, srvs = master.getSystemState()
+        nodes = set(n for entries in (pubs, subs, srvs) for _, ns in entries for n in ns)
+        return nodes | set(i for wiring in cls._hosts(master).values() for i in wiring)
 
 
 if __name__ == '__main__':

@@ -1,0 +1,85 @@
+"""The shared layout of a fleet (anafi_sim/mission/fleet_layout.py): which nodes a host runs, the XML, the
+parameters; a host's ~instances."""
+import xml.etree.ElementTree as ET
+
+import pytest
+import yaml
+
+from anafi_sim.mission import fleet_layout as fl
+from anafi_sim.mission.fleet import load_fleet
+from conftest import repo_path
+
+
+def node(type_, name, ns='/anafi1/', package='anafi_sim', **kw):
+    fields = dict(package=package, type=type_, name=name, namespace=ns, args='', output='log', respawn=True,
+                  respawn_delay=1.0, required=False, launch_prefix=None, cwd=None, env_args=[], remap_args=[])
+    fields.update(kw)
+    return fl.NodeSpec(**fields)
+
+
+def test_hosts_run_hostable_types_each_once_and_their_classes_exist():
+    types = [t for ts in fl.HOSTS.values() for t in ts]
+    assert len(types) == len(set(types))
+    assert set(types) == set(fl.HOSTABLE)
+    for script, cls, _ in fl.HOSTABLE.values():
+        with open(repo_path('anafi_sim', 'scripts', script)) as f:
+            assert 'class %s(' % cls in f.read(), (script, cls)
+
+
+def test_host_of_keeps_nodes_with_their_own_settings_apart():
+    assert fl.host_of(node('interface_node.py', 'interface')) == 'fleet_ground_truth'
+    assert fl.host_of(node('anafi_sim_node.py', 'anafi_sim')) == 'fleet_drones'
+    assert fl.host_of(node('evaluator.py', 'evaluator')) is None
+    assert fl.host_of(node('pid_controller.py', 'x_outer')) is None
+    assert fl.host_of(node('interface_node.py', 'interface', remap_args=[('a', 'b')])) is None
+    assert fl.host_of(node('interface_node.py', 'interface', launch_prefix='gdb')) is None
+    assert fl.host_of(node('interface_node.py', 'interface', args='--x')) is None
+    assert fl.host_of(node('interface_node.py', 'interface', package='other')) is None
+
+
+def test_shared_layout_xml_hosts_instances_in_launch_order_and_keeps_the_rest():
+    nodes = [node('anafi_sim_node.py', 'anafi_sim'), node('interface_node.py', 'interface'),
+             node('evaluator.py', 'evaluator', respawn=False, remap_args=[('x', 'y')]),
+             node('anafi_sim_node.py', 'anafi_sim', ns='/anafi2/')]
+    params = {'/anafi1/anafi_sim/rate': 200.0, '/anafi2/anafi_sim/rate': 200.0, '/use_sim_time': False}
+    xml, document = fl.shared_layout(nodes, params, '/tmp/p.yaml', title='fleet t')
+    root = ET.fromstring(xml.split('\n', 1)[1])
+    assert root.find('rosparam').get('file') == '/tmp/p.yaml'
+    hosts = dict((n.get('name'), yaml.safe_load(n.find('rosparam').text)) for n in root.findall('node')
+                 if n.get('type') == 'fleet_host.py')
+    assert hosts == {'fleet_drones': [{'name': '/anafi1/anafi_sim', 'type': 'anafi_sim_node.py'},
+                                      {'name': '/anafi2/anafi_sim', 'type': 'anafi_sim_node.py'}],
+                     'fleet_ground_truth': [{'name': '/anafi1/interface', 'type': 'interface_node.py'}]}
+    others = [n for n in root.findall('node') if n.get('type') != 'fleet_host.py']
+    assert [(n.get('type'), n.get('ns'), n.find('remap').get('to')) for n in others] == [
+        ('evaluator.py', '/anafi1/', 'y')]
+    assert others[0].get('respawn') is None
+    assert document == {'anafi1': {'anafi_sim': {'rate': 200.0}}, 'anafi2': {'anafi_sim': {'rate': 200.0}},
+                        'use_sim_time': False}
+
+
+def test_a_host_with_no_instance_is_not_started():
+    xml, _ = fl.shared_layout([node('interface_node.py', 'interface')], {}, 'p.yaml')
+    assert 'fleet_drones' not in xml.split('-->', 1)[1] and 'name="fleet_ground_truth"' in xml
+
+
+@pytest.mark.parametrize('raw, problem', [
+    (None, 'non-empty list'), ([], 'non-empty list'), (['x'], '{name, type}'),
+    ([{'name': 'anafi1/interface', 'type': 'interface_node.py'}], 'global ROS name'),
+    ([{'name': '/a/i', 'type': 'interface_node.py'}, {'name': '/a/i', 'type': 'interface_node.py'}], 'given once'),
+    ([{'name': '/a/i', 'type': 'evaluator.py'}], 'type must be one of'),
+    ([{'name': '/a/i', 'type': 'interface_node.py', 'extra': 1}], '{name, type}')])
+def test_read_instances_refuses_bad_entries(raw, problem):
+    with pytest.raises(ValueError, match=problem):
+        fl.read_instances(raw)
+    assert fl.read_instances([{'name': '/a/i', 'type': 'interface_node.py'}]) == [('/a/i', 'interface_node.py')]
+
+
+def test_layout_in_the_fleet_file(tmp_path):
+    path = tmp_path / 'f.yaml'
+    path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\nlayout: shared\n')
+    assert load_fleet(str(path)).layout == 'shared'
+    assert load_fleet('three_circles').layout == 'per_drone'
+    path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\nlayout: pooled\n')
+    with pytest.raises(ValueError, match='layout must be one of per_drone, shared'):
+        load_fleet(str(path))

@@ -87,10 +87,15 @@ def scenario_file(value):
     return 'no such file'
 
 
-#: [cores] CPU of one drone of a fleet at real time (simulator + telemetry CLI + interface + mirror at 100 Hz
-#: + MPC + generator, and its share of the world and the master): 16.5 % of a core at N = 10 in
-#: benchmarks/results/fleet.md (bench_fleet.py; 20 % alone, 16-17 % from N = 4 on)
-CPU_PER_DRONE = 0.165
+#: [cores] CPU of one drone of a fleet at real time, per fleet layout (per_drone: a process per role and drone;
+#: shared: fleet_host.py processes hosting one role of every drone): simulator + telemetry CLI + interface + mirror
+#: at 100 Hz + MPC + generator and the drone's share of the world and the master, the median over the runs at the
+#: largest fleet holding real time in benchmarks/results/fleet.json (benchmarks/bench_fleet.py; the generated
+#: block of docs/fleet.md quotes it; test/unit/sim/test_fleet_figures.py checks they agree). shared: the
+#: per_drone figure until the shared layout is measured.
+CPU_PER_DRONE = {'per_drone': 0.165, 'shared': 0.165}
+#: the layout fleet.launch starts by default
+DEFAULT_LAYOUT = 'per_drone'
 
 
 def available_cores():
@@ -101,22 +106,24 @@ def available_cores():
         return os.cpu_count() or 1
 
 
-def fleet_cap(cores=None):
-    """The largest fleet this machine runs at real time: cores / CPU_PER_DRONE (2 cores: 12, the largest
-    fleet that held RTF 1 in benchmarks/results/fleet.md), at least 1."""
-    return max(1, int((available_cores() if cores is None else cores) / CPU_PER_DRONE))
+def fleet_cap(cores=None, layout=DEFAULT_LAYOUT):
+    """The largest fleet this machine runs at real time in ``layout``: cores / CPU_PER_DRONE[layout], at least 1
+    (KeyError for an unknown layout)."""
+    return max(1, int((available_cores() if cores is None else cores) / CPU_PER_DRONE[layout]))
 
 
-def fleet_size_problem(count, max_drones=0, cores=None, layout=None):
+def fleet_size_problem(count, max_drones=0, cores=None, layout=DEFAULT_LAYOUT):
     """None when ``count`` drones fit (``max_drones`` > 0: the user's own cap instead of ``fleet_cap``), else
     what is wrong (names the cap, where it comes from and how to override it)."""
     if max_drones and max_drones > 0:
         cap, why = int(max_drones), 'max_drones:=%d' % max_drones
     else:
         n = available_cores() if cores is None else cores
-        cap = fleet_cap(n)
-        why = ('%d cores / %.3f core per drone (benchmarks/results/fleet.md): slower than real time beyond '
-               'it; max_drones:=N to raise it' % (n, CPU_PER_DRONE))
+        cap = fleet_cap(n, layout)
+        where = 'benchmarks/results/fleet.md' if layout == DEFAULT_LAYOUT else \
+            '%s layout, benchmarks/results/fleet.md' % layout
+        why = ('%d cores / %.3f core per drone (%s): slower than real time beyond it; max_drones:=N to raise it'
+               % (n, CPU_PER_DRONE[layout], where))
     if count > cap:
         return '%d drones is more than the fleet cap of %d (%s)' % (count, cap, why)
     return None

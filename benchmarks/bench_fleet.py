@@ -1,27 +1,32 @@
 #!/usr/bin/env python3
-"""Benchmark: a fleet at scale -- CPU per drone, where the time goes, and the largest fleet at RTF 1.
+"""Benchmark: a fleet at scale -- CPU per drone, where the time goes, and the largest fleet at real time.
 
-For each N in ``--sizes`` (1 2 4 8): a private ROS master, ``roslaunch anafi_sim fleet.launch drones:=N``
-(fleet ``--fleet``, default three_circles: every drone with the MPC flying the circle r = 2 m, v = 1 m/s,
-6 m apart; kinematic world, one mirror per drone at 100 Hz, no evaluators), wait until every drone flies its
-scenario, ``--settle`` s, then a measurement window of ``--duration`` s of wall time:
+For each N in ``--sizes`` (1 2 4 8 10 12), ``--repeats`` times (at least 2 for written results), and each layout of
+``--layouts`` (per_drone: a process per role and drone; shared: ``fleet_host.py`` processes hosting one role of
+every drone), interleaved run by run so the layouts see the same machine: a private ROS master,
+``roslaunch anafi_sim fleet.launch drones:=N`` (``layout:=L`` for a layout other than per_drone; fleet
+``--fleet``, default three_circles: every drone with the MPC flying the circle r = 2 m, v = 1 m/s, 6 m apart;
+kinematic world, one mirror per drone at 100 Hz, no evaluators), wait until every drone flies its scenario,
+``--settle`` s, then a measurement window of ``--duration`` s of wall time:
 
 - CPU (user + sys, psutil; anafi_sim.processes.TreeCpu / CpuWindow) of every process of the launch tree
   (and of roscore: master + rosout) by role: simulator, telemetry CLI (tlm_data_logger.py), interface,
-  mirror, controller, trajectory generator, world, roslaunch; in % of one core, and per drone;
-- per drone, from the nodes' own /diagnostics at the window's ends: the simulator's real-time factor
-  (sim time advanced / wall time) and overruns, the interface's ground-truth rate (samples published / wall
-  time), the mirror's rate (samples sent / wall time) and lag p99;
-- the machine's load average and busy share over the window.
+  mirror, controller, trajectory generator, world, roslaunch, and ``host NAME`` for a shared layout's
+  ``fleet_host.py __name:=NAME``; in % of one core, and per drone;
+- per drone, from the nodes' own /diagnostics at the window's ends (the same status names in both layouts):
+  the simulator's real-time factor (sim time advanced / wall time) and overruns, the interface's ground-truth
+  rate (samples published / wall time), the mirror's rates (samples received, sent, decimated / wall time)
+  and lag p99;
+- the machine's load average and busy share over the window, and the CPU of other jobs.
 
-A fleet *holds RTF 1* when every drone's RTF >= 0.98 and ground truth >= 97 Hz (the mirror's rates are
-reported beside: input received, sent, and decimated -- samples stamped less than 70 % of a period after
-the previous one, which receipt-time stamps under load produce).
-Writes benchmarks/results/fleet.md and fleet.json (``--no-write``: print only). Machines are shared: the load is recorded
-with every figure; compare sizes within one run.
+A fleet *holds real time* when every run of it does: fleet_report.HOLD (every drone's RTF >= 0.98, ground truth
+>= 97 Hz and mirror sent >= 97 Hz), the one definition the docs quote. Writes benchmarks/results/fleet.json
+(every run's raw figures and the machine's facts) and fleet.md and the generated block of docs/fleet.md from it
+(benchmarks/fleet_report.py, templates fleet.md.j2 and fleet_docs.md.j2); ``--no-write``: print only;
+``--from-json``: rewrite fleet.md and the docs block from fleet.json.
 
-Run (inside env.bash): python benchmarks/bench_fleet.py [--sizes 1 2 4 8] [--duration 30] [--settle 10]
-(about 10 minutes on a quiet machine); --from-json rewrites fleet.md from fleet.json.
+Run (inside env.bash): python benchmarks/bench_fleet.py [--sizes 1 2 4 8 10 12] [--repeats 2]
+[--layouts per_drone shared] [--duration 30] [--settle 10] (about 12 minutes per layout with the defaults).
 """
 import argparse
 import datetime
@@ -35,32 +40,23 @@ import time
 
 import psutil
 
-from anafi_sim import processes
+from anafi_sim import processes, run_files
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import fleet_report  # noqa: E402  (beside this script)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, 'benchmarks', 'results', 'fleet.md')
 RESULTS_JSON = os.path.join(ROOT, 'benchmarks', 'results', 'fleet.json')
+DOCS = os.path.join(ROOT, 'docs', 'fleet.md')
 MASTER_PORTS = (12000, 12500)
-ROLES = (('anafi_sim_node.py', 'simulator'), ('tlm_data_logger.py', 'telemetry CLI'),
-         ('interface_node.py', 'interface'), ('gazebo_mirror_node.py', 'mirror'),
-         ('controller_node.py', 'controller'), ('pid_', 'controller'),
-         ('trajectory_generator.py', 'generator'), ('model_follower.py', 'generator'),
-         ('evaluator.py', 'evaluator'), ('kinematic_world_node.py', 'world'), ('fleet_launcher.py', 'roslaunch'),
-         ('roslaunch', 'roslaunch'), ('rosmaster', 'master + rosout'), ('rosout', 'master + rosout'))
-PER_DRONE = ('simulator', 'telemetry CLI', 'interface', 'mirror', 'controller', 'generator')
-SHARED = ('world', 'roslaunch', 'master + rosout')
-HOLD = {'rtf': 0.98, 'truth_hz': 97.0}
 
 
 def role_of(proc, is_root):
     try:
-        cmd = ' '.join(proc.cmdline())
+        return fleet_report.role_of_cmdline(proc.cmdline())
     except psutil.Error:
         return 'other'
-    for key, role in ROLES:
-        if key in cmd:
-            return role
-    return 'other'
 
 
 class Diagnostics(object):
@@ -128,15 +124,17 @@ class Bench(object):
         rospy.init_node('bench_fleet', anonymous=True, disable_signals=True)
         self.diag = Diagnostics()
 
-    def run_size(self, n, args):
-        """One fleet of ``n`` drones: the figures of its measurement window."""
+    def run_size(self, n, args, layout='per_drone', repeat=0):
+        """One fleet of ``n`` drones in ``layout``: the figures of its measurement window."""
         diag = self.diag
         with diag.lock:
             diag.latest.clear()
-        name = 'fleet%d' % n
-        launch = self.procs.start(name, ['roslaunch', '--port', str(self.port), 'anafi_sim', 'fleet.launch',
-                                         'fleet:=%s' % args.fleet, 'drones:=%d' % n, 'evaluate:=false',
-                                         'out_dir:=%s' % os.path.join(self.workdir, name)], self.env)
+        name = 'fleet%d_%s_%d' % (n, layout, repeat)
+        command = ['roslaunch', '--port', str(self.port), 'anafi_sim', 'fleet.launch', 'fleet:=%s' % args.fleet,
+                   'drones:=%d' % n, 'evaluate:=false', 'out_dir:=%s' % os.path.join(self.workdir, name)]
+        if layout != 'per_drone':
+            command.append('layout:=%s' % layout)
+        launch = self.procs.start(name, command, self.env)
         try:
             names = ['anafi%d' % (i + 1) for i in range(n)]
             t_start = time.time()
@@ -162,10 +160,12 @@ class Bench(object):
                 entry = per_role.setdefault(role, [0.0, 0])
                 entry[0] += 100.0 * cpu / window.wall
                 entry[1] += count
-        return {'n': n, 'startup_s': startup, 'wall': window.wall, 'roles': per_role,
-                'drones': drone_figures(names, before, after), 'load_before': window.load_before,
-                'load_after': window.load_after, 'busy': window.busy,
-                'bench_cpu': 100.0 * window.bench_cpu / window.wall}
+        run = {'layout': layout, 'n': n, 'repeat': repeat, 'startup_s': startup, 'wall': window.wall,
+               'roles': per_role, 'drones': drone_figures(names, before, after), 'load_before': window.load_before,
+               'load_after': window.load_after, 'busy': window.busy,
+               'bench_cpu': 100.0 * window.bench_cpu / window.wall}
+        run['other_jobs'] = fleet_report.other_jobs(dict(run), os.cpu_count() or 1)
+        return run
 
     def close(self):
         self.procs.stop_all()
@@ -216,155 +216,93 @@ def mirror_core_cost(samples=3000, rounds=5):
     return dict((k, min(v)) for k, v in times.items()), diff
 
 
-OTHER_JOBS_LIMIT = 30.0   # [% of one core] of other processes during a window: above it, a row measures the machine
+def machine_facts():
+    """The machine a run measured: date, Python, cores, CPU model, load average at the start."""
+    return {'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M'), 'python': platform.python_version(),
+            'cores': os.cpu_count() or 0, 'cpu_model': processes.cpu_model(), 'load_start': os.getloadavg()}
 
 
-def other_jobs(r):
-    """CPU [% of one core] of processes outside the fleet during the window: machine busy x cores - fleet - bench."""
-    cores = os.cpu_count() or 1
-    fleet = sum(v[0] for v in r['roles'].values())
-    return max(0.0, r['busy'] * cores - fleet - r.get('bench_cpu', 0.0))
+def write(data):
+    """fleet.json, fleet.md and the generated block of docs/fleet.md (each atomically) from ``data``."""
+    run_files.atomic_write_text(RESULTS_JSON, json.dumps(data, indent=1, sort_keys=True) + '\n')
+    print('written %s' % RESULTS_JSON)
+    rewrite(data)
 
 
-def holds(r):
-    figs = [f for f in r['drones'].values()]
-    if not figs or any(not f for f in figs):
-        return False
-    return all(f['rtf'] >= HOLD['rtf'] and f['truth_hz'] >= HOLD['truth_hz'] for f in figs)
+def rewrite(data):
+    """fleet.md and the generated block of docs/fleet.md from ``data`` (fleet.json's content)."""
+    run_files.atomic_write_text(RESULTS, fleet_report.markdown(data))
+    with open(DOCS) as f:
+        text = f.read()
+    run_files.atomic_write_text(DOCS, fleet_report.replace_docs_block(text, data))
+    print('written %s and the generated block of %s' % (RESULTS, DOCS))
 
 
-def _min(r, key):
-    vals = [f[key] for f in r['drones'].values() if f]
-    return min(vals) if vals else float('nan')
-
-
-def _max(r, key):
-    vals = [f[key] for f in r['drones'].values() if f]
-    return max(vals) if vals else float('nan')
-
-
-def markdown(results, args):
-    lines = ['# A fleet at scale: CPU per drone and the largest fleet at RTF 1', '',
-             'Generated by `benchmarks/bench_fleet.py` (%s, Python %s, %d CPU cores, %s). Each size N: '
-             '`fleet.launch drones:=N fleet:=%s evaluate:=false` on a private master (kinematic world; per drone '
-             'simulated Anafi + interface + mirror at 100 Hz + MPC + trajectory generator; wall clock), '
-             '%g s of settling after every drone flies its scenario, then %g s measured. CPU = user + sys '
-             '(psutil) of every process of the launch tree and of roscore, by role, in %% of one core. '
-             'Per-drone rates from the nodes\' own /diagnostics across the window. *Holds RTF 1*: every drone '
-             'RTF >= %.2f and ground truth >= %g Hz. Mirror: input received / sent / decimated (a sample stamped '
-             '< 70 %% of a period after the previous one is dropped; the interface stamps at receipt on the wall '
-             'clock, so bursts under load are decimated) [Hz, min over the drones].'
-             % (datetime.date.today().isoformat(), platform.python_version(), os.cpu_count() or 0,
-                processes.cpu_model(), args.fleet, args.settle, args.duration, HOLD['rtf'], HOLD['truth_hz']), '',
-             'The machine is shared with other jobs: the machine\'s busy share, the CPU of processes outside '
-             'the fleet (busy x cores - fleet - this script) and the load average (1 min, before -> after the '
-             'window; the fleet\'s own processes count in it) are next to each row.', '',
-             '| N | holds RTF 1 | RTF min | ground truth min [Hz] | mirror in / sent / decimated [Hz] '
-             '| mirror lag p99 max [ms] | sim overruns | CPU total [% core] | CPU per drone [% core] '
-             '| machine busy [%] | other jobs [% core] | load avg | start-up [s] |',
-             '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
-    for r in results:
-        total = sum(v[0] for v in r['roles'].values())
-        overruns = sum(f.get('overruns', 0) for f in r['drones'].values() if f)
-        lines.append('| %d | %s | %.3f | %.1f | %.1f / %.1f / %.1f | %.1f | %d | %.0f | %.1f | %.0f | %.0f '
-                     '| %.1f -> %.1f | %.0f |' % (
-            r['n'], 'yes' if holds(r) else 'NO', _min(r, 'rtf'), _min(r, 'truth_hz'), _min(r, 'mirror_in_hz'),
-            _min(r, 'mirror_hz'), _max(r, 'mirror_decimated_hz'),
-            _max(r, 'lag_p99_ms'), overruns, total, total / r['n'], r['busy'], other_jobs(r),
-            r['load_before'][0], r['load_after'][0], r['startup_s']))
-    lines += ['', '## Where the time goes', '',
-              'CPU by role [% of one core]; per drone = the role\'s total / N (the world, roslaunch and the '
-              'master are shared by the fleet).', '']
-    roles = [ro for ro in PER_DRONE + SHARED + ('other',) if any(ro in r['roles'] for r in results)]
-    lines.append('| role | ' + ' | '.join('N = %d total | per drone' % r['n'] for r in results) + ' |')
-    lines.append('|---|' + '---|---|' * len(results))
-    for role in roles:
-        cells = []
-        for r in results:
-            v = r['roles'].get(role, [0.0, 0])[0]
-            cells.append('%.1f | %.1f' % (v, v / r['n']))
-        lines.append('| %s | %s |' % (role, ' | '.join(cells)))
-    lines.append('| bench (this script) | ' + ' | '.join('%.1f | -' % r['bench_cpu'] for r in results) + ' |')
-    if args.core_cost:
-        cost, diff = args.core_cost
-        before, after = cost['numpy (before)'], cost['plain Python (shipped)']
-        lines += ['', '## The cut: the mirror\'s model-state maths', '',
-                  'Profiling the mirror core showed numpy call overhead on single 3-vectors (np.cross alone about '
-                  'a third of `Mirror.on_ground_truth`). The shipped `anafi_sim/gazebo/mirror.py` does the two '
-                  'rotations and the cross product in plain Python (same formulas, same `frames` matrix). Same '
-                  'run, interleaved, best of 5 x 3000 samples: numpy %.0f us, plain Python %.0f us per sample '
-                  '(x%.1f less; at 100 Hz %.2f -> %.2f %% of a core per drone); largest difference of the '
-                  'results %.1e (rounding).' % (before, after, before / after, before / 100.0, after / 100.0, diff)]
-    loaded = [r['n'] for r in results if other_jobs(r) > OTHER_JOBS_LIMIT]
-    if loaded:
-        lines += ['', '## Reading this run', '',
-                  'Other jobs used more than %g %% of a core (machine busy minus the fleet and this script) '
-                  'for N = %s: the fleet competed with them for the cores, so its processes may have got less '
-                  'CPU than they asked for; RTF, rates and "holds" of those rows then measure the machine, not '
-                  'the fleet, and CPU per drone is what the drones got, not what they need. Rerun on a quiet '
-                  'machine: `python benchmarks/bench_fleet.py`.' % (OTHER_JOBS_LIMIT, ', '.join(str(n) for n in loaded))]
-    else:
-        lines += ['', 'No other job used more than %g %% of a core during any window (machine busy minus the '
-                  'fleet and this script): the figures are the fleet\'s own.' % OTHER_JOBS_LIMIT]
-    largest = [r['n'] for r in results if holds(r)]
-    mirrored = [r['n'] for r in results if holds(r) and _min(r, 'mirror_hz') >= HOLD['truth_hz']]
-    lines += ['', 'Largest fleet holding RTF 1 in this run: %s; with every mirror also at >= %g Hz: %s.'
-              % (max(largest) if largest else 'none', HOLD['truth_hz'], max(mirrored) if mirrored else 'none'), '']
-    return '\n'.join(lines) + '\n'
+def report_run(r):
+    f = fleet_report.run_figures(r)
+    print('%s N = %d run %d: holds real time: %s; RTF min %s, ground truth min %s Hz, mirror sent min %s Hz; '
+          'CPU %s %% (%s %% per drone); load %.1f -> %.1f; other jobs %s %% core'
+          % (r['layout'], r['n'], r['repeat'] + 1, f['holds'], fleet_report.fmt(f['rtf_min'], 3),
+             fleet_report.fmt(f['truth_min']), fleet_report.fmt(f['mirror_min']), fleet_report.fmt(f['cpu_total'], 0),
+             fleet_report.fmt(f['cpu_per_drone']), r['load_before'][0], r['load_after'][0],
+             fleet_report.fmt(r['other_jobs'], 0)), flush=True)
+    for role, (cpu, count) in sorted(r['roles'].items(), key=lambda kv: -kv[1][0]):
+        print('    %-24s %5.1f %% (%d processes)' % (role, cpu, count), flush=True)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument('--sizes', type=int, nargs='+', default=[1, 2, 4, 8])
+    ap.add_argument('--sizes', type=int, nargs='+', default=[1, 2, 4, 8, 10, 12])
+    ap.add_argument('--repeats', type=int, default=2, help='runs per size and layout (>= 2 for written results)')
+    which = ap.add_mutually_exclusive_group()
+    which.add_argument('--layout', choices=fleet_report.LAYOUTS, help='one layout (default per_drone)')
+    which.add_argument('--layouts', choices=fleet_report.LAYOUTS, nargs='+',
+                       help='several layouts side by side, interleaved run by run')
     ap.add_argument('--fleet', default='three_circles')
     ap.add_argument('--duration', type=float, default=30.0, help='s of wall time measured')
     ap.add_argument('--settle', type=float, default=10.0)
     ap.add_argument('--start-timeout', type=float, default=240.0)
     ap.add_argument('--no-write', action='store_true')
-    ap.add_argument('--from-json', action='store_true', help='only rewrite fleet.md from fleet.json')
+    ap.add_argument('--from-json', action='store_true',
+                    help='only rewrite fleet.md and the block of docs/fleet.md from fleet.json')
     args = ap.parse_args(argv)
     if args.from_json:
-        with open(RESULTS_JSON) as f:
-            data = json.load(f)
-        for key in ('fleet', 'settle', 'duration'):
-            setattr(args, key, data[key])
-        args.core_cost = data['core_cost']
-        with open(RESULTS, 'w') as f:
-            f.write(markdown(data['results'], args))
-        print('written %s' % RESULTS)
+        rewrite(fleet_report.load(RESULTS_JSON))
         return 0
-    results = []
+    layouts = args.layouts or [args.layout or 'per_drone']
+    if len(set(layouts)) != len(layouts):
+        ap.error('--layouts: each layout once')
+    if args.repeats < 1 or (args.repeats < 2 and not args.no_write):
+        ap.error('--repeats: at least 2 for written results (1 only with --no-write)')
+    data = {'format': 2, 'fleet': args.fleet, 'settle': args.settle, 'duration': args.duration,
+            'repeats': args.repeats, 'sizes': list(args.sizes), 'layouts': layouts, 'machine': machine_facts(),
+            'hold': dict(fleet_report.HOLD), 'runs': []}
+    failed = 0
     with tempfile.TemporaryDirectory(prefix='bench_fleet_') as workdir:
         bench = Bench(workdir)
         try:
             for n in args.sizes:
-                print('N = %d ...' % n, flush=True)
-                try:
-                    r = bench.run_size(n, args)
-                except TimeoutError as error:
-                    print('N = %d: %s' % (n, error), flush=True)
-                    continue
-                results.append(r)
-                total = sum(v[0] for v in r['roles'].values())
-                print('N = %d: holds RTF 1: %s; RTF min %.3f, ground truth min %.1f Hz, mirror min %.1f Hz; '
-                      'CPU %.0f %% (%.1f %% per drone); load %.1f -> %.1f'
-                      % (n, holds(r), _min(r, 'rtf'), _min(r, 'truth_hz'), _min(r, 'mirror_hz'), total, total / n,
-                         r['load_before'][0], r['load_after'][0]), flush=True)
-                for role, (cpu, count) in sorted(r['roles'].items(), key=lambda kv: -kv[1][0]):
-                    print('    %-16s %5.1f %% (%d processes)' % (role, cpu, count), flush=True)
+                for repeat in range(args.repeats):
+                    for layout in layouts:
+                        print('%s N = %d run %d ...' % (layout, n, repeat + 1), flush=True)
+                        try:
+                            r = bench.run_size(n, args, layout, repeat)
+                        except TimeoutError as error:
+                            print('%s N = %d run %d: %s' % (layout, n, repeat + 1, error), flush=True)
+                            data['runs'].append({'layout': layout, 'n': n, 'repeat': repeat, 'error': str(error)})
+                            failed += 1
+                            continue
+                        data['runs'].append(r)
+                        report_run(r)
         finally:
             bench.close()
-    args.core_cost = mirror_core_cost()
-    text = markdown(results, args)
-    if not args.no_write and results:
-        with open(RESULTS_JSON, 'w') as f:
-            json.dump({'results': results, 'core_cost': args.core_cost, 'fleet': args.fleet,
-                       'settle': args.settle, 'duration': args.duration}, f, indent=1, sort_keys=True)
-    print(text)
-    if not args.no_write and results:
-        with open(RESULTS, 'w') as f:
-            f.write(text)
-        print('written %s' % RESULTS)
+    data['core_cost'] = mirror_core_cost()
+    print(fleet_report.markdown(data))
+    if not args.no_write and data['runs']:
+        write(data)
+    if failed:
+        print('FAILED: %d run(s) never had every drone flying (see above)' % failed, flush=True)
+        return 1
     return 0
 
 

@@ -19,8 +19,9 @@ from xml.sax.saxutils import quoteattr
 
 import yaml
 
-LAYOUTS = ('per_drone', 'shared')
-DEFAULT_LAYOUT = 'per_drone'
+from anafi_sim.launch_check import CPU_PER_DRONE, DEFAULT_LAYOUT
+
+LAYOUTS = tuple(sorted(CPU_PER_DRONE))     # per_drone, shared
 
 #: host name -> the node types it runs (the per-drone launch files' ``type``s)
 HOSTS = collections.OrderedDict([

@@ -14,8 +14,8 @@ Parameters: ~fleet (name in anafi_sim/config/fleets or a path; three_circles), ~
 N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
 ~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false; true: rviz.launch
 per drone and rviz on the fleet's generated view ~out_dir/fleet.rviz, anafi_sim/mission/rviz_config.py),
-~stop_timeout (30 s), ~max_drones (0: the fleet cap derived from the CPU cores, anafi_sim.launch_check.fleet_cap:
-12 on 2 cores; a larger fleet is refused with a message naming the cap).
+~stop_timeout (30 s), ~max_drones (0: the fleet cap derived from the CPU cores and the measured CPU per drone,
+anafi_sim.launch_check.fleet_cap; a larger fleet is refused with a message naming the cap).
 
 Also a command-line tool, to see or check what a fleet file starts without starting it:
 

@@ -53,14 +53,22 @@ def test_the_script_exits_non_zero_with_the_line_and_prints_ok_otherwise():
     assert good.returncode == 0 and good.stdout == 'ok'
 
 
-def test_the_fleet_cap_comes_from_the_measured_cost_per_drone():
-    from anafi_sim.launch_check import CPU_PER_DRONE, fleet_cap, fleet_size_problem
+def test_the_fleet_cap_comes_from_the_measured_cost_per_drone(monkeypatch):
+    from anafi_sim import launch_check
+    from anafi_sim.launch_check import fleet_cap, fleet_size_problem
+    monkeypatch.setattr(launch_check, 'CPU_PER_DRONE', {'per_drone': 0.165, 'shared': 0.1})
     assert fleet_cap(2) == 12 and fleet_cap(1) == 6 and fleet_cap(0.1) == 1
-    assert fleet_size_problem(12, cores=2) is None
+    assert fleet_cap(2, 'shared') == 20 and fleet_cap(2, layout='per_drone') == 12
+    assert fleet_size_problem(12, cores=2) is None and fleet_size_problem(20, cores=2, layout='shared') is None
     problem = fleet_size_problem(50, cores=2)
-    assert problem.startswith('50 drones is more than the fleet cap of 12') and 'max_drones:=N' in problem
-    assert '%.3f' % CPU_PER_DRONE in problem and 'benchmarks/results/fleet.md' in problem
+    assert problem == ('50 drones is more than the fleet cap of 12 (2 cores / 0.165 core per drone '
+                       '(benchmarks/results/fleet.md): slower than real time beyond it; max_drones:=N to raise it)')
+    problem = fleet_size_problem(50, 0, 2, 'shared')
+    assert problem.startswith('50 drones is more than the fleet cap of 20 (2 cores / 0.100 core per drone '
+                              '(shared layout, benchmarks/results/fleet.md)')
     assert fleet_size_problem(50, max_drones=60) is None and 'max_drones:=20' in fleet_size_problem(30, 20)
+    with pytest.raises(KeyError):
+        fleet_cap(2, 'no_such_layout')
 
 
 def test_drones_above_the_cap_fail_the_launch_check():

@@ -55,7 +55,7 @@ ALLOWED_IMPORTS = {
     _SIM: {_TLM, _CTL, _PATHS, _NUM},
     _IF: {_TLM, _CTL, _PATHS, _NUM},
     _GZ: {_IF, _TLM, _CTL, _PATHS, _NUM},
-    _MIS: {_SIM, _TLM, _IF, _GZ, _CTL, _PATHS, _NAMES, _NUM, _RUN},
+    _MIS: {_SIM, _TLM, _IF, _GZ, _CTL, _PATHS, _NAMES, _NUM, _RUN, 'anafi_sim.launch_check'},
     _LAB: _FLIGHT_CORES,
 }
 

@@ -10,8 +10,10 @@ publishers, subscribers and services. Two kinds:
 - ``NodeContext(name, bus)``: one of the instances a host process runs (the shared layout of a fleet:
   ``scripts/fleet_host.py``). Its names resolve against ``name`` (e.g. /anafi1/interface), so every drone
   keeps its own topics, parameters and services. Messages between instances of one host go through the
-  host's ``LocalBus``: handed over in the process (no serialisation, no socket), on one dispatcher thread,
-  in publication order. Other processes still see every topic: a publication goes to rospy as well when a
+  host's ``LocalBus``: handed over in the process (no serialisation, no socket, no thread
+  woken): the publishing thread calls the local subscribers' callbacks, in publication order, each guarded
+  (a failing callback is counted and logged; the others and the publisher go on). So a node publishes
+  outside its own locks, as every node here does. Other processes still see every topic: a publication goes to rospy as well when a
   subscriber outside the host listens (or the topic is latched), and each local subscription also subscribes
   through rospy for publishers outside the host (its copies of the host's own publications are dropped by
   the publisher's caller id).
@@ -167,14 +169,10 @@ class LocalBus(object):
         self._lock = threading.Lock()
         self._subscribers = {}             # topic -> tuple of callbacks
         self._latched = {}                 # topic -> last message of a latched publisher
-        self._queue = collections.deque()
-        self._ready = threading.Condition(threading.Lock())
         self._static = collections.OrderedDict()    # (parent, child) -> TransformStamped
         self._static_pub = None
         self.delivered = 0
         self.callback_errors = 0
-        self._thread = threading.Thread(target=self._dispatch, name='local_bus', daemon=True)
-        self._thread.start()
 
     def publisher(self, topic, data_class, latch=False, owner=None, **kwargs):
         """A LocalPublisher of ``topic``; ``owner``: the publishing instance's name (the callerid local
@@ -188,7 +186,7 @@ class LocalBus(object):
             self._subscribers[topic] = self._subscribers.get(topic, ()) + (entry,)
             latched = self._latched.get(topic)
         if latched is not None:
-            self._enqueue(topic, (entry,), latched)
+            self._call(topic, (entry,), latched)
         own = self.caller_id
 
         def from_elsewhere(msg):
@@ -206,41 +204,27 @@ class LocalBus(object):
         return self._subscribers.get(topic, ())
 
     def deliver(self, topic, msg, latch=False):
-        """Hand ``msg`` to the local subscribers of ``topic`` (on the dispatcher thread)."""
+        """Hand ``msg`` to the local subscribers of ``topic``, in the publishing thread (no thread to wake: a
+        wake-up costs as much as a rospy hop's serialisation many times over)."""
         if latch:
             with self._lock:
                 self._latched[topic] = msg
         entries = self._subscribers.get(topic)
         if entries:
-            self._enqueue(topic, entries, msg)
+            self._call(topic, entries, msg)
 
-    def _enqueue(self, topic, entries, msg):
-        with self._ready:
-            self._queue.append((topic, entries, msg))
-            self._ready.notify()
-
-    def _dispatch(self):
-        queue = self._queue
-        while True:
-            with self._ready:
-                while not queue:
-                    self._ready.wait()
-                topic, entries, msg = queue.popleft()
-            for entry in entries:
-                try:
-                    entry[0](msg)
-                except Exception as error:     # one instance's failing callback must not stop the others
-                    self.callback_errors += 1
-                    if self.on_error is not None:
-                        self.on_error(topic, error)
-                    else:
-                        rospy.logerr_throttle(5.0, 'host: a callback of %s failed (%d so far): %s: %s' % (
-                            topic, self.callback_errors, type(error).__name__, error))
-            self.delivered += 1
-
-    def pending(self):
-        """Messages waiting for the dispatcher."""
-        return len(self._queue)
+    def _call(self, topic, entries, msg):
+        for entry in entries:
+            try:
+                entry[0](msg)
+            except Exception as error:     # one instance's failing callback must not stop the others
+                self.callback_errors += 1
+                if self.on_error is not None:
+                    self.on_error(topic, error)
+                else:
+                    rospy.logerr_throttle(5.0, 'host: a callback of %s failed (%d so far): %s: %s' % (
+                        topic, self.callback_errors, type(error).__name__, error))
+        self.delivered += 1
 
     def send_static_transforms(self, transforms):
         """Add ``transforms`` to the host's static transforms and publish them all (one latched message)."""

@@ -103,7 +103,7 @@ class FleetHost(object):
             '%d instances running' % (len(self.instances) - len(failed)) + (
                 ', %d failed: %s' % (len(failed), ', '.join(i.name for i in failed)) if failed else ''),
             [('instances', str(len(self.instances))), ('failed', str(len(failed))),
-             ('bus deliveries', str(self.bus.delivered)), ('bus pending', str(self.bus.pending())),
+             ('bus deliveries', str(self.bus.delivered)),
              ('callback errors', str(self.bus.callback_errors))])]
         for inst in failed:
             statuses.append(diagnostic_status('%s: hosted instance' % inst.name, ERROR, inst.error,

@@ -906,6 +906,51 @@ def wake_up(c):
     return o['pub0'] - o['build'] - o['publish_nosub']
 
 
+#: the cuts of a shared layout (one process per role hosting every drone's instance, in-process delivery between
+#: instances hosted together): (name, [(role, label start, share of the item that goes away)]); the share of a
+#: per-process item that stays is 1 / N (one per process instead of one per drone), written 'N'
+CUTS = (
+    ('interface -> mirror delivered in process (needs the interface and the mirror of a drone in one process; '
+     'ground_truth/odom and drone_data then not serialized, sent, received)',
+     [('interface', 'serialize + send ground_truth/odom', 1.0), ('interface', 'serialize + send ground_truth/drone',
+                                                                  1.0),
+      ('mirror', 'ground_truth/odom received', 1.0), ('mirror', 'ground_truth/drone_data received', 1.0)]),
+    ('mirror -> world delivered in process (needs the mirrors and the kinematic world in one process; the 2 '
+     'ModelStates per sample)',
+     [('mirror', '2 ModelState serialize + send', 1.0), ('world', '/gazebo/set_model_state received', 1.0)]),
+    ('/gazebo/model_states: one subscription per mirror process instead of one per drone (per-role process)',
+     [('mirror', '/gazebo/model_states received', 'N'), ('world', 'serialize + send model_states', 'N')]),
+    ('simulator: one stepping loop for every drone (per-role process; one wake-up per step)',
+     [('simulator', 'loop wake-ups', 'N')]),
+    ('interface: one reader thread for every drone\'s telemetry (per-role process; wake-ups shared only when '
+     'the samples arrive together)',
+     [('interface', 'reader thread wake-ups', 'N')]),
+    ('simulator -> controller delivered in process (needs both in one process; drone/odom 30 Hz, drone/rpyt '
+     '10 Hz and its commander watch)',
+     [('simulator', 'serialize + send drone/odom', 1.0), ('controller', 'drone/odom received', 1.0),
+      ('simulator', 'drone/rpyt received', 1.0), ('controller', 'drone/rpyt received', 1.0)]),
+    ('idle node costs (diagnostics thread, master watch, timers) once per process (per-role processes)',
+     [(r, 'idle node (diagnostics', 'N') for r in ('simulator', 'interface', 'mirror', 'controller', 'generator')]
+     + [('mirror', 'main loop wake-ups', 'N'), ('controller', 'timer wake-ups', 'N'),
+        ('generator', 'Rate wake-ups', 'N')]),
+)
+
+
+def cut_savings(data, n):
+    """[(cut, % core per drone saved at ``n`` drones, items it removes)] from ``attribution(data, n)``."""
+    table = attribution(data, n)
+    out = []
+    for name, parts in CUTS:
+        saved, labels = 0.0, []
+        for role, start, share in parts:
+            for label, rate, us, pct in table.get(role, []):
+                if label.startswith(start):
+                    saved += pct * ((1.0 - 1.0 / n) if share == 'N' else share)
+                    labels.append('%s: %s' % (role, label))
+        out.append((name, saved, labels))
+    return out
+
+
 def measured_per_drone(live):
     n = live['n']
     return dict((role, v[0] / n) for role, v in live['roles'].items())
@@ -1017,6 +1062,18 @@ def markdown(data):
               'and the world\'s cycle; the world\'s and the master\'s fixed costs spread over N. '
               'No measured column: projection only.', '']
     lines += _attribution_lines(data, PROJECT_N, None)
+    total = sum(r[3] for rows in attribution(data, PROJECT_N).values() for r in rows)
+    lines += ['', '## The cuts of a shared layout at N = %d, ranked' % PROJECT_N, '',
+              'Each cut: the items of section 5 it removes (in-process delivery: no serialization, no send, no '
+              'receive thread) or shares by the N drones of a process (one loop, one thread, one subscription: '
+              'the item x (1 - 1/N)). Items total %.1f %% core per drone; the master\'s and roslaunch\'s share '
+              'are not itemised.' % total, '',
+              '| cut | % core per drone saved | items |', '|---|---|---|']
+    left = total
+    for name, saved, labels in sorted(cut_savings(data, PROJECT_N), key=lambda x: -x[1]):
+        left -= saved
+        lines.append('| %s | %.2f | %s |' % (name, saved, '; '.join(labels)))
+    lines += ['', 'Left per drone after every cut above: %.1f %% core (items only).' % left]
     lines += ['', '## Largest items per drone at N = %d' % PROJECT_N, '']
     items = []
     for role, rows in attribution(data, PROJECT_N).items():

@@ -282,6 +282,40 @@ class AnafiSimNode(object):
             'anafi_sim: lockstep: %d /clock subscribers%s, starting simulation time', hold.count or 0,
             ' (start hold timed out)' if hold.timed_out else '')
 
+    @property
+    def steps_alone(self):
+        """True when this simulator needs a loop of its own (lockstep); else a host may step it with others."""
+        return self.sim.lockstep is not None
+
+    def start_stepping(self, wall):
+        """Diagnostics, then simulation time 0 at wall time ``wall`` [s] (a host starts its simulators at one
+        instant, so that their steps fall due together: one wake-up per step for all)."""
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag,
+                                 stamp=lambda: self._stamp(self.sim.clock.t))
+        self.sim.start(wall)
+
+    def tick(self):
+        """One step without lockstep and its outputs; the wall time [s] until the next step is due."""
+        step = self.sim.step()
+        self._log_events(step)
+        if step.clock and self.pub_clock is not None:
+            self.pub_clock.publish(Clock(clock=sim_time(step.t)))
+        self._publish_step(step)
+        return self.sim.pace(time.monotonic())
+
+    def _log_events(self, step):
+        for event, accepted, state in step.events:
+            rospy.loginfo('anafi_sim: %s %s %s, state now %s', self.drone, event, 'accepted' if accepted else 'ignored',
+                          state)
+
+    def _publish_step(self, step):
+        if step.sample is not None:
+            self._publish_truth(step.sample, self._stamp(step.t))
+        if step.estimate is not None:
+            self._publish_estimate(step.estimate, self._stamp(step.t))
+        if step.state is not None:
+            self.pub_state.publish(String(step.state))
+
     def run(self):
         sim = self.sim
         clock_msg = Clock()
@@ -296,8 +330,7 @@ class AnafiSimNode(object):
         first_hold = self.start_hold is not None
         while not rospy.is_shutdown():
             step = sim.step()
-            for event, accepted, state in step.events:
-                rospy.loginfo('anafi_sim: %s %s, state now %s', event, 'accepted' if accepted else 'ignored', state)
+            self._log_events(step)
             if step.clock and self.pub_clock is not None:
                 clock_msg.clock = sim_time(step.t)
                 self.pub_clock.publish(clock_msg)
@@ -314,12 +347,7 @@ class AnafiSimNode(object):
                     rospy.logwarn_throttle(5.0, 'anafi_sim: lockstep: no command within %g s wall at t = %.3f s '
                                            '(%d timeouts)' % (sim.lockstep.timeout, step.t, sim.lockstep.timeouts))
                 sim.clock.resume(time.monotonic())
-            if step.sample is not None:
-                self._publish_truth(step.sample, self._stamp(step.t))
-            if step.estimate is not None:
-                self._publish_estimate(step.estimate, self._stamp(step.t))
-            if step.state is not None:
-                self.pub_state.publish(String(step.state))
+            self._publish_step(step)
             delay = sim.pace(time.monotonic())
             if delay > 0.0:
                 time.sleep(delay)

@@ -9,6 +9,9 @@ writes them, from the same launch files as the per-drone layout), and it keeps i
 telemetry port and stream id and /diagnostics statuses. Messages between the instances of this host go through
 its LocalBus (in the process; other processes still get every topic they subscribe to).
 
+Every simulator that runs without lockstep is stepped by one loop of the host (one wake-up per physics step for
+all drones, instead of one per drone); the other instances run their own run().
+
 Failure isolation: an instance whose parameters are bad is not started (one FATAL line naming it, its drone's
 status ERROR on /diagnostics); an instance whose run() raises stops alone (ERROR line and status, counter), as
 does a failing callback (counted, logged; the bus goes on). The others fly on: a drone whose simulator share
@@ -111,9 +114,37 @@ class FleetHost(object):
                                               hardware_id=inst.name.strip('/').split('/')[0]))
         return statuses
 
+    def _step_together(self, group):
+        """One loop steps every simulator of ``group`` (started at one instant: their steps fall due together,
+        one wake-up for all); a simulator whose step raises leaves the loop alone (its instance failed)."""
+        start = time.monotonic()
+        due = {}
+        for inst in group:
+            inst.node.start_stepping(start)
+            due[inst] = start
+        while due and not rospy.is_shutdown():
+            now = time.monotonic()
+            for inst in list(due):
+                if due[inst] > now:
+                    continue
+                try:
+                    due[inst] = now + inst.node.tick()
+                except Exception as error:
+                    del due[inst]
+                    if not rospy.is_shutdown():
+                        inst.error = 'stopped: %s: %s' % (type(error).__name__, error)
+                        rospy.logerr('fleet host: %s %s\n%s', inst.name, inst.error, traceback.format_exc())
+            if due:
+                delay = min(due.values()) - time.monotonic()
+                if delay > 0.0:
+                    time.sleep(delay)
+
     def spin(self):
+        together = [i for i in self.instances if i.node is not None and not getattr(i.node, 'steps_alone', True)]
+        if together:
+            threading.Thread(target=self._step_together, args=(together,), name='simulators', daemon=True).start()
         for inst in self.instances:
-            if inst.node is not None:
+            if inst.node is not None and inst not in together:
                 inst.thread = threading.Thread(target=self._run_instance, args=(inst,), name=inst.name, daemon=True)
                 inst.thread.start()
         start_diagnostics_thread(self.period, self.diagnostic_statuses, self.pub_diag, first=0.0)

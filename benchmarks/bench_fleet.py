@@ -131,7 +131,8 @@ class Bench(object):
             diag.latest.clear()
         name = 'fleet%d_%s_%d' % (n, layout, repeat)
         command = ['roslaunch', '--port', str(self.port), 'anafi_sim', 'fleet.launch', 'fleet:=%s' % args.fleet,
-                   'drones:=%d' % n, 'evaluate:=false', 'out_dir:=%s' % os.path.join(self.workdir, name)]
+                   'drones:=%d' % n, 'evaluate:=false', 'out_dir:=%s' % os.path.join(self.workdir, name),
+                   'max_drones:=%d' % n]     # measured beyond the fleet cap too: the cap comes from these runs
         if layout != 'per_drone':
             command.append('layout:=%s' % layout)
         launch = self.procs.start(name, command, self.env)

@@ -47,7 +47,7 @@ from anafi_sim import paths
 from anafi_sim import names
 from anafi_sim.ros import conversions
 from anafi_sim.ros.context import NodeContext
-from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, run_node,
+from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 start_diagnostics_thread)
 from anafi_sim.ros.wire_types import paper_state_class, piloting_command_class
 from anafi_sim.sim.bridge import CAMERA_FRAME_ID, MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
@@ -80,7 +80,7 @@ class AnafiSimNode(object):
 
     def __init__(self, ctx=None):
         self.ctx = ctx = ctx or NodeContext.process()
-        p = ctx.params()
+        p = private_params(ctx)
         rate = p.number('rate', 200.0, minimum=200.0)   # physics [Hz]
         rtf = p.positive('rtf', 1.0)
         publish_clock = p.flag('publish_clock', False)

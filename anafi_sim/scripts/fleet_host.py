@@ -34,7 +34,7 @@ import rospy
 
 from anafi_sim.mission.fleet_layout import HOSTABLE, read_instances
 from anafi_sim.ros.context import LocalBus, NodeContext
-from anafi_sim.ros.node import (ERROR, OK, WARN, diagnostic_status, diagnostics_publisher, run_node,
+from anafi_sim.ros.node import (ERROR, OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 run_until_interrupted, start_diagnostics_thread)
 
 
@@ -60,7 +60,7 @@ class Instance(object):
 class FleetHost(object):
     def __init__(self):
         ctx = NodeContext.process()
-        p = ctx.params()
+        p = private_params(ctx)
         self.period = p.positive('diagnostics_period', 1.0)
         self.instances = [Instance(n, k) for n, k in read_instances(ctx.get_param('instances'))]
         self.callback_errors = {}

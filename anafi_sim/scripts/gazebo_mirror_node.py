@@ -39,7 +39,7 @@ from anafi_sim.msg import DroneData
 from anafi_sim import names
 from anafi_sim.ros import conversions, gazebo_types
 from anafi_sim.ros.context import NodeContext
-from anafi_sim.ros.node import (diagnostics_publisher, health_status, log_lines, run_node,
+from anafi_sim.ros.node import (diagnostics_publisher, health_status, log_lines, private_params, run_node,
                                 run_until_interrupted, start_diagnostics_thread)
 
 LOG_REPEAT = 5.0  # s between repeated "Gazebo not available" log lines
@@ -61,7 +61,7 @@ def _load_model(path, what):
 
 def read_params(ctx):
     """All ~params of the instance ``ctx`` (a NodeContext), validated; raises ValueError with a clear message."""
-    r = ctx.params()
+    r = private_params(ctx)
     namespace = ctx.namespace.strip('/')
     p = {
         'drone_name': r.string('drone_name', namespace.split('/')[-1] if namespace else 'anafi', allow_empty=False),

@@ -65,7 +65,7 @@ from anafi_sim import names
 from anafi_sim.ros import conversions
 from anafi_sim.ros.context import NodeContext
 from anafi_sim.ros.wire_types import SPHINX_FIELDS, sphinx_class
-from anafi_sim.ros.node import diagnostics_publisher, health_status, run_node, \
+from anafi_sim.ros.node import diagnostics_publisher, health_status, private_params, run_node, \
     start_diagnostics_thread
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, TelemetryParser
 
@@ -75,7 +75,7 @@ STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
 
 def read_params(ctx):
     """All ~params of the instance ``ctx`` (a NodeContext), validated; raises ValueError with a clear message."""
-    reader = ctx.params()
+    reader = private_params(ctx)
     p = {'telemetry_command': allowed_argv(reader.command('telemetry_command', DEFAULT_COMMAND)),
          'prefix': reader.word('prefix', DEFAULT_PREFIX, forbidden=':')}
     for name, default in (('rate', 100.0), ('stale_timeout', 0.5), ('restart_timeout', 2.0),

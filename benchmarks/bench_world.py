@@ -21,8 +21,8 @@ achieved cycle rate and the period p99/max; the world's time against the wall cl
 of the world process. Writes benchmarks/results/world.md, world.json and plots/world.png.
 
 Run (inside ``source env.bash``, preferably in a network namespace of your own):
-  python benchmarks/bench_world.py [--reference REV] [--sizes 1 10 20] [--duration 15] [--idle 8]
-(about 40 s per size and implementation)
+  python benchmarks/bench_world.py [--reference REV] [--sizes 1 10 20] [--duration 15] [--idle 8] [--rounds 2]
+(about 30 s per size, implementation and round; the table gives the medians of the rounds)
 """
 import argparse
 import json
@@ -39,7 +39,7 @@ import numpy as np
 
 from anafi_sim import paths
 from anafi_sim.processes import Processes, cpu_model, cpu_seconds, node_pid, private_master, wait_for
-from anafi_sim.run_files import atomic_path, atomic_write_text, mark_failed
+from anafi_sim.run_files import atomic_path, atomic_write_text, mark_failed, remove_previous
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, 'benchmarks', 'results', 'world.md')
@@ -248,6 +248,26 @@ def _world_params():
         return yaml.safe_load(f)
 
 
+FIGURES = ('idle_cpu_percent', 'load_cpu_percent', 'cpu_per_cycle_us', 'cpu_per_message_us', 'cycle_rate_hz',
+           'idle_cycle_rate_hz', 'period_p99_ms', 'lateness_ms', 'messages_per_s')
+
+
+def summarise(results, labels, sizes):
+    """One row per implementation and size: medians of the rounds' figures, worst period, summed counts."""
+    out = []
+    for n in sizes:
+        for label in labels:
+            rs = [r for r in results if r['implementation'] == label and r['N'] == n]
+            row = {'implementation': label, 'N': n, 'models': rs[0]['models'], 'rounds': len(rs)}
+            row.update((key, float(np.median([r[key] for r in rs]))) for key in FIGURES)
+            row['period_max_ms'] = max(r['period_max_ms'] for r in rs)
+            for key in ('sent', 'applied', 'rejected', 'source_late_ticks', 'overruns'):
+                row[key] = sum(r[key] for r in rs)
+            row['all_applied'] = all(r['all_applied'] for r in rs)
+            out.append(row)
+    return out
+
+
 def fmt_table(results):
     rows = ['| implementation | N | models | CPU/message [us] | CPU/cycle [us] | idle CPU [% core] | '
             'load CPU [% core] | cycle rate [Hz] | period p99 / max [ms] | lateness [ms] | sent | applied |',
@@ -298,9 +318,10 @@ def plot(path, results, labels):
     plt.close(fig)
 
 
-def write(results, args, facts, labels):
+def write(results, rounds, args, facts, labels):
     base = os.path.splitext(RESULTS)[0]
     figure = os.path.join(os.path.dirname(RESULTS), 'plots', 'world.png')
+    remove_previous([RESULTS, base + '.json', figure])
     plot(figure, results, labels)
     rat = ratios(results, labels[0]) if len(labels) > 1 else []
     lines = ['# Kinematic world: CPU per ModelState and per cycle', '',
@@ -314,19 +335,25 @@ def write(results, args, facts, labels):
              'Cycles counted from `/gazebo/model_states` arrivals; lateness = simulated ms lost against the '
              'wall clock over the load window (world time in its /diagnostics); applied = the world\'s '
              '`state_updates` counter, which must equal the messages sent (no drop, no rejection). CPU: '
-             'user+sys of the world process (psutil). Implementations: %s.'
-             % (args.idle, args.duration, args.rate, ', '.join('`%s`' % l for l in labels)), '']
+             'user+sys of the world process (psutil). Implementations: %s, interleaved; %d rounds, the table '
+             'gives their medians (period max: the worst; sent / applied: summed).'
+             % (args.idle, args.duration, args.rate, ', '.join('`%s`' % l for l in labels), args.rounds), '']
     lines += fmt_table(results) + ['']
+    if not all(r['all_applied'] for r in results):
+        lines += ['NOT ALL: the world applied fewer ModelState than were sent; rospy keeps the subscriber\'s '
+                  '`queue_size` messages of one read and drops older ones silently.', '']
     if rat:
         lines += ['Ratios %s / current (> 1: the current world is cheaper):' % labels[0], '',
                   '| N | CPU per message | CPU per cycle | CPU under load |', '|---|---|---|---|']
         lines += ['| %d | %.2f | %.2f | %.2f |' % r for r in rat] + ['']
     lines += ['![world CPU](plots/world.png)', '',
-              'Rerun: `source env.bash; python benchmarks/bench_world.py%s` (in a network namespace of your '
-              'own; about %.0f s).' % (' --reference %s' % args.reference if args.reference else '',
-                                       len(results) * (args.idle + args.duration + 8)), '']
+              'Rerun: `source env.bash; python benchmarks/bench_world.py%s --sizes %s --idle %g --duration %g '
+              '--rounds %d` (in a network namespace of your own; about %.0f s).'
+              % (' --reference %s' % args.reference if args.reference else '', ' '.join(str(n) for n in args.sizes),
+                 args.idle, args.duration, args.rounds, len(rounds) * (args.idle + args.duration + 8)), '']
     atomic_write_text(RESULTS, '\n'.join(lines))
-    atomic_write_text(base + '.json', json.dumps({'facts': facts, 'args': vars(args), 'results': results},
+    atomic_write_text(base + '.json', json.dumps({'facts': facts, 'args': vars(args), 'summary': results,
+                                                  'rounds': rounds},
                                                  indent=1, sort_keys=True))
     return [RESULTS, base + '.json', figure]
 
@@ -337,6 +364,7 @@ def main():
     ap.add_argument('--duration', type=float, default=15.0, help='s of load window')
     ap.add_argument('--idle', type=float, default=8.0, help='s of idle window')
     ap.add_argument('--rate', type=float, default=100.0, help='Hz of ModelState per model')
+    ap.add_argument('--rounds', type=int, default=2, help='measurements per size and implementation')
     ap.add_argument('--reference', default='', help='git revision whose world is measured side by side')
     ap.add_argument('--no-write', action='store_true')
     args = ap.parse_args()
@@ -356,24 +384,32 @@ def main():
         import rospy
         rospy.init_node('bench_world', disable_signals=True)
         observer = Observer()
-        for n in args.sizes:
-            for label, node in nodes:
-                r = measure(procs, env, observer, node, label, n, args)
-                results.append(r)
-                print('%s N=%d: %.1f us/message, %.1f us/cycle, load %.1f %% core, %.1f Hz, applied %d/%d'
-                      % (label, n, r['cpu_per_message_us'], r['cpu_per_cycle_us'], r['load_cpu_percent'],
-                         r['cycle_rate_hz'], r['applied'], r['sent']))
-                sys.stdout.flush()
+        for k in range(args.rounds):
+            for n in args.sizes:
+                for label, node in nodes:
+                    r = measure(procs, env, observer, node, label, n, args)
+                    r['round'] = k + 1
+                    results.append(r)
+                    print('round %d, %s N=%d: %.1f us/message, %.1f us/cycle, load %.1f %% core, %.1f Hz, '
+                          'applied %d/%d' % (k + 1, label, n, r['cpu_per_message_us'], r['cpu_per_cycle_us'],
+                                             r['load_cpu_percent'], r['cycle_rate_hz'], r['applied'], r['sent']))
+                    sys.stdout.flush()
         facts['load'][1] = os.getloadavg()[0]
-        ok = all(r['all_applied'] for r in results)
-        print('\n'.join(fmt_table(results)))
+        summary = summarise(results, labels, args.sizes)
+        measured = all(r['cycle_rate_hz'] > 0 and np.isfinite(r['cpu_per_message_us']) for r in results)
+        ok = measured and all(r['all_applied'] for r in summary if r['implementation'] == 'current')
+        print('\n'.join(fmt_table(summary)))
         if not args.no_write:
-            written = write(results, args, facts, labels)
+            written = write(summary, results, args, facts, labels)
             if not ok:
-                print('FAILED: some messages were not applied; results marked FAILED')
+                print('FAILED: %s; results marked FAILED' % ('the current world did not apply every message'
+                                                             if measured else 'no cycles or no CPU figure'))
                 mark_failed(written)
             else:
                 print('wrote %s' % ', '.join(written))
+    except Exception:
+        print('roscore log:\n%s\nworld log:\n%s' % (procs.log_tail('roscore'), procs.log_tail('world')))
+        raise
     finally:
         procs.stop_all()
         shutil.rmtree(tmp, ignore_errors=True)

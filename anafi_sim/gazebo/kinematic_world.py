@@ -464,9 +464,9 @@ class KinematicWorld(object):
             return self._reject('SetModelState: model does not exist')
         position, orientation, linear, angular = tuple(position), tuple(orientation), tuple(linear), tuple(angular)
         values = position + orientation + linear + angular
-        if len(values) != 13 or not _finite(values):
+        if (len(position), len(orientation), len(linear), len(angular)) != (3, 4, 3, 3) or not _finite(values):
             return self._reject('SetModelState: Failure - pose or twist of [%s] is not finite' % name)
-        if reference_frame in WORLD_FRAMES and len(position) == 3 and len(orientation) == 4 and len(linear) == 3:
+        if reference_frame in WORLD_FRAMES:
             # the world frame: the general path below with an identity transform, done on floats with the
             # same values (x + 0.0 adds the frame's zero origin; a zero twist component may lose its sign)
             px, py, pz, qx, qy, qz, qw, lx, ly, lz, ax, ay, az = values

@@ -35,6 +35,10 @@ from anafi_sim.ros.node import diagnostics_publisher, health_status, private_par
 from anafi_sim.sim.clock import Pacer, ScaledSteps
 
 HARDWARE_ID = 'kinematic_world'
+STATE_QUEUE = 1000
+"""ModelState messages the set_model_state subscriber keeps per read (rospy drops older ones silently): a
+fleet's mirror sends 2 per drone per cycle, 4000/s for 20 drones at 100 Hz; 100 held 25 ms of that, and a
+world thread kept off the CPU that long on a busy machine lost updates."""
 
 
 def read_params():
@@ -78,6 +82,7 @@ class KinematicWorldNode(object):
         self.cycles = 0
         self.topic_rejected = 0
         self.ModelStates = gazebo_types.model_states_class()
+        self.states_msg = self.ModelStates()     # reused every cycle (publish serialises it at once)
         ns = params['gazebo_namespace']
         self.state_pub = rospy.Publisher(names.gazebo(names.MODEL_STATES, ns), self.ModelStates, queue_size=1)
         self.contact_pub = rospy.Publisher(params['contacts_topic'], String, queue_size=100)
@@ -96,7 +101,7 @@ class KinematicWorldNode(object):
                           self.on_properties),
         ]
         self.state_sub = rospy.Subscriber(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.model_state_class(),
-                                          self.on_state_topic, queue_size=100)
+                                          self.on_state_topic, queue_size=STATE_QUEUE)
         rospy.loginfo('kinematic_world: serving %s/* at %g Hz (rtf %g, clock %s, ground_plane %s)',
                       ns, params['rate'], params['rtf'], 'on' if params['publish_clock'] else 'off',
                       params['ground_plane'])
@@ -180,16 +185,30 @@ class KinematicWorldNode(object):
         self.cycles += 1
         if self.clock_pub is not None:
             self.clock_pub.publish(Clock(clock=rospy.Time.from_sec(now)))
-        msg = self.ModelStates()
-        msg.name = [name for name, _ in states]
-        msg.pose = [conversions.pose(s.position, s.orientation) for _, s in states]
-        msg.twist = [conversions.twist(s.linear, s.angular) for _, s in states]
-        self.state_pub.publish(msg)
+        self.state_pub.publish(self._fill_states(states))
         for event in events:
             self.contact_pub.publish(String(data=json.dumps(contact_record(event))))
             if event.event == 'begin':
                 rospy.loginfo('contact: %s/%s touches %s/%s (depth %.3f m)', event.model_a, event.geom_a,
                               event.model_b, event.geom_b, event.depth)
+
+    def _fill_states(self, states):
+        """The reused ModelStates message holding ``states`` [(name, State)]: its Pose and Twist objects are
+        updated in place (new ones only when the models changed)."""
+        msg = self.states_msg
+        names = [name for name, _ in states]
+        if names != msg.name:
+            msg.name = names
+            msg.pose = [conversions.pose(s.position, s.orientation) for _, s in states]
+            msg.twist = [conversions.twist(s.linear, s.angular) for _, s in states]
+            return msg
+        for (_, s), pose, twist in zip(states, msg.pose, msg.twist):
+            p, q, v, w = pose.position, pose.orientation, twist.linear, twist.angular
+            p.x, p.y, p.z = s.position
+            q.x, q.y, q.z, q.w = s.orientation
+            v.x, v.y, v.z = s.linear
+            w.x, w.y, w.z = s.angular
+        return msg
 
     def diagnostic_statuses(self):
         loop = [('rate', self.p['rate']), ('rtf', self.p['rtf']), ('cycles', self.cycles),

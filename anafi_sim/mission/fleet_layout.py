@@ -6,7 +6,8 @@ Stage: experiments (beside mission/fleet.py, which writes the per-drone launch).
 - ``shared``: the nodes of the types in ``HOSTS`` run as instances inside a few host processes
   (scripts/fleet_host.py): ``fleet_drones`` hosts every drone's simulator, controller and trajectory generator
   (their estimate, command and waypoint messages stay in the process), ``fleet_ground_truth`` every drone's
-  interface and mirror (the 100 Hz ground truth reaches the mirror in the process). Everything else (the
+  interface and mirror, and the kinematic world when the fleet runs ours (the 100 Hz ground truth reaches the
+  mirror, and the mirror's model states the world, in the process). Everything else (the
   distributed PID nodes, evaluators, model followers, rviz helpers, the telemetry CLIs the interfaces
   supervise) stays a process of its own, as does any node a launch file gives remappings, a launch prefix or
   environment of its own.
@@ -26,7 +27,7 @@ LAYOUTS = tuple(sorted(CPU_PER_DRONE))     # per_drone, shared
 #: host name -> the node types it runs (the per-drone launch files' ``type``s)
 HOSTS = collections.OrderedDict([
     ('fleet_drones', ('anafi_sim_node.py', 'controller_node.py', 'trajectory_generator.py')),
-    ('fleet_ground_truth', ('interface_node.py', 'gazebo_mirror_node.py')),
+    ('fleet_ground_truth', ('interface_node.py', 'gazebo_mirror_node.py', 'kinematic_world_node.py')),
 ])
 
 #: node type -> (the script that defines its node class, the class, its arguments before the NodeContext):
@@ -35,6 +36,7 @@ HOSTABLE = {
     'anafi_sim_node.py': ('anafi_sim_node.py', 'AnafiSimNode', ()),
     'interface_node.py': ('interface_node.py', 'InterfaceNode', ()),
     'gazebo_mirror_node.py': ('gazebo_mirror_node.py', 'GazeboMirrorNode', ()),
+    'kinematic_world_node.py': ('kinematic_world_node.py', 'KinematicWorldNode', ()),
     'controller_node.py': ('controller_node.py', 'ControllerNode', (None,)),
     'trajectory_generator.py': ('trajectory_generator.py', 'TrajectoryGeneratorNode', ()),
 }

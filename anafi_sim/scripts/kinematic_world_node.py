@@ -30,6 +30,7 @@ from std_msgs.msg import String
 from anafi_sim.gazebo.kinematic_world import KinematicWorld, Result, contact_record
 from anafi_sim import names
 from anafi_sim.ros import conversions, gazebo_types
+from anafi_sim.ros.context import NodeContext
 from anafi_sim.ros.node import diagnostics_publisher, health_status, private_params, run_node, \
     start_diagnostics_thread
 from anafi_sim.sim.clock import Pacer, ScaledSteps
@@ -41,9 +42,9 @@ fleet's mirror sends 2 per drone per cycle, 4000/s for 20 drones at 100 Hz; 100 
 world thread kept off the CPU that long on a busy machine lost updates."""
 
 
-def read_params():
-    """All ~params, validated; raises ValueError with a clear message."""
-    r = private_params()
+def read_params(ctx):
+    """All ~params of the instance ``ctx`` (a NodeContext), validated; raises ValueError with a clear message."""
+    r = private_params(ctx)
     p = {
         'rate': r.positive('rate', 100.0),
         'max_step': r.positive('max_step', 0.01),
@@ -73,8 +74,9 @@ def _twist_values(twist):
 class KinematicWorldNode(object):
     """Wires the KinematicWorld core to the gazebo_ros names; one lock guards the core."""
 
-    def __init__(self):
-        self.p = params = read_params()
+    def __init__(self, ctx=None):
+        self.ctx = ctx = ctx or NodeContext.process()
+        self.p = params = read_params(ctx)
         self.world = KinematicWorld(gravity=params['gravity'], ground_plane=params['ground_plane'])
         self.lock = threading.Lock()
         self.steps = ScaledSteps(params['rtf'], params['max_cycle'])
@@ -84,24 +86,24 @@ class KinematicWorldNode(object):
         self.ModelStates = gazebo_types.model_states_class()
         self.states_msg = self.ModelStates()     # reused every cycle (publish serialises it at once)
         ns = params['gazebo_namespace']
-        self.state_pub = rospy.Publisher(names.gazebo(names.MODEL_STATES, ns), self.ModelStates, queue_size=1)
-        self.contact_pub = rospy.Publisher(params['contacts_topic'], String, queue_size=100)
-        self.diag_pub = diagnostics_publisher()
-        self.clock_pub = rospy.Publisher(names.CLOCK, Clock, queue_size=1) if params['publish_clock'] else None
+        self.state_pub = ctx.publisher(names.gazebo(names.MODEL_STATES, ns), self.ModelStates, queue_size=1)
+        self.contact_pub = ctx.publisher(params['contacts_topic'], String, queue_size=100)
+        self.diag_pub = diagnostics_publisher(ctx=ctx)
+        self.clock_pub = ctx.publisher(names.CLOCK, Clock, queue_size=1) if params['publish_clock'] else None
         spawn = gazebo_types.spawn_model_class()
         self.services = [
-            rospy.Service(names.gazebo(names.SPAWN_URDF_MODEL, ns), spawn, self.on_spawn),
-            rospy.Service(names.gazebo(names.SPAWN_SDF_MODEL, ns), spawn, self.on_spawn),
-            rospy.Service(names.gazebo(names.DELETE_MODEL, ns), gazebo_types.delete_model_class(), self.on_delete),
-            rospy.Service(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.set_model_state_class(),
-                          self.on_set_state),
-            rospy.Service(names.gazebo(names.GET_MODEL_STATE, ns), gazebo_types.get_model_state_class(),
-                          self.on_get_state),
-            rospy.Service(names.gazebo(names.GET_MODEL_PROPERTIES, ns), gazebo_types.get_model_properties_class(),
-                          self.on_properties),
+            ctx.service(names.gazebo(names.SPAWN_URDF_MODEL, ns), spawn, self.on_spawn),
+            ctx.service(names.gazebo(names.SPAWN_SDF_MODEL, ns), spawn, self.on_spawn),
+            ctx.service(names.gazebo(names.DELETE_MODEL, ns), gazebo_types.delete_model_class(), self.on_delete),
+            ctx.service(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.set_model_state_class(),
+                        self.on_set_state),
+            ctx.service(names.gazebo(names.GET_MODEL_STATE, ns), gazebo_types.get_model_state_class(),
+                        self.on_get_state),
+            ctx.service(names.gazebo(names.GET_MODEL_PROPERTIES, ns), gazebo_types.get_model_properties_class(),
+                        self.on_properties),
         ]
-        self.state_sub = rospy.Subscriber(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.model_state_class(),
-                                          self.on_state_topic, queue_size=STATE_QUEUE)
+        self.state_sub = ctx.subscriber(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.model_state_class(),
+                                        self.on_state_topic, queue_size=STATE_QUEUE)
         rospy.loginfo('kinematic_world: serving %s/* at %g Hz (rtf %g, clock %s, ground_plane %s)',
                       ns, params['rate'], params['rtf'], 'on' if params['publish_clock'] else 'off',
                       params['ground_plane'])

@@ -270,7 +270,7 @@ def main(argv=None):
     ap.add_argument('--repeats', type=int, default=2, help='runs per layout (>= 2 for written results)')
     ap.add_argument('--layouts', choices=LAYOUTS, nargs='+', default=list(LAYOUTS))
     ap.add_argument('--fleet', default='three_circles')
-    ap.add_argument('--timeout', type=float, default=150.0, help='s per run until every summary is final')
+    ap.add_argument('--timeout', type=float, default=100.0, help='s per run until every summary is final (a run takes ~40 s)')
     ap.add_argument('--no-in-process', action='store_true', help='skip the in-process reference')
     ap.add_argument('--no-write', action='store_true')
     ap.add_argument('--from-json', action='store_true', help='only rewrite fleet_layouts.md from the .json')
@@ -299,7 +299,7 @@ def main(argv=None):
                 r = run_fleet(workdir, name, args.fleet, drones, layout, args.timeout)
                 r['repeat'] = repeat
                 data['runs'].append(r)
-                print('%s: %s in %s s; e_mu vs truth %s; other jobs %s %% core' % (
+                print('%s: %s after %s s; e_mu vs truth %s; other jobs %s %% core' % (
                     name, ('FAILED: ' + r['error']) if r.get('error') else 'ok', fmt(r.get('wall_s'), 0),
                     ', '.join('%s %s' % (d, fmt(f.get('truth', {}).get('e_mu'), 4))
                               for d, f in sorted(r.get('drones', {}).items())),

@@ -9,7 +9,13 @@ timeout): a node killed without unregistering, or one that stopped publishing, n
 down. ``values()`` are the diagnostics values (with the other publishers of the topic, also idle ones: a
 controller started on a drone that is already commanded hears the commands at once and never commands);
 ``message()`` the ERROR text while down.
+
+``ctx`` (a NodeContext, default the process's node): the node instance that commands. A hosted instance
+(the shared layout) hears the commands of the other instances of its host through the host's bus, without a
+caller id: its own are the messages it handed to ``sent`` before publishing them, any other is a commander
+named ``<host> (an instance of this host)``; those of other processes carry their caller id as usual.
 """
+import collections
 import threading
 import time
 
@@ -18,6 +24,7 @@ import rospy
 
 from anafi_control.commanders import DOWN, LISTEN, RESUMED, CommanderGuard
 from anafi_sim.processes import xmlrpc_proxy
+from anafi_sim.ros.context import NodeContext
 
 #: [s] XML-RPC timeout of the presence checks (master and the other node)
 PRESENCE_TIMEOUT = 1.0
@@ -32,27 +39,43 @@ def _answers(uri, caller, timeout=PRESENCE_TIMEOUT):
 
 
 class CommandTopicWatch(object):
-    def __init__(self, topic, msg_class, quiet_time=2.0):
-        self.topic = rospy.resolve_name(topic)
-        self.me = rospy.get_name()
+    def __init__(self, topic, msg_class, quiet_time=2.0, ctx=None):
+        ctx = ctx or NodeContext.process()
+        self.topic = ctx.resolve(topic)
+        self.me = ctx.name
+        self.host = ctx.bus.caller_id if ctx.hosted else None     # the process's node name, hosted
+        self._sent = collections.deque(maxlen=32)                # hosted: own commands handed to the bus
         self.guard = CommanderGuard(quiet_time)
         self.lock = threading.Lock()
         self._others = []
         self.silent = True       # the last check said DOWN or LISTEN: publish nothing
-        self.sub = rospy.Subscriber(self.topic, msg_class, self._on_command, queue_size=20)
+        self.sub = ctx.subscriber(self.topic, msg_class, self._on_command, queue_size=20)
+
+    def sent(self, msg):
+        """``msg`` is a command of this node (call before publishing it): hosted, it comes back without a
+        caller id."""
+        if self.host is not None:
+            with self.lock:
+                self._sent.append(msg)
 
     def publishers(self):
         """The other nodes connected to this node as publishers of the command topic (from the subscriber's
         connections: no master call), sorted; they may be idle (a controller that stood down)."""
         try:
-            callers = [c.header.get('callerid', '') for c in self.sub.impl.connections if c.header]
+            sub = getattr(self.sub, 'sub', self.sub)     # hosted: the rospy subscriber of the bus's subscription
+            callers = [c.header.get('callerid', '') for c in sub.impl.connections if c.header]
         except Exception:     # rospy internals changed: the commands heard still work
             return []
-        return sorted(set(c for c in callers if c and c != self.me))
+        return sorted(set(c for c in callers if c and c not in (self.me, self.host)))
 
     def _on_command(self, msg):
         header = getattr(msg, '_connection_header', None) or {}
         caller = header.get('callerid', '')
+        if not caller and self.host is not None:       # hosted: from an instance of this host
+            with self.lock:
+                if any(m is msg for m in self._sent):
+                    return
+            caller = '%s (an instance of this host)' % self.host
         if caller and caller != self.me:
             with self.lock:
                 self.guard.on_command(caller, time.monotonic())

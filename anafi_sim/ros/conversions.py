@@ -51,15 +51,20 @@ def waypoint_numbers(msg):
 
 
 def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=waypoints.DEFAULT_WAYPOINT_TYPE,
-                     admission=None):
+                     admission=None, ctx=None):
     """Feed ``target.on_state`` / ``target.on_waypoint`` (an ``anafi_control.contract`` Controller or
     InputGate) from nav_msgs/Odometry on ``state_topic`` and waypoints of ``waypoint_type`` (``anafi_sim`` or
     the reference implementation's ``anafi_control``) on ``waypoint_topic``, with the ROS time of receipt,
     under ``lock``. A refused sample is logged (throttled, with the count of ``target.counters``).
     ``admission`` (``anafi_control.waypoint_admission.WaypointAdmission``): waypoints whose header stamp or
     frame it refuses are dropped before the target (counted there, logged throttled); a waypoint type without a
-    header (``anafi_control``) is not checked. Returns the resolved (state topic, waypoint topic)."""
-    resolved = rospy.resolve_name(state_topic), rospy.resolve_name(waypoint_topic)
+    header (``anafi_control``) is not checked. ``ctx``: the NodeContext of the node instance (default the
+    process's node). Returns the resolved (state topic, waypoint topic)."""
+    if ctx is None:
+        resolve, subscribe, me = rospy.resolve_name, rospy.Subscriber, rospy.get_name()
+    else:
+        resolve, subscribe, me = ctx.resolve, ctx.subscriber, ctx.name
+    resolved = resolve(state_topic), resolve(waypoint_topic)
 
     def on_waypoint(msg):
         if admission is not None and hasattr(msg, 'header'):
@@ -68,7 +73,7 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=wa
                 dropped = admission.dropped
             if not ok:
                 rospy.logwarn_throttle(5.0, '%s: waypoint on %s dropped (%d so far): %s'
-                                       % (rospy.get_name(), resolved[1], dropped, why))
+                                       % (me, resolved[1], dropped, why))
                 return
         feed('waypoint', (waypoint_numbers(msg),), resolved[1])
 
@@ -78,13 +83,13 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=wa
             refused = target.counters['rejected_%ss' % kind]
         if not ok:
             rospy.logwarn_throttle(5.0, '%s: unusable %s on %s refused (%d so far): %s'
-                                   % (rospy.get_name(), kind, topic, refused,
+                                   % (me, kind, topic, refused,
                                       'holding position' if kind == 'waypoint' else 'no command'))
 
-    rospy.Subscriber(state_topic, Odometry, lambda m: feed('state', odometry_numbers(m), resolved[0]),
-                     queue_size=5, tcp_nodelay=True)
-    rospy.Subscriber(waypoint_topic, waypoints.waypoint_class(waypoint_type), on_waypoint, queue_size=5,
-                     tcp_nodelay=True)
+    subscribe(state_topic, Odometry, lambda m: feed('state', odometry_numbers(m), resolved[0]),
+              queue_size=5, tcp_nodelay=True)
+    subscribe(waypoint_topic, waypoints.waypoint_class(waypoint_type), on_waypoint, queue_size=5,
+              tcp_nodelay=True)
     return resolved
 
 

@@ -49,13 +49,18 @@ LEVELS = {ground_truth.OK: OK, ground_truth.WARN: WARN, ground_truth.ERROR: ERRO
 _LOG = {'info': 'loginfo', 'warn': 'logwarn', 'error': 'logerr'}
 
 
-def private_params():
-    """A ParamReader over the node's private parameters (``~name``)."""
+def private_params(ctx=None):
+    """A ParamReader over the node's private parameters (``~name``; ``ctx``: those of a NodeContext)."""
+    if ctx is not None:
+        return ctx.params()
     return ParamReader(lambda name, default: rospy.get_param('~' + name, default))
 
 
-def namespace_id():
-    """The node's namespace without its slashes, 'anafi' at the root (hardware_id of the PID nodes)."""
+def namespace_id(ctx=None):
+    """The node's namespace without its slashes, 'anafi' at the root (hardware_id of the PID nodes;
+    ``ctx``: a NodeContext's)."""
+    if ctx is not None:
+        return ctx.namespace_id
     return rospy.get_namespace().strip('/') or 'anafi'
 
 
@@ -100,8 +105,10 @@ def health_status(name, health, hardware_id='', extra_values=()):
                              list(health.values) + list(extra_values), hardware_id)
 
 
-def diagnostics_publisher(queue_size=10):
-    """The /diagnostics publisher."""
+def diagnostics_publisher(queue_size=10, ctx=None):
+    """The /diagnostics publisher (``ctx``: a NodeContext's)."""
+    if ctx is not None:
+        return ctx.publisher(names.DIAGNOSTICS, DiagnosticArray, queue_size=queue_size)
     return rospy.Publisher(names.DIAGNOSTICS, DiagnosticArray, queue_size=queue_size)
 
 
@@ -117,12 +124,12 @@ def publish_diagnostics(pub, statuses, stamp=None):
     return True
 
 
-def start_diagnostics_thread(period, make_statuses, pub, stamp=None, first=None):
+def start_diagnostics_thread(period, make_statuses, pub, stamp=None, first=None, node=None):
     """Daemon thread publishing ``make_statuses()`` on ``pub`` every ``period`` s of wall time until shutdown.
 
     The first array goes out after ``first`` s (default: one period). ``stamp``: a function giving the
-    arrays' stamp (default rospy.Time.now()). An exception in ``make_statuses`` is logged (throttled) and
-    the thread goes on.
+    arrays' stamp (default rospy.Time.now()). An exception in ``make_statuses`` is logged (throttled, naming
+    ``node``, default the process's node) and the thread goes on.
     """
     def loop():
         delay = period if first is None else first
@@ -137,7 +144,7 @@ def start_diagnostics_thread(period, make_statuses, pub, stamp=None, first=None)
                 if rospy.is_shutdown():
                     return
                 rospy.logerr_throttle(10.0, '%s: diagnostics failed: %s: %s'
-                                      % (rospy.get_name(), type(error).__name__, error))
+                                      % (node or rospy.get_name(), type(error).__name__, error))
                 continue
             if not publish_diagnostics(pub, statuses, None if stamp is None else stamp()):
                 return
@@ -308,10 +315,12 @@ class Timer(object):
     This one is started with ``reset=True`` (the period restarts from the new time) and counts the jumps
     (``jumps_back``; ``last_jump`` [s], how far back): one WARN line per jump naming the node and the
     timer. ``callback(event)`` as rospy's; an exception from it is logged (throttled) and counted
-    (``callback_errors``), the timer goes on."""
+    (``callback_errors``), the timer goes on. ``node``: the name the log lines give (default the process's
+    node)."""
 
-    def __init__(self, period, callback, name='timer'):
+    def __init__(self, period, callback, name='timer', node=None):
         self.name = name
+        self.node = node
         self.jumps_back = 0
         self.last_jump = 0.0
         self.callback_errors = 0
@@ -325,7 +334,7 @@ class Timer(object):
             self.jumps_back += 1
             self.last_jump = (self._last - now).to_sec()
             rospy.logwarn('%s: ROS time moved backwards by %.3f s (%d times): %s timer kept running',
-                          rospy.get_name(), self.last_jump, self.jumps_back, self.name)
+                          self.node or rospy.get_name(), self.last_jump, self.jumps_back, self.name)
         self._last = now
         try:
             self._callback(event)
@@ -334,7 +343,7 @@ class Timer(object):
             # shutting down: rospy closes the topics before is_shutdown() turns true (publish() to a closed topic)
             if not (rospy.is_shutdown() or rospy.core.is_shutdown_requested()):
                 rospy.logerr_throttle(5.0, '%s: %s timer callback failed (%d times): %s: %s' % (
-                    rospy.get_name(), self.name, self.callback_errors, type(error).__name__, error))
+                    self.node or rospy.get_name(), self.name, self.callback_errors, type(error).__name__, error))
 
     def shutdown(self):
         self._timer.shutdown()

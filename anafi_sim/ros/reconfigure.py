@@ -27,23 +27,31 @@ from anafi_control.tuning import changes, describe
 from anafi_sim import names
 
 
-def drone_topic(name):
-    """``name`` under the drone's namespace: the first part of this node's namespace ('/anafi/pid/' -> /anafi)."""
-    first = rospy.get_namespace().strip('/').split('/')[0]
+def drone_topic(name, ctx=None):
+    """``name`` under the drone's namespace: the first part of this node's namespace ('/anafi/pid/' -> /anafi;
+    ``ctx``: a NodeContext's namespace)."""
+    first = (rospy.get_namespace() if ctx is None else ctx.namespace).strip('/').split('/')[0]
     return '/%s/%s' % (first, name) if first else '/' + name
 
 
 class TracedServer(Server):
-    """dynamic_reconfigure ``Server`` whose requests are logged and published (module doc)."""
+    """dynamic_reconfigure ``Server`` whose requests are logged and published (module doc). ``ctx``: the
+    NodeContext of the node instance (default the process's node); a hosted instance's server lives under
+    its own name (``<ctx.name>/set_parameters``, ...), as the node's would."""
 
-    def __init__(self, type, callback, namespace=''):
-        self.trace_topic = drone_topic(names.TUNING_CHANGES)
-        self.trace_pub = rospy.Publisher(self.trace_topic, String, queue_size=10, latch=True)
+    def __init__(self, type, callback, namespace='', ctx=None):
+        self.trace_topic = drone_topic(names.TUNING_CHANGES, ctx)
+        if ctx is None:
+            self.trace_pub = rospy.Publisher(self.trace_topic, String, queue_size=10, latch=True)
+        else:
+            self.trace_pub = ctx.publisher(self.trace_topic, String, queue_size=10, latch=True)
         self.history = []
         self.names = [p['name'] for p in extract_params(type.config_description)]
         self.minimum = dict((n, type.min[n]) for n in self.names if type.min.get(n, '') != '')
         self.maximum = dict((n, type.max[n]) for n in self.names if type.max.get(n, '') != '')
-        self.node = rospy.get_name()
+        self.node = rospy.get_name() if ctx is None else ctx.name
+        if ctx is not None and ctx.hosted:    # Server's '~' names are the process's node: the instance's instead
+            namespace = ctx.resolve('~' + namespace.strip('~')) if namespace else ctx.name
         Server.__init__(self, type, callback, namespace)
 
     def update_configuration(self, changes_asked):

@@ -41,6 +41,11 @@ logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 A new controller: a ``contract.Controller`` subclass and one line in ``ADAPTERS`` with an ``Adapter`` subclass
 naming it (``controller_class``); override ``build`` for more parameters and ``setup``/``after_cycle`` for
 extra topics (e.g. a preview MPC: ``class PreviewAdapter(MpcAdapter): controller_class = PreviewMpc``).
+
+Hosting (``anafi_sim.ros.context``): ``ControllerNode(controller, ctx)`` runs the instance ``ctx`` names (e.g.
+NodeContext('/anafi1/mpc_controller', bus) in a host process): its ~params, topics, dynamic_reconfigure
+server and diagnostics are that name's, exactly as the node of that name would have them; ``run()`` works
+in any thread, ``shutdown()`` stops its timers (no command after it).
 """
 import math
 import threading
@@ -70,15 +75,16 @@ from anafi_sim import names
 from anafi_sim.ros.conversions import amend_health, subscribe_inputs, waypoint_admission, waypoint_limits
 from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES
 from anafi_sim.ros.commander_watch import CommandTopicWatch
+from anafi_sim.ros.context import NodeContext
 from anafi_sim.ros.node import (Timer, diagnostics_publisher, health_status, namespace_id, private_params, run_node,
                                 sleep_until_aligned, start_diagnostics_thread)
 from anafi_sim.sim.clock import TIMER_PHASES
 from anafi_sim.ros.wire_types import piloting_command_class
 
 
-def _mapping_param(name):
-    """~name as a dict ({} when unset); ValueError when it is something else."""
-    value = rospy.get_param('~' + name, {})
+def _mapping_param(ctx, name):
+    """~name of the NodeContext ``ctx`` as a dict ({} when unset); ValueError when it is something else."""
+    value = ctx.get_param(name, {})
     if not isinstance(value, dict):
         raise ValueError('~%s must be a mapping of pid parameters, got %r' % (name, value))
     return value
@@ -95,7 +101,8 @@ class Adapter(object):
         self.node = node
 
     def build(self, p):
-        """The contract.Controller, from the node's ParamReader ``p`` (and rospy.get_param for mappings)."""
+        """The contract.Controller, from the node's ParamReader ``p`` (and the context's get_param for
+        mappings)."""
         return self.controller_class(state_timeout=p.positive('state_timeout', TIMEOUT_DEFAULTS['state_timeout']),
                                      waypoint_timeout=p.number('waypoint_timeout', TIMEOUT_DEFAULTS['waypoint_timeout'],
                                                                minimum=0.0),
@@ -125,8 +132,9 @@ class MpcAdapter(Adapter):
     PARAM_NAMES = tuple(k for k in MPC_DEFAULTS if k != 'v_max') + ('v_max_x', 'v_max_y', 'v_max_z')
 
     def build(self, p):
-        mpc_params = dict((k, rospy.get_param('~' + k)) for k in self.PARAM_NAMES if rospy.has_param('~' + k))
-        yaw_config = rospy.get_param('~yaw', None)
+        ctx = self.node.ctx
+        mpc_params = dict((k, ctx.get_param(k)) for k in self.PARAM_NAMES if ctx.has_param(k))
+        yaw_config = ctx.get_param('yaw', None)
         if yaw_config is not None and not isinstance(yaw_config, dict):
             raise ValueError('~yaw must be a mapping of pid parameters, got %r' % (yaw_config,))
         d = MPC_TRACKING_DEFAULTS
@@ -139,15 +147,15 @@ class MpcAdapter(Adapter):
                                      limits=waypoint_limits(p))
 
     def setup(self):
-        core = self.node.core
+        core, ctx = self.node.core, self.node.ctx
         if abs(self.node.rate * core.mpc.dt - 1.0) > 1e-6:
             rospy.logwarn('%s: ~rate %.3g Hz does not match the MPC step dt %.3g s (the model assumes one '
-                          'solve per dt)', self.label, self.node.rate, core.mpc.dt)
-        self.pub_pred = rospy.Publisher('mpc/predicted_path', Path, queue_size=2)
-        self.pub_ref = rospy.Publisher('mpc/reference_path', Path, queue_size=2)
-        self.pub_stats = rospy.Publisher(names.MPC_STATS, MpcStats, queue_size=10)
-        self.reconfigure_server = TracedServer(MpcConfig, self._on_reconfigure)
-        rospy.loginfo('%s: N=%d, dt=%.2f s', self.label, core.mpc.N, core.mpc.dt)
+                          'solve per dt)', self.node.who, self.node.rate, core.mpc.dt)
+        self.pub_pred = ctx.publisher('mpc/predicted_path', Path, queue_size=2)
+        self.pub_ref = ctx.publisher('mpc/reference_path', Path, queue_size=2)
+        self.pub_stats = ctx.publisher(names.MPC_STATS, MpcStats, queue_size=10)
+        self.reconfigure_server = TracedServer(MpcConfig, self._on_reconfigure, ctx=ctx)
+        rospy.loginfo('%s: N=%d, dt=%.2f s', self.node.who, core.mpc.N, core.mpc.dt)
 
     def _on_reconfigure(self, config, level):
         core, keys = self.node.core, self.reconfigurable
@@ -157,10 +165,10 @@ class MpcAdapter(Adapter):
                 applied = core.reconfigure(dict((k, config[k]) for k in keys))
                 changed = [k for k in keys if applied[k] != before[k]]
                 if changed:
-                    rospy.loginfo('%s: reconfigured %s', self.label,
+                    rospy.loginfo('%s: reconfigured %s', self.node.who,
                                   ', '.join('%s=%s' % (k, applied[k]) for k in changed))
             except ValueError as err:
-                rospy.logerr('%s: reconfiguration refused (%s); keeping the current values', self.label, err)
+                rospy.logerr('%s: reconfiguration refused (%s); keeping the current values', self.node.who, err)
                 applied = core.config()
         for k in keys:
             config[k] = applied[k]
@@ -232,7 +240,7 @@ class PidAdapter(Adapter):
     controller_class = PidTracking
 
     def build(self, p):
-        overrides = dict((loop, _mapping_param(loop)) for loop in LOOP_NAMES)
+        overrides = dict((loop, _mapping_param(self.node.ctx, loop)) for loop in LOOP_NAMES)
         return self.controller_class(overrides, p.positive('state_timeout', PID_DEFAULTS['state_timeout']),
                                      p.number('waypoint_timeout', PID_DEFAULTS['waypoint_timeout'], minimum=0.0),
                                      limits=waypoint_limits(p))
@@ -272,7 +280,8 @@ class PreviewAdapter(MpcAdapter):
     reconfigurable = PREVIEW_RECONFIGURABLE
 
     def build(self, p):
-        params = dict((k, rospy.get_param('~' + k)) for k in PREVIEW_DEFAULTS if rospy.has_param('~' + k))
+        ctx = self.node.ctx
+        params = dict((k, ctx.get_param(k)) for k in PREVIEW_DEFAULTS if ctx.has_param(k))
         for k in ('geofence_radius', 'min_altitude', 'max_altitude', 'max_waypoint_jump'):
             params.pop(k, None)
         model = PredictionModel.from_params(load_model_params(p.string('model_file', '') or DEFAULT_MODEL_FILE),
@@ -286,14 +295,14 @@ class PreviewAdapter(MpcAdapter):
     def setup(self):
         from trajectory_msgs.msg import MultiDOFJointTrajectory
         from anafi_sim.cfg import PreviewMpcConfig
-        core = self.node.core
-        self.pub_pred = rospy.Publisher('preview_mpc/predicted_path', Path, queue_size=2)
-        self.pub_ref = rospy.Publisher('preview_mpc/reference_path', Path, queue_size=2)
-        self.pub_stats = rospy.Publisher('preview_mpc/stats', MpcStats, queue_size=10)
-        rospy.Subscriber(self.reference_topic, MultiDOFJointTrajectory, self._on_reference, queue_size=2)
-        self.reconfigure_server = TracedServer(PreviewMpcConfig, self._on_reconfigure)
-        rospy.loginfo('%s: N=%d, dt=%.3f s, preview on %s', self.label, core.N, core.dt,
-                      rospy.resolve_name(self.reference_topic))
+        core, ctx = self.node.core, self.node.ctx
+        self.pub_pred = ctx.publisher('preview_mpc/predicted_path', Path, queue_size=2)
+        self.pub_ref = ctx.publisher('preview_mpc/reference_path', Path, queue_size=2)
+        self.pub_stats = ctx.publisher('preview_mpc/stats', MpcStats, queue_size=10)
+        ctx.subscriber(self.reference_topic, MultiDOFJointTrajectory, self._on_reference, queue_size=2)
+        self.reconfigure_server = TracedServer(PreviewMpcConfig, self._on_reconfigure, ctx=ctx)
+        rospy.loginfo('%s: N=%d, dt=%.3f s, preview on %s', self.node.who, core.N, core.dt,
+                      ctx.resolve(self.reference_topic))
 
     def _on_reference(self, msg):
         try:
@@ -304,7 +313,7 @@ class PreviewAdapter(MpcAdapter):
             ok = self.node.core.on_reference(rospy.get_time(), samples)
         if not ok:
             rospy.logwarn_throttle(5.0, '%s: unusable preview refused (%d so far)' % (
-                rospy.get_name(), self.node.core.counters['rejected_previews']))
+                self.node.ctx.name, self.node.core.counters['rejected_previews']))
 
     def cycle_info(self):
         core = self.node.core
@@ -329,10 +338,19 @@ ADAPTERS = {'mpc': MpcAdapter, 'pid': PidAdapter, 'preview_mpc': PreviewAdapter}
 
 
 class ControllerNode(object):
-    def __init__(self, controller=None):
-        p = private_params()
+    """The node instance ``ctx`` (a NodeContext; None: the process's node) running the controller ~controller
+    (default ``controller``, else mpc)."""
+
+    def __init__(self, controller=None, ctx=None):
+        self.ctx = ctx = ctx or NodeContext.process()
+        self.timers = []
+        self.stopped = False
+        p = private_params(ctx)
         kind = p.choice('controller', controller or 'mpc', sorted(ADAPTERS))
         self.adapter = ADAPTERS[kind](self)
+        #: the name the adapter's log lines give: its label (the process's node is named on /rosout), or the
+        #: instance's name when hosted
+        self.who = ctx.name if ctx.hosted else self.adapter.label
         self.core = self.adapter.build(p)
         self.rate = p.positive('rate', self.core.RATE)
         self.command_rate = None if self.core.COMMAND_RATE is None else \
@@ -346,16 +364,16 @@ class ControllerNode(object):
         self.last_key = None
         self.commands = self.hover_commands = self.silent_cycles = 0
         self.Command = piloting_command_class()
-        self.pub_cmd = rospy.Publisher(command_topic, self.Command, queue_size=10)
-        self.commanders = CommandTopicWatch(command_topic, self.Command)   # one drone, one commander
-        self.pub_diag = diagnostics_publisher()
+        self.pub_cmd = ctx.publisher(command_topic, self.Command, queue_size=10)
+        self.commanders = CommandTopicWatch(command_topic, self.Command, ctx=ctx)   # one drone, one commander
+        self.pub_diag = diagnostics_publisher(ctx=ctx)
         self.adapter.setup()
         self.admission = waypoint_admission(p)
         self.state_topic, self.waypoint_topic = subscribe_inputs(self.core, self.lock, state_topic, waypoint_topic,
-                                                                  waypoint_type, self.admission)
+                                                                  waypoint_type, self.admission, ctx=ctx)
         rospy.loginfo('%s: %s controller, state %s, waypoint %s (%s/Waypoint) -> %s; cycle %g Hz, command %g Hz',
-                      rospy.get_name(), kind, self.state_topic, self.waypoint_topic, waypoint_type,
-                      rospy.resolve_name(command_topic), self.rate, self.command_rate or self.rate)
+                      ctx.name, kind, self.state_topic, self.waypoint_topic, waypoint_type,
+                      ctx.resolve(command_topic), self.rate, self.command_rate or self.rate)
 
     # -- cycle and command ----------------------------------------------------------------------
     def _on_cycle(self, _event=None):
@@ -372,11 +390,11 @@ class ControllerNode(object):
             info = self.adapter.cycle_info()
         if out.key != self.last_key:
             if out.ok:
-                rospy.loginfo('%s: tracking the waypoint', rospy.get_name())
+                rospy.loginfo('%s: tracking the waypoint', self.ctx.name)
             elif out.key in WAITING:
-                rospy.loginfo('%s: %s', rospy.get_name(), health(out.key, out.reason).message)
+                rospy.loginfo('%s: %s', self.ctx.name, health(out.key, out.reason).message)
             else:
-                rospy.logwarn('%s: %s', rospy.get_name(), health(out.key, out.reason).message)
+                rospy.logwarn('%s: %s', self.ctx.name, health(out.key, out.reason).message)
             self.last_key = out.key
         if self.command_rate is None:
             self._publish(out.command, stamp)
@@ -400,6 +418,7 @@ class ControllerNode(object):
         with self.lock:
             self.commands += 1
             self.hover_commands += not any(command)
+        self.commanders.sent(msg)
         self.pub_cmd.publish(msg)
 
     # -- diagnostics (own thread, wall clock: reports even when /clock stops) --------------------
@@ -410,29 +429,38 @@ class ControllerNode(object):
                      ('command periods without a command (silent)', self.silent_cycles),
                      ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic),
                      ('ROS time jumps back (timers kept running)',
-                      max([t.jumps_back for t in getattr(self, 'timers', [])] or [0]))]
+                      max([t.jumps_back for t in self.timers] or [0]))]
             extra += self.adapter.diagnostic_values()
         self.commanders.check_presence()
         extra += self.commanders.values()
         second = self.commanders.message()
         if second is not None:
             health = health._replace(level=LEVEL_ERROR, message=second)
-        return [health_status('%s: %s' % (self.adapter.label, rospy.get_name()), health, namespace_id(), extra)]
+        return [health_status('%s: %s' % (self.adapter.label, self.ctx.name), health, namespace_id(self.ctx),
+                              extra)]
 
     def run(self):
-        self.timers = []
-        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
+        """Cycle until rospy shuts down (any thread)."""
+        name = self.ctx.name
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag, node=name)
         sleep_until_aligned(1.0 / self.rate, self.timer_phase)      # cycles at timer_phase + k / rate
         # survive /clock going back (simulator respawned): the core sees the jump and goes SILENT, then tracks
-        timers = [Timer(1.0 / self.rate, self._on_cycle, 'control')]
+        timers = [Timer(1.0 / self.rate, self._on_cycle, 'control', node=name)]
         if self.command_rate is not None:
-            timers.append(Timer(1.0 / self.command_rate, self._on_command, 'command'))
+            timers.append(Timer(1.0 / self.command_rate, self._on_command, 'command', node=name))
         self.timers = timers
+        if self.stopped:        # shut down while waiting for the first cycle
+            self.shutdown()
         try:
             rospy.spin()
         finally:
-            for timer in timers:
-                timer.shutdown()
+            self.shutdown()
+
+    def shutdown(self):
+        """Stop the cycles (no command after it); the host calls it before rospy shuts down."""
+        self.stopped = True
+        for timer in self.timers:
+            timer.shutdown()
 
 
 def main(controller=None, name='controller'):

@@ -31,6 +31,11 @@ stop keep publishing the last position with zero velocity), ~exit_when_done
 (false: true shuts the node down ~exit_delay s (1.0) after the scenario ends,
 exit code 0; 1 when the drone never flew within ~start_timeout), ~frame_id
 (world). A bad scenario or parameter: logfatal and exit 1.
+
+Hosting (``anafi_sim.ros.context``): ``TrajectoryGeneratorNode(ctx)`` runs the instance ``ctx`` names (e.g.
+NodeContext('/anafi1/trajectory_generator', bus) in a host process) with that name's parameters, topics,
+services and diagnostics; its log lines start with the name. ``run()`` works in any thread; hosted,
+~exit_when_done ends the instance's ``run()`` only (the host goes on); ``shutdown()`` ends the loop.
 """
 import math
 import os
@@ -48,6 +53,7 @@ from anafi_control.frames import euler_to_quaternion
 from anafi_sim.mission.trajectory import SCENARIO_DIR, list_scenarios, load_scenario, scenario_in_folders
 from anafi_sim.mission.generator import DONE, IDLE, RUNNING, TrajectoryGenerator
 from anafi_sim import names
+from anafi_sim.ros.context import NodeContext
 from anafi_sim.ros.waypoints import DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES, waypoint_class, waypoint_message
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, namespace_id, private_params,
                                 run_node, sleep_until_aligned, start_diagnostics_thread, wait_for_clock)
@@ -60,8 +66,14 @@ except ImportError:   # std_srvs missing: the ~command topic still works
 
 
 class TrajectoryGeneratorNode(object):
-    def __init__(self):
-        p = private_params()
+    """The node instance ``ctx`` (a NodeContext; None: the process's node)."""
+
+    def __init__(self, ctx=None):
+        self.ctx = ctx = ctx or NodeContext.process()
+        #: before each log line: nothing for the process's node (/rosout names it), the name when hosted
+        self.prefix = ctx.name + ': ' if ctx.hosted else ''
+        self.stopped = False
+        p = private_params(ctx)
         self.rate = p.positive('rate', 10.0)
         self.timer_phase = p.number('timer_phase', TIMER_PHASES['generator'])
         self.autostart = p.flag('autostart', True)
@@ -90,23 +102,23 @@ class TrajectoryGeneratorNode(object):
         self.failed = False
         self.published = 0
         self.waypoint_type = p.choice('waypoint_type', DEFAULT_WAYPOINT_TYPE, WAYPOINT_TYPES)
-        self.pub = rospy.Publisher(p.string('waypoint_topic', names.WAYPOINT), waypoint_class(self.waypoint_type),
-                                   queue_size=10)
-        self.pub_begin = rospy.Publisher(names.TRAJECTORY_BEGIN, Header, queue_size=2, latch=True)
-        self.pub_end = rospy.Publisher(names.TRAJECTORY_END, Header, queue_size=2, latch=True)
-        self.pub_status = rospy.Publisher(names.TRAJECTORY_STATUS, String, queue_size=5, latch=True)
+        self.pub = ctx.publisher(p.string('waypoint_topic', names.WAYPOINT), waypoint_class(self.waypoint_type),
+                                 queue_size=10)
+        self.pub_begin = ctx.publisher(names.TRAJECTORY_BEGIN, Header, queue_size=2, latch=True)
+        self.pub_end = ctx.publisher(names.TRAJECTORY_END, Header, queue_size=2, latch=True)
+        self.pub_status = ctx.publisher(names.TRAJECTORY_STATUS, String, queue_size=5, latch=True)
         self.preview_horizon = p.number('preview_horizon', 3.0, minimum=0.0)
         self.preview_step = p.positive('preview_step', 0.05)
-        self.pub_preview = rospy.Publisher(p.string('preview_topic', names.REFERENCE_PREVIEW), MultiDOFJointTrajectory,
-                                           queue_size=2)
-        rospy.Subscriber(names.DRONE_STATE, String, self._on_state, queue_size=5)
-        rospy.Subscriber('~command', String, self._on_command, queue_size=10)
+        self.pub_preview = ctx.publisher(p.string('preview_topic', names.REFERENCE_PREVIEW), MultiDOFJointTrajectory,
+                                         queue_size=2)
+        ctx.subscriber(names.DRONE_STATE, String, self._on_state, queue_size=5)
+        ctx.subscriber('~command', String, self._on_command, queue_size=10)
         if Trigger is not None:
-            rospy.Service('~start', Trigger, lambda _: self._service('start'))
-            rospy.Service('~stop', Trigger, lambda _: self._service('stop'))
-        self.pub_diag = diagnostics_publisher()
+            ctx.service('~start', Trigger, lambda _: self._service('start'))
+            ctx.service('~stop', Trigger, lambda _: self._service('stop'))
+        self.pub_diag = diagnostics_publisher(ctx=ctx)
         for line in scenario.describe():
-            rospy.loginfo('%s', line)
+            rospy.loginfo('%s%s', self.prefix, line)
         self._status('')
 
     def diagnostic_statuses(self):
@@ -114,9 +126,9 @@ class TrajectoryGeneratorNode(object):
         with self.lock:
             name, state, published = self.gen.scenario.name, self.gen.state, self.published
         level, message = (WARN, 'drone never flying: scenario not started') if self.failed else (OK, state)
-        return [diagnostic_status('trajectory_generator: %s' % rospy.get_name(), level, message,
+        return [diagnostic_status('trajectory_generator: %s' % self.ctx.name, level, message,
                                   [('scenario', name), ('state', state), ('waypoints published', published),
-                                   ('drone state', self.drone_state or 'none')], namespace_id())]
+                                   ('drone state', self.drone_state or 'none')], namespace_id(self.ctx))]
 
     # ------------------------------------------------------------ inputs
     def _on_state(self, msg):
@@ -124,12 +136,12 @@ class TrajectoryGeneratorNode(object):
 
     def _service(self, command):
         ok, text = self.command(command)
-        rospy.loginfo('service %s: %s', command, text)
+        rospy.loginfo('%sservice %s: %s', self.prefix, command, text)
         return TriggerResponse(success=ok, message=text)
 
     def _on_command(self, msg):
         ok, text = self.command(msg.data)
-        (rospy.loginfo if ok else rospy.logwarn)('command %r: %s', msg.data, text)
+        (rospy.loginfo if ok else rospy.logwarn)('%scommand %r: %s', self.prefix, msg.data, text)
 
     def command(self, text):
         """Apply 'start' | 'stop' | 'restart' | 'switch NAME'; returns (ok, message)."""
@@ -177,16 +189,16 @@ class TrajectoryGeneratorNode(object):
         for ev in events:
             if ev.kind == 'begin':
                 self.pub_begin.publish(self._header(ev.time, ev.scenario))
-                rospy.loginfo('%s: measured segment begins (t = %.3f s)', ev.scenario, ev.time)
+                rospy.loginfo('%s%s: measured segment begins (t = %.3f s)', self.prefix, ev.scenario, ev.time)
             elif ev.kind == 'end':
                 self.pub_end.publish(self._header(ev.time, ev.scenario))
-                rospy.loginfo('%s: measured segment ends (t = %.3f s)', ev.scenario, ev.time)
+                rospy.loginfo('%s%s: measured segment ends (t = %.3f s)', self.prefix, ev.scenario, ev.time)
             elif ev.kind == 'abort':
-                rospy.logwarn('%s: measured segment aborted (t = %.3f s)', ev.scenario, ev.time)
+                rospy.logwarn('%s%s: measured segment aborted (t = %.3f s)', self.prefix, ev.scenario, ev.time)
             elif ev.kind == 'phase':
-                rospy.loginfo('%s: phase %s', ev.scenario, ev.phase)
+                rospy.loginfo('%s%s: phase %s', self.prefix, ev.scenario, ev.phase)
             elif ev.kind == 'done':
-                rospy.loginfo('%s: scenario done', ev.scenario)
+                rospy.loginfo('%s%s: scenario done', self.prefix, ev.scenario)
             if ev.kind in ('phase', 'done', 'stop', 'start'):
                 self._status(ev.phase)
 
@@ -229,32 +241,34 @@ class TrajectoryGeneratorNode(object):
         return traj
 
     def run(self):
-        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
+        """Publish until rospy shuts down (any thread), ``shutdown()`` or, with ~exit_when_done, the end."""
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag, node=self.ctx.name)
         wait_for_clock()
         sleep_until_aligned(1.0 / self.rate, self.timer_phase)      # ticks at timer_phase + k / rate
         t_start = rospy.get_time()
         warned = False
         rate = rospy.Rate(self.rate)
-        while not rospy.is_shutdown():
+        while not rospy.is_shutdown() and not self.stopped:
             self.tick()
             now = rospy.get_time()
             if self.gen.state == IDLE and self.pending_start and self.start_timeout > 0 \
                     and now - t_start > self.start_timeout and not warned:
                 warned = True
-                rospy.logerr('drone not flying after %.1f s (drone/state %r)', self.start_timeout,
+                rospy.logerr('%sdrone not flying after %.1f s (drone/state %r)', self.prefix, self.start_timeout,
                              self.drone_state)
                 if self.exit_when_done:
                     self.failed = True
-                    rospy.signal_shutdown('drone never flying')
+                    self._end('drone never flying')
                     break
             if self.exit_when_done and self.done_time is not None and now - self.done_time >= self.exit_delay:
-                rospy.loginfo('%s done, %d waypoints published: exiting', self.gen.scenario.name, self.published)
-                rospy.signal_shutdown('scenario done')
+                rospy.loginfo('%s%s done, %d waypoints published: exiting', self.prefix, self.gen.scenario.name,
+                              self.published)
+                self._end('scenario done')
                 break
             try:
                 rate.sleep()
             except rospy.ROSTimeMovedBackwardsException:
-                rospy.logwarn('ROS time moved backwards: restarting %s', self.gen.scenario.name)
+                rospy.logwarn('%sROS time moved backwards: restarting %s', self.prefix, self.gen.scenario.name)
                 with self.lock:
                     self.gen.reset()
                     self.pending_start = True
@@ -262,6 +276,15 @@ class TrajectoryGeneratorNode(object):
             except rospy.ROSInterruptException:
                 break
         return not self.failed
+
+    def _end(self, reason):
+        """~exit_when_done: the process's node shuts rospy down; a hosted instance only ends (not its host)."""
+        if not self.ctx.hosted:
+            rospy.signal_shutdown(reason)
+
+    def shutdown(self):
+        """End ``run()``'s loop at its next tick (the host calls it before rospy shuts down)."""
+        self.stopped = True
 
 
 if __name__ == '__main__':

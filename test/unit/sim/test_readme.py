@@ -74,9 +74,10 @@ class Unresolved(Exception):
 class ParamExtractor(object):
     """Private parameter names a node script reads, found in its source.
 
-    Calls ``X.<ParamReader method>(name, ...)`` and ``rospy.get_param('~name', ...)`` /
-    ``rospy.has_param('~name')``. A name that is not a literal (``p.number(k, v) for k, v in SETTINGS.items()``,
-    ``'%s_topic' % k``, ``'~' + k`` for ``k in self.PARAM_NAMES``, a helper's argument) is resolved by
+    Calls ``X.<ParamReader method>(name, ...)``, ``rospy.get_param('~name', ...)`` /
+    ``rospy.has_param('~name')`` and a NodeContext's ``ctx.get_param(name, ...)`` / ``ctx.has_param(name)``
+    (also ``self.ctx``, ``self.node.ctx``: private names without the '~'). A name that is not a literal
+    (``p.number(k, v) for k, v in SETTINGS.items()``, ``'%s_topic' % k``, ``'~' + k`` for ``k in self.PARAM_NAMES``, a helper's argument) is resolved by
     evaluating the loops that bind it in the script's namespace (the script is loaded as a module, its
     ``__main__`` block does not run); a helper function's argument through the helper's call sites. What
     cannot be resolved raises ``Unresolved``: then extend this class rather than let a parameter go
@@ -112,6 +113,8 @@ class ParamExtractor(object):
                 yield node
             elif func.attr in ROSPY_PARAM_CALLS and isinstance(func.value, ast.Name) and func.value.id == 'rospy' \
                     and self._is_private(node.args[0]):
+                yield node
+            elif func.attr in ROSPY_PARAM_CALLS and _is_context(func.value):
                 yield node
 
     def _is_reader(self, name):
@@ -259,7 +262,10 @@ class ParamExtractor(object):
 
     @staticmethod
     def _asks_rospy(expr):
-        return any(isinstance(n, ast.Name) and n.id == 'rospy' for n in ast.walk(expr))
+        """``expr`` asks the parameter server (rospy, or a NodeContext's has_param / get_param)."""
+        return any((isinstance(n, ast.Name) and n.id == 'rospy') or (
+            isinstance(n, ast.Attribute) and n.attr in ROSPY_PARAM_CALLS and _is_context(n.value))
+            for n in ast.walk(expr))
 
     def _assign(self, target, value, binding, at):
         if isinstance(target, ast.Name):
@@ -291,6 +297,11 @@ class ParamExtractor(object):
             return eval(compile(ast.Expression(body=expr), self.path, 'eval'), namespace)
         except Exception as error:
             raise Unresolved('%s: cannot evaluate %s: %s' % (self._where(at), ast.dump(expr), error))
+
+
+def _is_context(expr):
+    """``expr`` is a NodeContext: the name ``ctx`` or an attribute ``....ctx``."""
+    return (isinstance(expr, ast.Name) and expr.id == 'ctx') or (isinstance(expr, ast.Attribute) and expr.attr == 'ctx')
 
 
 def _names(*exprs):

@@ -32,6 +32,7 @@ import json
 import math
 import os
 import platform
+import shutil
 import sys
 import tempfile
 import time
@@ -129,11 +130,24 @@ def run_fleet(workdir, name, fleet, drones, layout, timeout):
         if error:
             run['error'] = error
             run['log_tail'] = procs.log_tail(name, 15)
+            run['logs_kept'] = keep_logs(workdir, name)
     except (RuntimeError, OSError) as e:
         run['error'] = str(e)
     finally:
         procs.stop_all()
     return run
+
+
+def keep_logs(workdir, name):
+    """Copy a failed run's logs (roslaunch's output, the nodes' ROS logs, the evaluators' files) out of the
+    temporary directory: the kept directory's path."""
+    kept = tempfile.mkdtemp(prefix='fleet_layouts_%s_' % name)
+    for src in (os.path.join(workdir, name + '.log'), os.path.join(workdir, 'log'), os.path.join(workdir, name)):
+        if os.path.isdir(src):
+            shutil.copytree(src, os.path.join(kept, os.path.basename(src)))
+        elif os.path.exists(src):
+            shutil.copy(src, kept)
+    return kept
 
 
 def in_process(fleet_name):
@@ -176,7 +190,7 @@ def comparison(data):
                 values = [r['drones'][d][ref]['e_mu'] for r in ok_runs
                           if r['layout'] == layout and _finite(r['drones'].get(d, {}).get(ref, {}).get('e_mu'))]
                 per[layout] = {'e_mu': values, 'mean': sum(values) / len(values) if values else None,
-                               'spread': max(values) - min(values) if values else None}
+                               'spread': max(values) - min(values) if len(values) >= 2 else None}
             entry = {'layouts': per}
             if all(len(per.get(l, {}).get('e_mu', [])) >= 2 for l in LAYOUTS):
                 diff = per['shared']['mean'] - per['per_drone']['mean']
@@ -304,8 +318,8 @@ def main(argv=None):
                     ', '.join('%s %s' % (d, fmt(f.get('truth', {}).get('e_mu'), 4))
                               for d, f in sorted(r.get('drones', {}).items())),
                     fmt(r.get('other_jobs'), 0)), flush=True)
-                if r.get('error') and r.get('log_tail'):
-                    print(r['log_tail'], flush=True)
+                if r.get('error'):
+                    print('%s\nlogs kept in %s' % (r.get('log_tail', ''), r.get('logs_kept')), flush=True)
     if not args.no_in_process:
         print('in-process reference ...', flush=True)
         data['in_process'] = in_process(args.fleet)

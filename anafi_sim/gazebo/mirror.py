@@ -190,7 +190,7 @@ class Mirror(object):
         self.last_receipt = None       # 'now' of the last accepted sample
         self.last_states = []
         self._held = False
-        self._decimator = StampDecimator(self.period)
+        self._decimator = StampDecimator(self.period, catch_up=self.period)   # stamps are receipt times
         self._lags = collections.deque(maxlen=int(lag_window))
         self._sent = RateWindow(self.rate_window)
         self._new = NewCounts()

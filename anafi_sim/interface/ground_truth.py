@@ -53,10 +53,13 @@ def _finite_sample(sample):
 class StampDecimator(object):
     """At most one sample per ``period`` [s] of its stamps, on a grid kept from the first accepted stamp; a
     sample up to ``early`` s before the grid point passes (jitter). A source slower than the period passes
-    every sample (the grid re-anchors on it)."""
+    every sample (the grid re-anchors on it once a sample is more than ``catch_up`` [s] past its grid point).
+    ``catch_up`` > 0 keeps the grid through a late sample, so that the prompt one after it passes too (a
+    delayed pair of samples is not thinned to one: receipt-time stamps under load come in such pairs)."""
 
-    def __init__(self, period):
+    def __init__(self, period, catch_up=0.0):
         self.period = float(period)
+        self.catch_up = float(catch_up)
         self._next_due = None
 
     def reset(self):
@@ -69,7 +72,7 @@ class StampDecimator(object):
         if due is not None and stamp < due - early:
             return False
         due = stamp + self.period if due is None else due + self.period
-        if due <= stamp:  # the source is slower than the period: re-anchor on it
+        if due <= stamp - self.catch_up:  # the source is slower than the period: re-anchor on it
             due = stamp + self.period
         self._next_due = due
         return True

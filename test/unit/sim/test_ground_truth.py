@@ -317,6 +317,21 @@ def test_stamp_decimator_grid_jitter_and_reanchor():
     assert d.accept(0.2)
 
 
+def test_stamp_decimator_catch_up_keeps_a_delayed_pair_and_still_limits_the_rate():
+    def passed(d, stamps):
+        return [t for t in stamps if d.accept(t, early=0.003)]
+    # 100 Hz receipt times, sample 3 delayed 12 ms and received just before sample 4 (a pair under load)
+    stamps = [0.0, 0.01, 0.02, 0.042, 0.0421, 0.05, 0.06]
+    assert passed(gt.StampDecimator(0.01), stamps) == [0.0, 0.01, 0.02, 0.042, 0.05, 0.06]    # 0.0421 thinned
+    assert passed(gt.StampDecimator(0.01, catch_up=0.01), stamps) == stamps                   # the pair kept
+    # still at most one per period on average: 250 Hz in -> 100 Hz out
+    fast = [k * 0.004 for k in range(250)]
+    assert len(passed(gt.StampDecimator(0.01, catch_up=0.01), fast)) == 100
+    # a slower source passes every sample and the grid re-anchors after a gap
+    slow = [k * 0.02 for k in range(20)] + [1.0 + k * 0.01 for k in range(10)]
+    assert passed(gt.StampDecimator(0.01, catch_up=0.01), slow) == slow
+
+
 def test_rate_window_and_new_counts():
     w = gt.RateWindow(1.0)
     for i in range(50):

@@ -10,11 +10,11 @@ publishers, subscribers and services. Two kinds:
 - ``NodeContext(name, bus)``: one of the instances a host process runs (the shared layout of a fleet:
   ``scripts/fleet_host.py``). Its names resolve against ``name`` (e.g. /anafi1/interface), so every drone
   keeps its own topics, parameters and services. Messages between instances of one host go through the
-  host's ``LocalBus``: handed over in the process (no serialisation, no socket, no thread
-  woken): the publishing thread calls the local subscribers' callbacks, in publication order, each guarded
-  (a failing callback is counted and logged; the others and the publisher go on). So a node publishes
-  outside its own locks, as every node here does. Other processes still see every topic: a publication goes to rospy as well when a
-  subscriber outside the host listens (or the topic is latched), and each local subscription also subscribes
+  host's ``LocalBus``: handed over in the process (no serialisation, no socket, no thread woken): the
+  publishing thread calls the local subscribers' callbacks, in publication order, each guarded (a failing
+  callback is counted and logged; the others and the publisher go on). So a node publishes outside its own
+  locks, as every node here does. Other processes still see every topic: a publication goes to rospy as
+  well when a subscriber outside the host listens (or the topic is latched), and each local subscription also subscribes
   through rospy for publishers outside the host (its copies of the host's own publications are dropped by
   the publisher's caller id).
 

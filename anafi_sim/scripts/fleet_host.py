@@ -3,8 +3,8 @@
 
 Stage: wiring only, like a roscpp nodelet manager. ``~instances`` lists the node instances this process runs,
 each as the node it replaces: ``{name: /anafi1/interface, type: interface_node.py}`` (the types in
-anafi_sim.mission.fleet_layout.HOSTABLE). Each instance is the same node class as in the per-drone layout, built with a NodeContext of
-its own name (anafi_sim/ros/context.py): its ~params are read from the master under its name (fleet_launcher.py
+anafi_sim.mission.fleet_layout.HOSTABLE). Each instance is the same node class as in the per-drone layout,
+built with a NodeContext of its own name (anafi_sim/ros/context.py): its ~params are read from the master under its name (fleet_launcher.py
 writes them, from the same launch files as the per-drone layout), and it keeps its own topics, services,
 telemetry port and stream id and /diagnostics statuses. Messages between the instances of this host go through
 its LocalBus (in the process; other processes still get every topic they subscribe to).

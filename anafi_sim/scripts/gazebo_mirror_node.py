@@ -133,7 +133,8 @@ class GazeboMirrorNode(object):
         self._set_proxy = None
         self.state_pub = None
         if not params['use_service']:
-            self.state_pub = ctx.publisher(self.state_service, self.ModelState, queue_size=STATE_QUEUE, tcp_nodelay=True)
+            self.state_pub = ctx.publisher(self.state_service, self.ModelState, queue_size=STATE_QUEUE,
+                                           tcp_nodelay=True)
         self.diag_pub = diagnostics_publisher()
         self.odom_sub = ctx.subscriber(params['odom_topic'], Odometry, self.on_odom, queue_size=1, tcp_nodelay=True)
         if params['camera_attitude_source'] == 'bridge':

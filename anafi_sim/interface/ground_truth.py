@@ -53,13 +53,10 @@ def _finite_sample(sample):
 class StampDecimator(object):
     """At most one sample per ``period`` [s] of its stamps, on a grid kept from the first accepted stamp; a
     sample up to ``early`` s before the grid point passes (jitter). A source slower than the period passes
-    every sample (the grid re-anchors on it once a sample is more than ``catch_up`` [s] past its grid point).
-    ``catch_up`` > 0 keeps the grid through a late sample, so that the prompt one after it passes too (a
-    delayed pair of samples is not thinned to one: receipt-time stamps under load come in such pairs)."""
+    every sample (the grid re-anchors on it)."""
 
-    def __init__(self, period, catch_up=0.0):
+    def __init__(self, period):
         self.period = float(period)
-        self.catch_up = float(catch_up)
         self._next_due = None
 
     def reset(self):
@@ -72,10 +69,42 @@ class StampDecimator(object):
         if due is not None and stamp < due - early:
             return False
         due = stamp + self.period if due is None else due + self.period
-        if due <= stamp - self.catch_up:  # the source is slower than the period: re-anchor on it
+        if due <= stamp:  # the source is slower than the period: re-anchor on it
             due = stamp + self.period
         self._next_due = due
         return True
+
+
+class RateLimiter(object):
+    """At most one sample per ``period`` [s] of its stamps on average, up to ``burst`` samples at once (a token
+    bucket refilled at 1 / ``period`` per second of stamp time): samples around the rate pass whatever their
+    jitter (receipt-time stamps of a busy process come late, early and in pairs); a faster source is thinned
+    to the rate. The first sample (and the first after ``reset``) passes with a full bucket."""
+
+    def __init__(self, period, burst=3.0):
+        if not period > 0 or not burst >= 1:
+            raise ValueError('period must be > 0 and burst >= 1, got %r, %r' % (period, burst))
+        self.period = float(period)
+        self.burst = float(burst)
+        self._tokens = None
+        self._last = None
+
+    def reset(self):
+        """Forget the history (the next sample passes with a full bucket)."""
+        self._tokens = None
+
+    def accept(self, stamp, early=0.0):
+        """True when the sample stamped ``stamp`` passes; ``early`` [s]: a sample that far short of a whole
+        token passes too (jitter)."""
+        if self._tokens is None:
+            self._tokens, self._last = self.burst, stamp
+        else:
+            self._tokens = min(self.burst, self._tokens + max(0.0, stamp - self._last) / self.period)
+            self._last = max(self._last, stamp)
+        if self._tokens >= 1.0 - early / self.period:
+            self._tokens -= 1.0
+            return True
+        return False
 
 
 class RateWindow(object):

@@ -317,19 +317,24 @@ def test_stamp_decimator_grid_jitter_and_reanchor():
     assert d.accept(0.2)
 
 
-def test_stamp_decimator_catch_up_keeps_a_delayed_pair_and_still_limits_the_rate():
-    def passed(d, stamps):
-        return [t for t in stamps if d.accept(t, early=0.003)]
-    # 100 Hz receipt times, sample 3 delayed 12 ms and received just before sample 4 (a pair under load)
-    stamps = [0.0, 0.01, 0.02, 0.042, 0.0421, 0.05, 0.06]
-    assert passed(gt.StampDecimator(0.01), stamps) == [0.0, 0.01, 0.02, 0.042, 0.05, 0.06]    # 0.0421 thinned
-    assert passed(gt.StampDecimator(0.01, catch_up=0.01), stamps) == stamps                   # the pair kept
-    # still at most one per period on average: 250 Hz in -> 100 Hz out
+def test_rate_limiter_passes_a_jittered_source_at_the_rate_and_thins_a_faster_one():
+    def passed(limiter, stamps, early=0.003):
+        return [t for t in stamps if limiter.accept(t, early=early)]
+    # 100 Hz receipt times with jitter: late, early, a delayed pair -- every sample passes
+    jittered = [0.0, 0.014, 0.0141, 0.026, 0.041, 0.047, 0.06, 0.07, 0.0801, 0.09]
+    assert passed(gt.RateLimiter(0.01), jittered) == jittered
+    # the grid decimator thins the same stream (its grid drifts from the source's phase)
+    assert len(passed(gt.StampDecimator(0.01), jittered)) < len(jittered)
+    # a faster source: 250 Hz in -> 100 Hz out (the 3 of the first burst on top)
     fast = [k * 0.004 for k in range(250)]
-    assert len(passed(gt.StampDecimator(0.01, catch_up=0.01), fast)) == 100
-    # a slower source passes every sample and the grid re-anchors after a gap
-    slow = [k * 0.02 for k in range(20)] + [1.0 + k * 0.01 for k in range(10)]
-    assert passed(gt.StampDecimator(0.01, catch_up=0.01), slow) == slow
+    assert abs(len(passed(gt.RateLimiter(0.01), fast, early=0.0)) - 100) <= 3
+    # one burst of 10 at once passes 3; reset: a full bucket again
+    limiter = gt.RateLimiter(0.01)
+    assert len(passed(limiter, [1.0] * 10, early=0.0)) == 3
+    limiter.reset()
+    assert limiter.accept(0.5)
+    with pytest.raises(ValueError):
+        gt.RateLimiter(0.0)
 
 
 def test_rate_window_and_new_counts():

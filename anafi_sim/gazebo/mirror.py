@@ -124,10 +124,10 @@ def _finite(values):
     return True
 
 
-BURST = 3
+BURST = 5
 """Samples the rate limit lets through at once (anafi_sim.interface.ground_truth.RateLimiter): the ground truth's
-stamps are the interface's receipt times, which a busy process makes late, early or pairs; at most ~rate
-samples per second pass on average."""
+stamps are the interface's receipt times, which a busy process makes late, early or in bursts (a fleet host held
+up for 40 ms delivers 4 at once); at most ~rate samples per second pass on average."""
 
 class Mirror(object):
     """Turns ground-truth samples into model states for the drone and its camera.

@@ -26,7 +26,6 @@ and, for an instance that failed, '<instance>: hosted instance' ERROR.
 """
 import os
 import runpy
-import sys
 import threading
 import time
 import traceback
@@ -166,11 +165,5 @@ class FleetHost(object):
         run_until_interrupted(self.spin, self.shutdown, 'fleet host stopped')
 
 
-#: [s] the interpreter's thread switch interval in a host (Python's default 0.005): many instances' threads share
-#: one interpreter lock, and a simulator step or a telemetry sample waiting 5 ms for it arrives late and in bursts
-SWITCH_INTERVAL = 0.0005
-
-
 if __name__ == '__main__':
-    sys.setswitchinterval(SWITCH_INTERVAL)
     run_node('fleet_host', FleetHost, fatal_exit_code=2, disable_signals=True)

@@ -141,12 +141,14 @@ FAULTS = (
 #: hosted instance: its host, whose ~wiring lists it; an interface's telemetry CLI: the host's child serving
 #: that interface's port). The table of docs/reliability.md's shared-layout section (tools/fault_table.py).
 SHARED = {
-    'controller_killed': ('adapted', 'the drones host (/fleet_drones: simulator + controller) killed (SIGKILL): '
-                          'interface ERROR, roslaunch respawns the host, the simulated drone starts a new flight '
-                          'and the controller tracks again. The firmware-brake reference of the other rows is '
-                          'measured first with the solver failure (no command from the next 10 Hz cycle on)'),
-    'simulator_restart': ('skipped', 'the simulator\'s process is the drones host: killing it is controller_killed '
-                          'here (a failed simulator share alone: test/ros/shared_faults.test)'),
+    'controller_killed': ('adapted', 'the controller\'s process is the drones host (/fleet_drones, with the '
+                          'simulator): killing it is simulator_restart\'s row here; this row measures the '
+                          'firmware-brake reference of the other rows with the solver failing instead (no command '
+                          'from the next 10 Hz cycle on)'),
+    'simulator_restart': ('adapted', 'the drones host (simulator + controller) killed (SIGKILL): interface ERROR, '
+                          'roslaunch respawns the host (a new flight from the take-off point), interface OK within '
+                          '5 s of its first sample, the controller tracks again (a failed simulator share alone: '
+                          'test/ros/shared_faults.test)'),
     'second_commander': ('adapted', 'the same, with the hosted controller\'s commands named by its host '
                          '(/fleet_drones) for the nodes and this test outside the host'),
     'stderr_flood': ('adapted', 'the /flood interface stays a process (its own environment); the reference '
@@ -497,7 +499,7 @@ class TestFaultMatrix(unittest.TestCase):
     # -- the matrix, in the order of FAULTS
     def test_01_controller_killed(self):
         if SHARED_LAYOUT:
-            return self.drones_host_killed()
+            return self.brake_reference()
         g = self.g
         v = self.fly()
         old = processes.node_pid('/%s/mpc_controller' % DRONE, self.uri)
@@ -516,9 +518,10 @@ class TestFaultMatrix(unittest.TestCase):
         self.record('controller_killed', 'no command (0 Hz); respawned (pid %d -> %d)' % (old, new[0]),
                     '%.1f m from %.1f m/s in %.1f s (firmware brake: the reference)' % (dist, v, secs), rec)
 
-    def drones_host_killed(self):
-        """controller_killed in the shared layout: the firmware-brake reference (the solver failing: no command
-        from the next 10 Hz cycle on), then the drones host (simulator + controller) killed and respawned."""
+    def brake_reference(self):
+        """controller_killed in the shared layout (the controller's process is the drones host, killed in
+        simulator_restart): the firmware-brake reference, the solver failing (no command from the next 10 Hz
+        cycle on)."""
         g = self.g
         client = Client('/%s/mpc_controller' % DRONE, timeout=20.0)
         v = self.fly()
@@ -530,42 +533,11 @@ class TestFaultMatrix(unittest.TestCase):
         finally:
             client.update_configuration({'max_iter': 4000})
         TestFaultMatrix.brake = (v, dist)
-        self.recover(time.time())
-        self.fly()
-        host = self.node_of('/%s/mpc_controller' % DRONE)
-        self.assertEqual(host, self.node_of('/%s/anafi_sim' % DRONE))
-        old = processes.node_pid(host, self.uri)
-        before = self._interface()
-        t0 = time.time()
-        os.kill(old, signal.SIGKILL)
-        err = [None]
-
-        def interface_error():
-            err[0] = self._interface(t0)
-            return err[0] is not None and err[0][1] == 2
-        processes.require(interface_error, 8.0, 'interface ERROR without telemetry', lambda: str(err[0]))
-        new = [None]
-        processes.require(lambda: new.__setitem__(0, processes.node_pid(host, self.uri)) or (new[0] not in (None, old)),
-                          20.0, 'the drones host respawned')
-        with g.lock:
-            g.truth = []                  # the old flight's positions are not the new flight's
-        processes.require(lambda: g.position() is not None, 20.0, 'the new simulator flying (sim/truth)')
-        t_back = g.truth[0][0]
-        ok = [None]
-
-        def interface_ok():
-            ok[0] = self._interface(t_back)
-            return ok[0] is not None and ok[0][1] == 0 and \
-                counter(ok[0], 'samples published') > counter(before, 'samples published')
-        processes.require(interface_ok, 8.0, 'interface OK after the new simulator', lambda: str(ok[0]))
-        t_fixed = time.time()
-        tracking_at = t_fixed + self.recover(t_fixed)
-        self.record('controller_killed', 'firmware-brake reference: no command (0 Hz) while the solver fails; '
-                    'the drones host %s killed: interface ERROR "%s"; host respawned (pid %d -> %d); interface OK '
-                    '"%s" %.1f s after the new simulator\'s first sample; the controller tracks again'
-                    % (host, err[0][2], old, new[0], ok[0][2], ok[0][0] - t_back),
-                    '%.1f m from %.1f m/s in %.1f s (solver failure: the reference); then the simulated drone '
-                    'restarts (a new flight)' % (dist, v, secs), max(ok[0][0], tracking_at) - t_back)
+        rec = self.recover(time.time())
+        self.record('controller_killed', 'the controller\'s process is the drones host %s (killed in '
+                    'simulator_restart); the firmware-brake reference: no command (0 Hz) while the solver fails'
+                    % self.node_of('/%s/mpc_controller' % DRONE),
+                    '%.1f m from %.1f m/s in %.1f s (solver failure: the reference)' % (dist, v, secs), rec)
 
     def test_02_nan_waypoint(self):
         self.hold_case('nan_waypoint', 'nan', 'non-finite waypoint', 'rejected_waypoints', 0.2)
@@ -811,9 +783,17 @@ class TestFaultMatrix(unittest.TestCase):
         status = name + (': hosted instance' if SHARED_LAYOUT else ': bad parameters')
 
         def shutdown():
-            uri = rosgraph.Master(rospy.get_name()).lookupNode(node)
-            xmlrpc.client.ServerProxy(uri).shutdown(rospy.get_name(), 'fault matrix: hostile_command')
+            def sent():
+                try:
+                    uri = rosgraph.Master(rospy.get_name()).lookupNode(node)
+                    xmlrpc.client.ServerProxy(uri).shutdown(rospy.get_name(), 'fault matrix: hostile_command')
+                    return True
+                except (OSError, rosgraph.MasterError):
+                    return False
+            processes.require(sent, 10.0, 'the XML-RPC shutdown of %s' % node,
+                              lambda: self.procs.log_tail('roslaunch', 30))
         old = processes.node_pid(node, self.uri)
+        self.assertIsNotNone(old, '%s is not running:\n%s' % (node, self.procs.log_tail('roslaunch', 30)))
         rospy.set_param(name + '/telemetry_command', "sh -c 'touch %s'" % marker)
         t0 = time.time()
         shutdown()
@@ -861,10 +841,10 @@ class TestFaultMatrix(unittest.TestCase):
                     'not needed', None)
 
     def test_08b_simulator_restart(self):
-        self.skip_shared('simulator_restart')
         g = self.g
         self.fly()
-        old = processes.node_pid('/%s/anafi_sim' % DRONE, self.uri)
+        host = self.node_of('/%s/anafi_sim' % DRONE)     # the drones host in the shared layout
+        old = processes.node_pid(host, self.uri)
         before = self._interface()
         ctl_before = self.controller(0.0)
         t0 = time.time()
@@ -884,7 +864,7 @@ class TestFaultMatrix(unittest.TestCase):
                                       or stale_cycles(e) > stale_cycles(ctl_before), 8.0,
                                       'controller silent on the stale state')
         new = [None]
-        processes.require(lambda: new.__setitem__(0, processes.node_pid('/%s/anafi_sim' % DRONE, self.uri))
+        processes.require(lambda: new.__setitem__(0, processes.node_pid(host, self.uri))
                         or (new[0] not in (None, old)), 20.0, 'the simulator respawned')
         with g.lock:
             g.truth = []                  # the old flight's positions are not the new flight's
@@ -901,10 +881,13 @@ class TestFaultMatrix(unittest.TestCase):
         self.assertLess(iface_rec, 5.0 + 1.0, ok[0])     # + the 1 Hz diagnostics
         t_fixed = time.time()
         tracking_at = t_fixed + self.recover(t_fixed)
-        self.record('simulator_restart', 'interface ERROR "%s", controller silent (stale/no-state cycles %d -> %d); '
-                    'simulator respawned (pid %d -> %d); interface OK "%s" %.1f s after the new simulator\'s first '
+        self.record('simulator_restart', 'interface ERROR "%s", controller silent (%s); '
+                    'simulator respawned (%spid %d -> %d); interface OK "%s" %.1f s after the new simulator\'s first '
                     'sample (process restarts %d -> %d)'
-                    % (err[0][2], stale_cycles(ctl_before), stale_cycles(silent), old, new[0], ok[0][2], iface_rec,
+                    % (err[0][2], 'respawned with the host: "%s"' % silent[2] if SHARED_LAYOUT else
+                       'stale/no-state cycles %d -> %d' % (stale_cycles(ctl_before), stale_cycles(silent)),
+                       'the drones host %s with the controller, ' % host if SHARED_LAYOUT else '', old, new[0],
+                       ok[0][2], iface_rec,
                        counter(before, 'process restarts'), counter(ok[0], 'process restarts')),
                     'the simulated drone restarts (a new flight); no command meanwhile',
                     max(ok[0][0], tracking_at) - t_back)

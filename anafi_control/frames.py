@@ -159,7 +159,8 @@ def normalize_quaternion(q, min_norm=1e-9):
     rotation).
     """
     try:
-        x, y, z, w = (float(v) for v in q)
+        x, y, z, w = q
+        x, y, z, w = float(x), float(y), float(z), float(w)
     except (TypeError, ValueError):
         raise ValueError('a quaternion must be 4 numbers (x, y, z, w), got %r' % (q,))
     norm = math.sqrt(x * x + y * y + z * z + w * w)

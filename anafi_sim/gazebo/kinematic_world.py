@@ -293,6 +293,22 @@ def _unit(q):
         return IDENTITY
 
 
+def _finite(values):
+    """frames.is_finite(*values), quicker when all are finite: a sum of finite numbers is finite unless it
+    overflows (then, and for anything a sum refuses, every value is checked)."""
+    try:
+        if math.isfinite(sum(values)):
+            return True
+    except Exception:       # not numbers: is_finite decides
+        pass
+    return frames.is_finite(*values)
+
+
+def _floats(vector):
+    """A numpy 3-vector as a tuple of floats."""
+    return (float(vector[0]), float(vector[1]), float(vector[2]))
+
+
 def _conjugate(q):
     return (-q[0], -q[1], -q[2], q[3])
 
@@ -318,16 +334,21 @@ def _texts(values):
     return out
 
 
+ZERO = (0.0, 0.0, 0.0)
+
+
 class _Model(object):
-    """Internal record of one spawned model."""
+    """Internal record of one spawned model: pose and twist in the world as tuples of floats (plain Python
+    arithmetic on 3-vectors: numpy's per-call overhead would dominate)."""
 
     def __init__(self, name, description, gravity_acceleration):
         self.name = name
         self.description = description
-        self.position = np.zeros(3)
+        self.position = ZERO
         self.orientation = (0.0, 0.0, 0.0, 1.0)
-        self.linear = np.zeros(3)
-        self.angular = np.zeros(3)
+        self.linear = ZERO
+        self.angular = ZERO
+        self.reported = None     # (orientation, its unit quaternion as get_state reports it in the world)
         self.acceleration = 0.0 if description.is_static else gravity_acceleration
         self.since_set = 0.0
         self.sag = 0.0
@@ -352,7 +373,7 @@ def _geom_box(model, geom):
     """(kind, center, half extents or radius) of a collision geometry in the world."""
     geometry, offset, rotation = geom
     r_model = frames.quaternion_matrix(model.orientation)
-    center = model.position + r_model.dot(offset)
+    center = np.asarray(model.position) + r_model.dot(offset)
     if geometry.kind == 'sphere':
         return 'sphere', center, geometry.size[0]
     if geometry.kind == 'mesh':
@@ -441,19 +462,32 @@ class KinematicWorld(object):
         model = self._models.get(name)
         if model is None:
             return self._reject('SetModelState: model does not exist')
-        values = tuple(position) + tuple(orientation) + tuple(linear) + tuple(angular)
-        if len(values) != 13 or not frames.is_finite(*values):
+        position, orientation, linear, angular = tuple(position), tuple(orientation), tuple(linear), tuple(angular)
+        values = position + orientation + linear + angular
+        if (len(position), len(orientation), len(linear), len(angular)) != (3, 4, 3, 3) or not _finite(values):
             return self._reject('SetModelState: Failure - pose or twist of [%s] is not finite' % name)
-        frame = self._frame(reference_frame)
-        if frame is None:
-            return self._reject('SetModelState: specified reference frame entity does not exist')
-        model.position, model.orientation = self._to_world_pose(frame, position, orientation)
-        if model.description.is_static:
-            model.linear, model.angular = np.zeros(3), np.zeros(3)
+        if reference_frame in WORLD_FRAMES:
+            # the world frame: the general path below with an identity transform, done on floats with the
+            # same values (x + 0.0 adds the frame's zero origin; a zero twist component may lose its sign)
+            px, py, pz, qx, qy, qz, qw, lx, ly, lz, ax, ay, az = values
+            model.position = (float(px) + 0.0, float(py) + 0.0, float(pz) + 0.0)
+            model.orientation = _unit(frames.quaternion_multiply(IDENTITY, _unit((qx, qy, qz, qw))))
+            if model.description.is_static:
+                model.linear, model.angular = ZERO, ZERO
+            else:
+                model.linear = (float(lx) + 0.0, float(ly) + 0.0, float(lz) + 0.0)
+                model.angular = (float(ax) + 0.0, float(ay) + 0.0, float(az) + 0.0)
         else:
-            rotation = frames.quaternion_matrix(frame[1])
-            model.linear = rotation.dot(np.asarray(linear, dtype=float))
-            model.angular = rotation.dot(np.asarray(angular, dtype=float))
+            frame = self._frame(reference_frame)
+            if frame is None:
+                return self._reject('SetModelState: specified reference frame entity does not exist')
+            model.position, model.orientation = self._to_world_pose(frame, position, orientation)
+            if model.description.is_static:
+                model.linear, model.angular = ZERO, ZERO
+            else:
+                rotation = frames.quaternion_matrix(frame[1])
+                model.linear = _floats(rotation.dot(np.asarray(linear, dtype=float)))
+                model.angular = _floats(rotation.dot(np.asarray(angular, dtype=float)))
         model.since_set = 0.0
         model.sag = 0.0
         model.updates += 1
@@ -465,23 +499,35 @@ class KinematicWorld(object):
         model = self._models.get(name)
         if model is None:
             return self._reject('GetModelState: model does not exist'), None
+        if relative_entity_name in WORLD_FRAMES:
+            return Result(True, 'GetModelState: got properties'), self._world_state(model)
         frame = self._frame(relative_entity_name)
         if frame is None:
             return self._reject('GetModelState: reference relative_entity_name not found, did you forget to '
                                 'scope the body by model name?'), None
         f_position, f_orientation, f_linear, f_angular = frame
         r_frame_t = frames.quaternion_matrix(f_orientation).T
-        position = r_frame_t.dot(model.position - f_position)
+        position = r_frame_t.dot(np.asarray(model.position) - f_position)
         orientation = _unit(frames.quaternion_multiply(_conjugate(f_orientation), model.orientation))
-        linear = r_frame_t.dot(model.linear - f_linear)
-        angular = r_frame_t.dot(model.angular - f_angular)
+        linear = r_frame_t.dot(np.asarray(model.linear) - f_linear)
+        angular = r_frame_t.dot(np.asarray(model.angular) - f_angular)
         state = State(tuple(float(v) for v in position), orientation,
                       tuple(float(v) for v in linear), tuple(float(v) for v in angular))
         return Result(True, 'GetModelState: got properties'), state
 
     def states(self):
         """[(name, State in world)] for every model, in spawn order (what /gazebo/model_states carries)."""
-        return [(name, self.get_state(name)[1]) for name in self._models]
+        return [(name, self._world_state(model)) for name, model in self._models.items()]
+
+    @staticmethod
+    def _world_state(model):
+        """State of a model in the world frame: get_state's general path with an identity frame (the
+        orientation is normalised once more, as the product with the frame's conjugate is)."""
+        reported = model.reported
+        if reported is None or reported[0] is not model.orientation:
+            reported = model.reported = (model.orientation,
+                                         _unit(frames.quaternion_multiply(_conjugate(IDENTITY), model.orientation)))
+        return State(model.position, reported[1], model.linear, model.angular)
 
     def properties(self, name):
         """(Result, Properties or None) as GetModelProperties reports them."""
@@ -541,15 +587,18 @@ class KinematicWorld(object):
         for model in self._models.values():
             if model.description.is_static:
                 continue
-            gravity = np.array([0.0, 0.0, -model.acceleration])
-            model.position = model.position + model.linear * dt + 0.5 * gravity * dt * dt
-            model.linear = model.linear + gravity * dt
-            if np.any(model.angular):
-                dq = _rotation_vector_quaternion(model.angular * dt)
+            gravity = -model.acceleration        # along z; x and y: 0.0 (adding it turns -0.0 into 0.0)
+            (px, py, pz), (lx, ly, lz) = model.position, model.linear
+            model.position = (px + lx * dt + 0.0, py + ly * dt + 0.0, pz + lz * dt + 0.5 * gravity * dt * dt)
+            model.linear = (lx + 0.0, ly + 0.0, lz + gravity * dt)
+            ax, ay, az = model.angular
+            if ax or ay or az:
+                dq = _rotation_vector_quaternion((ax * dt, ay * dt, az * dt))
                 model.orientation = _unit(frames.quaternion_multiply(dq, model.orientation))
             model.since_set += dt
             model.sag = 0.5 * model.acceleration * model.since_set ** 2
-            model.max_sag = max(model.max_sag, model.sag)
+            if model.sag > model.max_sag:
+                model.max_sag = model.sag
         self.time += dt
         return self._update_contacts()
 
@@ -572,6 +621,8 @@ class KinematicWorld(object):
 
     def _update_contacts(self):
         models = [m for m in self._models.values() if m.geoms]
+        if all(m.description.is_static for m in models):      # no pair to check (static pairs never are)
+            models = []
         boxes = dict((m.name, [(g[0].name, _geom_box(m, g)) for g in m.geoms]) for m in models)
         current = {}
         for i, a in enumerate(models):
@@ -612,11 +663,11 @@ class KinematicWorld(object):
         model = self._models.get(name)
         if model is None:
             return None
-        return model.position.copy(), model.orientation, model.linear.copy(), model.angular.copy()
+        return np.array(model.position), model.orientation, np.array(model.linear), np.array(model.angular)
 
     @staticmethod
     def _to_world_pose(frame, position, orientation):
         f_position, f_orientation = frame[0], frame[1]
         world_position = f_position + frames.quaternion_matrix(f_orientation).dot(np.asarray(position, dtype=float))
         world_orientation = _unit(frames.quaternion_multiply(f_orientation, _unit(orientation)))
-        return world_position, world_orientation
+        return _floats(world_position), world_orientation

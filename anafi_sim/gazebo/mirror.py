@@ -32,7 +32,7 @@ from anafi_control import frames
 from anafi_sim.gazebo import urdf_model
 from anafi_sim.gazebo.spawn import SpawnTracker
 from anafi_sim.interface.ground_truth import (DEFAULT_CAMERA_OFFSET, ERROR, OK, WARN, Health, NewCounts, RateWindow,
-                                             StampDecimator, camera_pose)
+                                             RateLimiter, camera_pose)
 
 ModelStateSpec = collections.namedtuple('ModelStateSpec',
                                         'model_name position orientation linear angular reference_frame')
@@ -124,6 +124,11 @@ def _finite(values):
     return True
 
 
+BURST = 3
+"""Samples the rate limit lets through at once (anafi_sim.interface.ground_truth.RateLimiter): the ground truth's
+stamps are the interface's receipt times, which a busy process makes late, early or pairs; at most ~rate
+samples per second pass on average."""
+
 class Mirror(object):
     """Turns ground-truth samples into model states for the drone and its camera.
 
@@ -190,7 +195,7 @@ class Mirror(object):
         self.last_receipt = None       # 'now' of the last accepted sample
         self.last_states = []
         self._held = False
-        self._decimator = StampDecimator(self.period)
+        self._decimator = RateLimiter(self.period, burst=BURST)   # receipt-time stamps: jitter, pairs
         self._lags = collections.deque(maxlen=int(lag_window))
         self._sent = RateWindow(self.rate_window)
         self._new = NewCounts()

@@ -75,6 +75,38 @@ class StampDecimator(object):
         return True
 
 
+class RateLimiter(object):
+    """At most one sample per ``period`` [s] of its stamps on average, up to ``burst`` samples at once (a token
+    bucket refilled at 1 / ``period`` per second of stamp time): samples around the rate pass whatever their
+    jitter (receipt-time stamps of a busy process come late, early and in pairs); a faster source is thinned
+    to the rate. The first sample (and the first after ``reset``) passes with a full bucket."""
+
+    def __init__(self, period, burst=3.0):
+        if not period > 0 or not burst >= 1:
+            raise ValueError('period must be > 0 and burst >= 1, got %r, %r' % (period, burst))
+        self.period = float(period)
+        self.burst = float(burst)
+        self._tokens = None
+        self._last = None
+
+    def reset(self):
+        """Forget the history (the next sample passes with a full bucket)."""
+        self._tokens = None
+
+    def accept(self, stamp, early=0.0):
+        """True when the sample stamped ``stamp`` passes; ``early`` [s]: a sample that far short of a whole
+        token passes too (jitter)."""
+        if self._tokens is None:
+            self._tokens, self._last = self.burst, stamp
+        else:
+            self._tokens = min(self.burst, self._tokens + max(0.0, stamp - self._last) / self.period)
+            self._last = max(self._last, stamp)
+        if self._tokens >= 1.0 - early / self.period:
+            self._tokens -= 1.0
+            return True
+        return False
+
+
 class RateWindow(object):
     """Events per second over the last ``window`` seconds (event and query times on one clock)."""
 

@@ -10,11 +10,13 @@ publishers, subscribers and services. Two kinds:
 - ``NodeContext(name, bus)``: one of the instances a host process runs (the shared layout of a fleet:
   ``scripts/fleet_host.py``). Its names resolve against ``name`` (e.g. /anafi1/interface), so every drone
   keeps its own topics, parameters and services. Messages between instances of one host go through the
-  host's ``LocalBus``: handed over in the process (no serialisation, no socket, no thread
-  woken): the publishing thread calls the local subscribers' callbacks, in publication order, each guarded
-  (a failing callback is counted and logged; the others and the publisher go on). So a node publishes
-  outside its own locks, as every node here does. Other processes still see every topic: a publication goes to rospy as well when a
-  subscriber outside the host listens (or the topic is latched), and each local subscription also subscribes
+  host's ``LocalBus``: handed over in the process (no serialisation, no socket, no thread woken): the
+  publishing thread calls the local subscribers' callbacks, in publication order, each guarded (a failing
+  callback is counted and logged; the others and the publisher go on). So a node publishes outside its own
+  locks, as every node here does. A subscription made ``deferred`` runs on the host's one delivery thread
+  instead (woken once for the messages waiting): for callbacks that may wait on a lock their node holds long
+  (a controller's, during its solve), which must not hold up the publisher (the simulators' loop). Other processes still see every topic: a publication goes to rospy as
+  well when a subscriber outside the host listens (or the topic is latched), and each local subscription also subscribes
   through rospy for publishers outside the host (its copies of the host's own publications are dropped by
   the publisher's caller id).
 
@@ -90,12 +92,14 @@ class NodeContext(object):
             return rospy.Publisher(name, data_class, **kwargs)
         return self.bus.publisher(self.resolve(name), data_class, owner=self.name, **kwargs)
 
-    def subscriber(self, name, data_class, callback, **kwargs):
-        """rospy.Subscriber's arguments; hosted: a subscription on the host's bus (and through rospy)."""
+    def subscriber(self, name, data_class, callback, deferred=False, **kwargs):
+        """rospy.Subscriber's arguments; hosted: a subscription on the host's bus (and through rospy).
+        ``deferred``: hosted, the callback runs on the host's delivery thread, not the publisher's (for a
+        callback that may wait on a lock its node holds long, e.g. a controller's during its solve)."""
         self.wiring['subscribes'].append(self.resolve(name))
         if self.bus is None:
             return rospy.Subscriber(name, data_class, callback, **kwargs)
-        return self.bus.subscriber(self.resolve(name), data_class, callback, **kwargs)
+        return self.bus.subscriber(self.resolve(name), data_class, callback, deferred=deferred, **kwargs)
 
     def service(self, name, service_class, handler):
         self.wiring['services'].append(self.resolve(name))
@@ -169,6 +173,9 @@ class LocalBus(object):
         self._lock = threading.Lock()
         self._subscribers = {}             # topic -> tuple of callbacks
         self._latched = {}                 # topic -> last message of a latched publisher
+        self._queue = collections.deque()     # (topic, deferred entries, message) for the delivery thread
+        self._ready = threading.Condition(threading.Lock())
+        self._thread = None
         self._static = collections.OrderedDict()    # (parent, child) -> TransformStamped
         self._static_pub = None
         self.delivered = 0
@@ -180,8 +187,12 @@ class LocalBus(object):
         pub = rospy.Publisher(topic, data_class, latch=latch, **kwargs)
         return LocalPublisher(self, topic, pub, latch, owner or self.caller_id)
 
-    def subscriber(self, topic, data_class, callback, **kwargs):
-        entry = [callback]        # a list: identity for removal even when the same callback is added twice
+    def subscriber(self, topic, data_class, callback, deferred=False, **kwargs):
+        """A local subscription of ``topic`` (``deferred``: called on the delivery thread) and its rospy
+        subscriber for publishers elsewhere."""
+        entry = [callback, bool(deferred)]   # a list: identity for removal even when a callback is added twice
+        if deferred:
+            self._start_delivery()
         with self._lock:
             self._subscribers[topic] = self._subscribers.get(topic, ()) + (entry,)
             latched = self._latched.get(topic)
@@ -213,8 +224,12 @@ class LocalBus(object):
         if entries:
             self._call(topic, entries, msg)
 
-    def _call(self, topic, entries, msg):
+    def _call(self, topic, entries, msg, deferring=True):
+        later = None
         for entry in entries:
+            if entry[1] and deferring:
+                later = (later or ()) + (entry,)
+                continue
             try:
                 entry[0](msg)
             except Exception as error:     # one instance's failing callback must not stop the others
@@ -224,7 +239,35 @@ class LocalBus(object):
                 else:
                     rospy.logerr_throttle(5.0, 'host: a callback of %s failed (%d so far): %s: %s' % (
                         topic, self.callback_errors, type(error).__name__, error))
+        if later:
+            with self._ready:
+                self._queue.append((topic, later, msg))
+                self._ready.notify()
         self.delivered += 1
+
+    def _start_delivery(self):
+        with self._lock:
+            if self._thread is not None:
+                return
+            self._thread = threading.Thread(target=self._deliver_deferred, name='local_bus', daemon=True)
+        self._thread.start()
+
+    def _deliver_deferred(self):
+        """The delivery thread: deferred callbacks in publication order (woken once for what is waiting)."""
+        queue = self._queue
+        while True:
+            with self._ready:
+                while not queue:
+                    self._ready.wait()
+                batch = list(queue)
+                queue.clear()
+            for topic, entries, msg in batch:
+                self._call(topic, entries, msg, deferring=False)
+                self.delivered -= 1      # counted once, when published
+
+    def pending(self):
+        """Deferred deliveries waiting for the delivery thread."""
+        return len(self._queue)
 
     def send_static_transforms(self, transforms):
         """Add ``transforms`` to the host's static transforms and publish them all (one latched message)."""

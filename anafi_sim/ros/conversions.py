@@ -62,8 +62,10 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=wa
     process's node). Returns the resolved (state topic, waypoint topic)."""
     if ctx is None:
         resolve, subscribe, me = rospy.resolve_name, rospy.Subscriber, rospy.get_name()
-    else:
+        deferred = {}
+    else:       # hosted: off the publisher's thread (the feed waits while the controller solves)
         resolve, subscribe, me = ctx.resolve, ctx.subscriber, ctx.name
+        deferred = {'deferred': True}
     resolved = resolve(state_topic), resolve(waypoint_topic)
 
     def on_waypoint(msg):
@@ -87,9 +89,9 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=wa
                                       'holding position' if kind == 'waypoint' else 'no command'))
 
     subscribe(state_topic, Odometry, lambda m: feed('state', odometry_numbers(m), resolved[0]),
-              queue_size=5, tcp_nodelay=True)
+              queue_size=5, tcp_nodelay=True, **deferred)
     subscribe(waypoint_topic, waypoints.waypoint_class(waypoint_type), on_waypoint, queue_size=5,
-              tcp_nodelay=True)
+              tcp_nodelay=True, **deferred)
     return resolved
 
 

@@ -3,8 +3,8 @@
 
 Stage: wiring only, like a roscpp nodelet manager. ``~instances`` lists the node instances this process runs,
 each as the node it replaces: ``{name: /anafi1/interface, type: interface_node.py}`` (the types in
-anafi_sim.mission.fleet_layout.HOSTABLE). Each instance is the same node class as in the per-drone layout, built with a NodeContext of
-its own name (anafi_sim/ros/context.py): its ~params are read from the master under its name (fleet_launcher.py
+anafi_sim.mission.fleet_layout.HOSTABLE). Each instance is the same node class as in the per-drone layout,
+built with a NodeContext of its own name (anafi_sim/ros/context.py): its ~params are read from the master under its name (fleet_launcher.py
 writes them, from the same launch files as the per-drone layout), and it keeps its own topics, services,
 telemetry port and stream id and /diagnostics statuses. Messages between the instances of this host go through
 its LocalBus (in the process; other processes still get every topic they subscribe to).
@@ -26,6 +26,7 @@ and, for an instance that failed, '<instance>: hosted instance' ERROR.
 """
 import os
 import runpy
+import sys
 import threading
 import time
 import traceback
@@ -165,5 +166,11 @@ class FleetHost(object):
         run_until_interrupted(self.spin, self.shutdown, 'fleet host stopped')
 
 
+#: [s] the interpreter's thread switch interval in a host (Python's default 0.005): many instances' threads share
+#: one interpreter lock, and a simulator step or a telemetry sample waiting 5 ms for it arrives late and in bursts
+SWITCH_INTERVAL = 0.0005
+
+
 if __name__ == '__main__':
+    sys.setswitchinterval(SWITCH_INTERVAL)
     run_node('fleet_host', FleetHost, fatal_exit_code=2, disable_signals=True)

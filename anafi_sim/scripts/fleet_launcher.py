@@ -21,7 +21,7 @@ Also a command-line tool, to see or check what a fleet file starts without start
 
     fleet_launcher.py FLEET [--drones N] [--out-dir DIR] [--evaluate true|false] [--mirror true|false]
                       [--mirror-rate HZ] [--output log|screen] [--aggregator true|false] [--rviz true|false]
-                      [--max-drones N]
+                      [--max-drones N] [--world kinematic|gazebo|none] [--layout per_drone|shared]
                       (--print | --write-only)
 
 --print: the generated XML on stdout; --write-only: write the files and print the launch file's path (then
@@ -49,10 +49,11 @@ OUTPUTS = ('log', 'screen')
 
 
 def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output, aggregator, log=sys.stderr.write,
-             rviz=False, conditions='', max_drones=0, layout=''):
+             rviz=False, conditions='', max_drones=0, layout='', world=False):
     """Write the scenarios (and the aggregator groups) and the launch file into out_dir; its path. ValueError
     for a bad fleet, or one larger than the fleet cap (anafi_sim.launch_check.fleet_size_problem). ``layout``:
-    per_drone | shared ('' = the fleet file's, per_drone by default; anafi_sim.mission.fleet_layout)."""
+    per_drone | shared ('' = the fleet file's, per_drone by default; anafi_sim.mission.fleet_layout); ``world``:
+    the kinematic world in the generated launch (fleet.launch world:=kinematic)."""
     fleet = load_fleet(fleet_name, drones)
     layout = check_layout(layout or fleet.layout)
     too_many = fleet_size_problem(len(fleet.drones), max_drones, layout=layout)
@@ -86,7 +87,7 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
             f.write(text)
     xml = launch_xml(fleet, ports, files, out_dir, evaluate=evaluate, mirror=mirror, mirror_rate=mirror_rate,
                      output=output, source=fleet_path(fleet_name), aggregator_file=aggregator_file,
-                     rviz=rviz, rviz_file=rviz_file, conditions=conditions)
+                     rviz=rviz, rviz_file=rviz_file, conditions=conditions, world=world)
     path = os.path.join(out_dir, 'fleet.launch')
     if layout == 'shared':
         xml = shared_launch(xml, out_dir, output, fleet.name)
@@ -149,7 +150,8 @@ class FleetLauncherNode(object):
                              log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False),
                              conditions=p.string('conditions', '', allow_empty=True),
                              max_drones=p.integer('max_drones', 0, minimum=0),
-                             layout=p.string('layout', ''))   # ValueError: fatal, exit 2
+                             layout=p.string('layout', ''),
+                             world=p.flag('kinematic_world', False))   # ValueError: fatal, exit 2
         self.child = None
         self.code = 0
 
@@ -201,6 +203,8 @@ def tool(argv):
     ap.add_argument('--rviz', type=flag, default=False, metavar='true|false')
     ap.add_argument('--conditions', default='', help='flight-conditions profile NAME for every simulated drone')
     ap.add_argument('--max-drones', type=int, default=0, help='the fleet cap (0: derived from the CPU cores)')
+    ap.add_argument('--world', default='kinematic', choices=('kinematic', 'gazebo', 'none'),
+                    help='as fleet.launch world:= (kinematic: the world is in the generated launch)')
     ap.add_argument('--layout', default='', choices=('',) + LAYOUTS,
                     help='per_drone | shared (default: the fleet file\'s, else per_drone)')
     what = ap.add_mutually_exclusive_group(required=True)
@@ -210,7 +214,7 @@ def tool(argv):
     try:
         path = generate(args.fleet, args.drones, args.out_dir, args.evaluate, args.mirror, args.mirror_rate,
                         args.output, args.aggregator, rviz=args.rviz, conditions=args.conditions,
-                        max_drones=args.max_drones, layout=args.layout)
+                        max_drones=args.max_drones, layout=args.layout, world=args.world == 'kinematic')
     except ValueError as error:
         sys.stderr.write('fleet_launcher: %s\n' % error)
         return 2

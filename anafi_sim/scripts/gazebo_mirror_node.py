@@ -43,6 +43,9 @@ from anafi_sim.ros.node import (diagnostics_publisher, health_status, log_lines,
                                 run_until_interrupted, start_diagnostics_thread)
 
 LOG_REPEAT = 5.0  # s between repeated "Gazebo not available" log lines
+STATE_QUEUE = 100
+"""ModelState messages the set_model_state publisher queues: in a fleet host every mirror shares it (rospy has one
+publisher per topic and process), 2 per drone per cycle, and a full queue drops the oldest silently."""
 
 
 def _load_model(path, what):
@@ -130,7 +133,8 @@ class GazeboMirrorNode(object):
         self._set_proxy = None
         self.state_pub = None
         if not params['use_service']:
-            self.state_pub = ctx.publisher(self.state_service, self.ModelState, queue_size=10, tcp_nodelay=True)
+            self.state_pub = ctx.publisher(self.state_service, self.ModelState, queue_size=STATE_QUEUE,
+                                           tcp_nodelay=True)
         self.diag_pub = diagnostics_publisher()
         self.odom_sub = ctx.subscriber(params['odom_topic'], Odometry, self.on_odom, queue_size=1, tcp_nodelay=True)
         if params['camera_attitude_source'] == 'bridge':

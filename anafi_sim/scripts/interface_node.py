@@ -138,7 +138,8 @@ class InterfaceNode(object):
         self.diag_name = '%s: ground truth interface' % ctx.name
         self.source = None
         if params['simulator_node']:     # our simulator: its bound port and stream id, read before each start
-            self.source = SimulatorSource(params['simulator_node'], lambda name: rospy.get_param(ctx.resolve(name), None))
+            self.source = SimulatorSource(params['simulator_node'],
+                                          lambda name: rospy.get_param(ctx.resolve(name), None))
             with_port(shlex.split(params['telemetry_command']) if isinstance(params['telemetry_command'], str)
                       else params['telemetry_command'], 1)    # ValueError now if it has no inet:HOST:PORT
         self.supervisor = ProcessSupervisor(   # ValueError for a command string shlex cannot split

@@ -30,16 +30,21 @@ from std_msgs.msg import String
 from anafi_sim.gazebo.kinematic_world import KinematicWorld, Result, contact_record
 from anafi_sim import names
 from anafi_sim.ros import conversions, gazebo_types
+from anafi_sim.ros.context import NodeContext
 from anafi_sim.ros.node import diagnostics_publisher, health_status, private_params, run_node, \
     start_diagnostics_thread
 from anafi_sim.sim.clock import Pacer, ScaledSteps
 
 HARDWARE_ID = 'kinematic_world'
+STATE_QUEUE = 1000
+"""ModelState messages the set_model_state subscriber keeps per read (rospy drops older ones silently): a
+fleet's mirror sends 2 per drone per cycle, 4000/s for 20 drones at 100 Hz; 100 held 25 ms of that, and a
+world thread kept off the CPU that long on a busy machine lost updates."""
 
 
-def read_params():
-    """All ~params, validated; raises ValueError with a clear message."""
-    r = private_params()
+def read_params(ctx):
+    """All ~params of the instance ``ctx`` (a NodeContext), validated; raises ValueError with a clear message."""
+    r = private_params(ctx)
     p = {
         'rate': r.positive('rate', 100.0),
         'max_step': r.positive('max_step', 0.01),
@@ -69,8 +74,9 @@ def _twist_values(twist):
 class KinematicWorldNode(object):
     """Wires the KinematicWorld core to the gazebo_ros names; one lock guards the core."""
 
-    def __init__(self):
-        self.p = params = read_params()
+    def __init__(self, ctx=None):
+        self.ctx = ctx = ctx or NodeContext.process()
+        self.p = params = read_params(ctx)
         self.world = KinematicWorld(gravity=params['gravity'], ground_plane=params['ground_plane'])
         self.lock = threading.Lock()
         self.steps = ScaledSteps(params['rtf'], params['max_cycle'])
@@ -78,25 +84,26 @@ class KinematicWorldNode(object):
         self.cycles = 0
         self.topic_rejected = 0
         self.ModelStates = gazebo_types.model_states_class()
+        self.states_msg = self.ModelStates()     # reused every cycle (publish serialises it at once)
         ns = params['gazebo_namespace']
-        self.state_pub = rospy.Publisher(names.gazebo(names.MODEL_STATES, ns), self.ModelStates, queue_size=1)
-        self.contact_pub = rospy.Publisher(params['contacts_topic'], String, queue_size=100)
-        self.diag_pub = diagnostics_publisher()
-        self.clock_pub = rospy.Publisher(names.CLOCK, Clock, queue_size=1) if params['publish_clock'] else None
+        self.state_pub = ctx.publisher(names.gazebo(names.MODEL_STATES, ns), self.ModelStates, queue_size=1)
+        self.contact_pub = ctx.publisher(params['contacts_topic'], String, queue_size=100)
+        self.diag_pub = diagnostics_publisher(ctx=ctx)
+        self.clock_pub = ctx.publisher(names.CLOCK, Clock, queue_size=1) if params['publish_clock'] else None
         spawn = gazebo_types.spawn_model_class()
         self.services = [
-            rospy.Service(names.gazebo(names.SPAWN_URDF_MODEL, ns), spawn, self.on_spawn),
-            rospy.Service(names.gazebo(names.SPAWN_SDF_MODEL, ns), spawn, self.on_spawn),
-            rospy.Service(names.gazebo(names.DELETE_MODEL, ns), gazebo_types.delete_model_class(), self.on_delete),
-            rospy.Service(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.set_model_state_class(),
-                          self.on_set_state),
-            rospy.Service(names.gazebo(names.GET_MODEL_STATE, ns), gazebo_types.get_model_state_class(),
-                          self.on_get_state),
-            rospy.Service(names.gazebo(names.GET_MODEL_PROPERTIES, ns), gazebo_types.get_model_properties_class(),
-                          self.on_properties),
+            ctx.service(names.gazebo(names.SPAWN_URDF_MODEL, ns), spawn, self.on_spawn),
+            ctx.service(names.gazebo(names.SPAWN_SDF_MODEL, ns), spawn, self.on_spawn),
+            ctx.service(names.gazebo(names.DELETE_MODEL, ns), gazebo_types.delete_model_class(), self.on_delete),
+            ctx.service(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.set_model_state_class(),
+                        self.on_set_state),
+            ctx.service(names.gazebo(names.GET_MODEL_STATE, ns), gazebo_types.get_model_state_class(),
+                        self.on_get_state),
+            ctx.service(names.gazebo(names.GET_MODEL_PROPERTIES, ns), gazebo_types.get_model_properties_class(),
+                        self.on_properties),
         ]
-        self.state_sub = rospy.Subscriber(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.model_state_class(),
-                                          self.on_state_topic, queue_size=100)
+        self.state_sub = ctx.subscriber(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.model_state_class(),
+                                        self.on_state_topic, queue_size=STATE_QUEUE)
         rospy.loginfo('kinematic_world: serving %s/* at %g Hz (rtf %g, clock %s, ground_plane %s)',
                       ns, params['rate'], params['rtf'], 'on' if params['publish_clock'] else 'off',
                       params['ground_plane'])
@@ -180,16 +187,30 @@ class KinematicWorldNode(object):
         self.cycles += 1
         if self.clock_pub is not None:
             self.clock_pub.publish(Clock(clock=rospy.Time.from_sec(now)))
-        msg = self.ModelStates()
-        msg.name = [name for name, _ in states]
-        msg.pose = [conversions.pose(s.position, s.orientation) for _, s in states]
-        msg.twist = [conversions.twist(s.linear, s.angular) for _, s in states]
-        self.state_pub.publish(msg)
+        self.state_pub.publish(self._fill_states(states))
         for event in events:
             self.contact_pub.publish(String(data=json.dumps(contact_record(event))))
             if event.event == 'begin':
                 rospy.loginfo('contact: %s/%s touches %s/%s (depth %.3f m)', event.model_a, event.geom_a,
                               event.model_b, event.geom_b, event.depth)
+
+    def _fill_states(self, states):
+        """The reused ModelStates message holding ``states`` [(name, State)]: its Pose and Twist objects are
+        updated in place (new ones only when the models changed)."""
+        msg = self.states_msg
+        names = [name for name, _ in states]
+        if names != msg.name:
+            msg.name = names
+            msg.pose = [conversions.pose(s.position, s.orientation) for _, s in states]
+            msg.twist = [conversions.twist(s.linear, s.angular) for _, s in states]
+            return msg
+        for (_, s), pose, twist in zip(states, msg.pose, msg.twist):
+            p, q, v, w = pose.position, pose.orientation, twist.linear, twist.angular
+            p.x, p.y, p.z = s.position
+            q.x, q.y, q.z, q.w = s.orientation
+            v.x, v.y, v.z = s.linear
+            w.x, w.y, w.z = s.angular
+        return msg
 
     def diagnostic_statuses(self):
         loop = [('rate', self.p['rate']), ('rtf', self.p['rtf']), ('cycles', self.cycles),

@@ -317,6 +317,26 @@ def test_stamp_decimator_grid_jitter_and_reanchor():
     assert d.accept(0.2)
 
 
+def test_rate_limiter_passes_a_jittered_source_at_the_rate_and_thins_a_faster_one():
+    def passed(limiter, stamps, early=0.003):
+        return [t for t in stamps if limiter.accept(t, early=early)]
+    # 100 Hz receipt times with jitter: late, early, a delayed pair -- every sample passes
+    jittered = [0.0, 0.014, 0.0141, 0.026, 0.041, 0.047, 0.06, 0.07, 0.0801, 0.09]
+    assert passed(gt.RateLimiter(0.01), jittered) == jittered
+    # the grid decimator thins the same stream (its grid drifts from the source's phase)
+    assert len(passed(gt.StampDecimator(0.01), jittered)) < len(jittered)
+    # a faster source: 250 Hz in -> 100 Hz out (the 3 of the first burst on top)
+    fast = [k * 0.004 for k in range(250)]
+    assert abs(len(passed(gt.RateLimiter(0.01), fast, early=0.0)) - 100) <= 3
+    # one burst of 10 at once passes 3; reset: a full bucket again
+    limiter = gt.RateLimiter(0.01)
+    assert len(passed(limiter, [1.0] * 10, early=0.0)) == 3
+    limiter.reset()
+    assert limiter.accept(0.5)
+    with pytest.raises(ValueError):
+        gt.RateLimiter(0.0)
+
+
 def test_rate_window_and_new_counts():
     w = gt.RateWindow(1.0)
     for i in range(50):

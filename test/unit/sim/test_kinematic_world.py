@@ -76,6 +76,13 @@ def test_bad_model_xml_and_non_finite_inputs_are_rejected_not_raised():
     assert not world.set_state('m', (0, 0, 0), (0, 0, 0, 1), reference_frame='nowhere').success
     assert not world.set_state('ghost', (0, 0, 0), (0, 0, 0, 1)).success
     assert z_of(world, 'm') == 1.0
+    assert not world.set_state('m', (0, 0, 0), (0, 0, 0, 1), (float('inf'), -float('inf'), 0)).success
+    assert not world.set_state('m', ('1', 0, 0), (0, 0, 0, 1)).success
+    assert not world.set_state('m', (0, 0, 0, 0), (0, 0, 1)).success    # 13 numbers, not a pose and a twist
+    big = 1e308                                  # finite, although their sum overflows
+    assert world.set_state('m', (big, big, 1.0), (0, 0, 0, 1), (big, big, 0.0)).success
+    assert world.get_state('m')[1].position == (big, big, 1.0)
+    assert z_of(world, 'm') == 1.0
     with pytest.raises(ValueError):
         world.step(float('nan'))
     with pytest.raises(ValueError):

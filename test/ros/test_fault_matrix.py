@@ -158,6 +158,10 @@ SHARED = {
                         'ERROR naming the refused command), FILE never created; the parameter put back and the '
                         'host shut down again -> OK'),
     'fleet_cap': ('adapted', 'fleet.launch drones:=50 layout:=shared: refused against the shared layout\'s cap'),
+    'world_killed': ('adapted', 'the world (/gazebo) is an instance of the ground-truth host with the interfaces '
+                     'and the mirror: the host killed (SIGKILL) and respawned by roslaunch, the world back with both '
+                     'models, the mirror OK; the drone keeps tracking (the controller does not use the world or the '
+                     'ground truth)'),
     'master_restart': ('adapted', 'every process exits (75), the hosts too, and is respawned with its parameters '
                        '(the hosts with every instance); new publishers reach the hosted controller'),
     'clock_jump': ('skipped', 'a graph of its own with no hosted node (layout-independent as built): runs in '
@@ -364,12 +368,14 @@ class TestFaultMatrix(unittest.TestCase):
     def node_of(self, name):
         """The node the master knows for the node ``name``: itself, or in the shared layout the host whose
         ~wiring lists it as an instance (name of a host, e.g. /fleet_drones)."""
-        if SHARED_LAYOUT:
+        if SHARED_LAYOUT:     # the hosts: HOSTS, split by drone into <host>_1, _2 ... in a large fleet
             master = processes.xmlrpc_proxy(self.uri)
-            for host in HOSTS:
-                code, _, wiring = master.getParam(processes.HARNESS_CALLER, '/%s/wiring' % host)
+            code, _, state = master.getSystemState(processes.HARNESS_CALLER)
+            nodes = set(n for kind in (state if code == 1 else ()) for _, names in kind for n in names)
+            for node in sorted(n for n in nodes if any(n.lstrip('/').startswith(h) for h in HOSTS)):
+                code, _, wiring = master.getParam(processes.HARNESS_CALLER, node + '/wiring')
                 if code == 1 and name in wiring:
-                    return '/' + host
+                    return node
         return name
 
     def pid_of(self, name):
@@ -996,6 +1002,8 @@ class TestFaultMatrix(unittest.TestCase):
         return self.g.status('/%s/gazebo_mirror' % DRONE, since)
 
     def test_08c_world_killed(self):
+        if SHARED_LAYOUT and self.node_of('/gazebo') != '/gazebo':
+            return self.world_host_killed()
         g = self.g
         self.fly()
         models = ('anafi', 'anafi_camera')
@@ -1032,6 +1040,38 @@ class TestFaultMatrix(unittest.TestCase):
                     % ({1: 'WARN', 2: 'ERROR'}.get(bad[0][1], bad[0][1]), bad[0][2], ok[0][2], mirror,
                        counter(before, 'world restarts') + counter(before, 'world losses'), lost,
                        counter(before, 'respawns'), counter(ok[0], 'respawns'), tracking[2], g.command_rate(),
+                       commands0),
+                    'not needed (the drone keeps tracking at %.1f m/s)' % (g.speed() or 0.0), ok[0][0] - t0)
+
+    def world_host_killed(self):
+        """world_killed in the shared layout: the world's process is the ground-truth host (with the mirror)."""
+        g = self.g
+        self.fly()
+        models = ('anafi', 'anafi_camera')
+        processes.require(lambda: set(models) <= set(g.models[1]), 20.0, 'both models in the world',
+                          lambda: str(g.models))
+        host = self.node_of('/gazebo')
+        self.assertEqual(host, self.node_of('/%s/gazebo_mirror' % DRONE))
+        old = processes.node_pid(host, self.uri)
+        commands0 = g.command_rate()
+        t0 = time.time()
+        os.kill(old, signal.SIGKILL)
+        ok, new = [None], [None]
+
+        def back():
+            ok[0], new[0] = self._mirror(t0), processes.node_pid(host, self.uri)
+            return ok[0] is not None and ok[0][1] == 0 and set(models) <= set(g.models[1]) and g.models[0] > t0 \
+                and new[0] not in (None, old)
+        processes.require(back, 30.0, 'the host respawned, the world with both models, the mirror OK',
+                          lambda: 'mirror %s, models %s, host pid %s' % (ok[0], g.models, new[0]))
+        self.assertGreaterEqual(counter(ok[0], 'spawns'), 2, ok[0])      # a new mirror: both models spawned
+        tracking = self.controller(t0)
+        self.assertEqual(tracking[2], 'tracking', 'the controller does not depend on the world')
+        self.assertGreater(g.command_rate(), 5.0)
+        self.record('world_killed', 'the ground-truth host %s (world, interfaces, mirror) killed and respawned '
+                    '(pid %d -> %d); the world back with both models, the new mirror OK "%s" (spawns %d); controller '
+                    '"%s", commands %.0f Hz (before %.0f Hz)'
+                    % (host, old, new[0], ok[0][2], counter(ok[0], 'spawns'), tracking[2], g.command_rate(),
                        commands0),
                     'not needed (the drone keeps tracking at %.1f m/s)' % (g.speed() or 0.0), ok[0][0] - t0)
 

@@ -101,6 +101,11 @@ class NodeContext(object):
             return rospy.Subscriber(name, data_class, callback, **kwargs)
         return self.bus.subscriber(self.resolve(name), data_class, callback, deferred=deferred, **kwargs)
 
+    def record(self, role, *names):
+        """Global ``names`` this instance uses that were made without the context ('publishes', 'subscribes' or
+        'services'; e.g. a dynamic_reconfigure server's own topics)."""
+        self.wiring[role].extend(names)
+
     def service(self, name, service_class, handler):
         self.wiring['services'].append(self.resolve(name))
         return rospy.Service(self.resolve(name), service_class, handler)

@@ -53,6 +53,10 @@ class TracedServer(Server):
         if ctx is not None and ctx.hosted:    # Server's '~' names are the process's node: the instance's instead
             namespace = ctx.resolve('~' + namespace.strip('~')) if namespace else ctx.name
         Server.__init__(self, type, callback, namespace)
+        if ctx is not None:     # the Server's own topics and service, in the instance's wiring
+            base = ctx.resolve(namespace or '~').rstrip('/')
+            ctx.record('publishes', base + '/parameter_descriptions', base + '/parameter_updates')
+            ctx.record('services', base + '/set_parameters')
 
     def update_configuration(self, changes_asked):
         with self.mutex:

@@ -15,6 +15,13 @@ speed -- measured in the first case, the controller killed -- plus the speed x t
 the recovery (time until the node reports OK / tracking again after the fault is removed). The observed
 matrix is written to test_results/fault_matrix.json; ``tools/fault_table.py`` turns it into the table of
 docs/reliability.md (``test/unit/sim/test_fault_glue.py`` checks that the table lists exactly ``FAULTS``).
+
+Layouts: the environment variable ``FAULT_MATRIX_LAYOUT`` (per_drone by default: fault_matrix.test;
+fault_matrix_shared.test sets ``shared``). In the shared layout the graph is the same launch hosted as a fleet's
+(``fleet_launcher.shared_launch``: ``fleet_host.py`` processes /fleet_drones and /fleet_ground_truth run the
+simulator, controller, interfaces and mirror as instances) and the rows that kill or shut down a node's process
+are adapted to the host that process is, or skipped (``SHARED``); results in
+test_results/fault_matrix_shared.json, the table of docs/reliability.md's shared-layout section.
 """
 import json
 import math
@@ -40,6 +47,8 @@ from std_msgs.msg import String
 
 from anafi_sim import paths, processes
 from anafi_sim.mission.fleet import launch_document
+from anafi_sim.mission.fleet_layout import HOSTS, check_layout
+from anafi_sim.run_files import atomic_write_text
 from anafi_sim.msg import Waypoint
 from anafi_sim.ros import gazebo_types
 from anafi_sim.ros.wire_types import piloting_command_class
@@ -51,7 +60,11 @@ STOP_SPEED = 0.3     # [m/s] "stopped"
 STOP_TIME = 12.0     # [s] to stop
 STEADY = 2.0        # [s] of steady flight before a fault
 RECOVERY_TIME = 10.0  # [s] to report OK again once the fault is removed
-RESULTS = os.path.join(paths.package_dir(), 'test_results', 'fault_matrix.json')
+#: the graph's layout (anafi_sim.mission.fleet_layout.LAYOUTS)
+LAYOUT = check_layout(os.environ.get('FAULT_MATRIX_LAYOUT', 'per_drone'))
+SHARED_LAYOUT = LAYOUT == 'shared'
+RESULTS = os.path.join(paths.package_dir(), 'test_results',
+                       'fault_matrix_shared.json' if SHARED_LAYOUT else 'fault_matrix.json')
 
 #: (name, fault injected, expected) -- the rows of the table in docs/reliability.md (same order)
 FAULTS = (
@@ -122,6 +135,38 @@ FAULTS = (
      'stand-in)', 'stderr read with the same 4096-byte cap as stdout: the interface\'s memory stays that of an '
      'interface without the flood, the bytes are counted, samples flow: OK'),
 )
+
+#: the rows that do not run as in the per-drone layout when the graph is hosted (fault_matrix_shared.test):
+#: name -> ('adapted' | 'skipped', how / why); every other row runs with the same expectations (the node of a
+#: hosted instance: its host, whose ~wiring lists it; an interface's telemetry CLI: the host's child serving
+#: that interface's port). The table of docs/reliability.md's shared-layout section (tools/fault_table.py).
+SHARED = {
+    'controller_killed': ('adapted', 'the controller\'s process is the drones host (/fleet_drones, with the '
+                          'simulator): killing it is simulator_restart\'s row here; this row measures the '
+                          'firmware-brake reference of the other rows with the solver failing instead (no command '
+                          'from the next 10 Hz cycle on)'),
+    'simulator_restart': ('adapted', 'the drones host (simulator + controller) killed (SIGKILL): interface ERROR, '
+                          'roslaunch respawns the host (a new flight from the take-off point), interface OK within '
+                          '5 s of its first sample, the controller tracks again (a failed simulator share alone: '
+                          'test/ros/shared_faults.test)'),
+    'second_commander': ('adapted', 'the same, with the hosted controller\'s commands named by its host '
+                         '(/fleet_drones) for the nodes and this test outside the host'),
+    'stderr_flood': ('adapted', 'the /flood interface stays a process (its own environment); the reference '
+                     'memory is the ground-truth host (two interfaces and the mirror)'),
+    'hostile_command': ('adapted', 'the XML-RPC shutdown goes to the ground-truth host (the master\'s node of '
+                        '/garbage/interface): respawned, it does not start that instance (\'hosted instance\' '
+                        'ERROR naming the refused command), FILE never created; the parameter put back and the '
+                        'host shut down again -> OK'),
+    'fleet_cap': ('adapted', 'fleet.launch drones:=50 layout:=shared: refused against the shared layout\'s cap'),
+    'world_killed': ('adapted', 'the world (/gazebo) is an instance of the ground-truth host with the interfaces '
+                     'and the mirror: the host killed (SIGKILL) and respawned by roslaunch, the world back with both '
+                     'models, the mirror OK; the drone keeps tracking (the controller does not use the world or the '
+                     'ground truth)'),
+    'master_restart': ('adapted', 'every process exits (75), the hosts too, and is respawned with its parameters '
+                       '(the hosts with every instance); new publishers reach the hosted controller'),
+    'clock_jump': ('skipped', 'a graph of its own with no hosted node (layout-independent as built): runs in '
+                   'fault_matrix.test only'),
+}
 
 #: a second interface on a garbage telemetry stream (malformed lines, a 10 kB line, then the real stream)
 GARBAGE_GROUP = """  <group ns="garbage">
@@ -287,8 +332,14 @@ class TestFaultMatrix(unittest.TestCase):
             f.write(FLOOD_TOOL.format(python=sys.executable, mb=FLOOD_MB,
                                       stand_in=paths.data_path('scripts', 'tlm_data_logger.py')))
         os.chmod(os.path.join(fake_bin, 'tlm-data-logger'), 0o755)
+        text = launch_text(port, garbage_port, fake_bin)
+        if SHARED_LAYOUT:   # the same launch expanded by roslaunch and hosted as a fleet's (fleet.params.yaml)
+            sys.path.insert(0, os.path.join(paths.package_dir(), 'anafi_sim', 'scripts'))
+            from fleet_launcher import shared_launch
+            text = shared_launch(text, cls.workdir, 'log', 'fault matrix')
         with open(launch, 'w') as f:
-            f.write(launch_text(port, garbage_port, fake_bin))
+            f.write(text)
+        cls.telemetry_port, cls.garbage_port = port, garbage_port
         cls.procs.start('garbage_proxy', [sys.executable, '-c', GARBAGE_PROXY.format(listen=garbage_port,
                                                                                     upstream=port)], cls.env)
         cls.procs.start('roslaunch', ['roslaunch', '--port', str(cls.port), launch], cls.env)
@@ -305,15 +356,44 @@ class TestFaultMatrix(unittest.TestCase):
     @classmethod
     def tearDownClass(cls):
         try:
-            os.makedirs(os.path.dirname(RESULTS), exist_ok=True)
-            with open(RESULTS, 'w') as f:
-                json.dump({'faults': [name for name, _, _ in FAULTS], 'rows': cls.rows,
-                           'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, f, indent=1)
+            atomic_write_text(RESULTS, json.dumps({
+                'layout': LAYOUT, 'faults': [name for name, _, _ in FAULTS], 'rows': cls.rows,
+                'shared': SHARED if SHARED_LAYOUT else {},
+                'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, indent=1))
         finally:
             cls.procs.stop_all()
             shutil.rmtree(cls.workdir, ignore_errors=True)
 
     # -- helpers
+    def node_of(self, name):
+        """The node the master knows for the node ``name``: itself, or in the shared layout the host whose
+        ~wiring lists it as an instance (name of a host, e.g. /fleet_drones)."""
+        if SHARED_LAYOUT:     # the hosts: HOSTS, split by drone into <host>_1, _2 ... in a large fleet
+            master = processes.xmlrpc_proxy(self.uri)
+            code, _, state = master.getSystemState(processes.HARNESS_CALLER)
+            nodes = set(n for kind in (state if code == 1 else ()) for _, names in kind for n in names)
+            for node in sorted(n for n in nodes if any(n.lstrip('/').startswith(h) for h in HOSTS)):
+                code, _, wiring = master.getParam(processes.HARNESS_CALLER, node + '/wiring')
+                if code == 1 and name in wiring:
+                    return node
+        return name
+
+    def pid_of(self, name):
+        """Process id of the node ``name`` (of its host in the shared layout), None when there is none."""
+        return processes.node_pid(self.node_of(name), self.uri)
+
+    def cli_of(self, interface, port):
+        """The telemetry CLI the interface ``interface`` runs: the child of its process (its host's) whose
+        command line reads ``port`` (a host runs the CLIs of several interfaces)."""
+        children = psutil.Process(self.pid_of(interface)).children()
+        mine = [c for c in children if any(a.endswith(':%d' % port) for a in c.cmdline())]
+        self.assertEqual(len(mine), 1, '%s: CLIs %s' % (interface, [c.cmdline() for c in children]))
+        return mine[0]
+
+    def skip_shared(self, name):
+        if SHARED_LAYOUT and SHARED.get(name, ('',))[0] == 'skipped':
+            self.skipTest('%s in the shared layout: %s' % (name, SHARED[name][1]))
+
     def fly(self, timeout=40.0):
         """Fly along +-x until the speed is >= 0.8 SPEED; the speed reached."""
         g = self.g
@@ -424,6 +504,8 @@ class TestFaultMatrix(unittest.TestCase):
 
     # -- the matrix, in the order of FAULTS
     def test_01_controller_killed(self):
+        if SHARED_LAYOUT:
+            return self.brake_reference()
         g = self.g
         v = self.fly()
         old = processes.node_pid('/%s/mpc_controller' % DRONE, self.uri)
@@ -441,6 +523,27 @@ class TestFaultMatrix(unittest.TestCase):
         rec = self.recover(t0)
         self.record('controller_killed', 'no command (0 Hz); respawned (pid %d -> %d)' % (old, new[0]),
                     '%.1f m from %.1f m/s in %.1f s (firmware brake: the reference)' % (dist, v, secs), rec)
+
+    def brake_reference(self):
+        """controller_killed in the shared layout (the controller's process is the drones host, killed in
+        simulator_restart): the firmware-brake reference, the solver failing (no command from the next 10 Hz
+        cycle on)."""
+        g = self.g
+        client = Client('/%s/mpc_controller' % DRONE, timeout=20.0)
+        v = self.fly()
+        pos0, t0 = g.position(), time.time()
+        self.assertEqual(client.update_configuration({'max_iter': 1})['max_iter'], 1)
+        try:
+            secs, dist = self.wait_stop(t0, pos0)
+            self.assertEqual(g.command_rate(), 0.0)
+        finally:
+            client.update_configuration({'max_iter': 4000})
+        TestFaultMatrix.brake = (v, dist)
+        rec = self.recover(time.time())
+        self.record('controller_killed', 'the controller\'s process is the drones host %s (killed in '
+                    'simulator_restart); the firmware-brake reference: no command (0 Hz) while the solver fails'
+                    % self.node_of('/%s/mpc_controller' % DRONE),
+                    '%.1f m from %.1f m/s in %.1f s (solver failure: the reference)' % (dist, v, secs), rec)
 
     def test_02_nan_waypoint(self):
         self.hold_case('nan_waypoint', 'nan', 'non-finite waypoint', 'rejected_waypoints', 0.2)
@@ -532,6 +635,7 @@ class TestFaultMatrix(unittest.TestCase):
         def callers(t0, t1):
             return sorted(set(c for t, c in list(seen) if t0 <= t < t1))
         me = rospy.get_name()
+        commander = self.node_of('/%s/mpc_controller' % DRONE)    # its host's name outside a host
         self.fly()
         before = self.controller(0.0)
         # 1. a second MPC started on the flying drone: it hears the commands and never commands
@@ -545,14 +649,14 @@ class TestFaultMatrix(unittest.TestCase):
                 rival[0] = g.status('/%s/mpc_rival' % DRONE, t0)
                 return rival[0] is not None and rival[0][1] == 2 and 'second commander' in rival[0][2]
             processes.require(rival_error, 60.0, 'the rival in ERROR', lambda: str(rival[0]))
-            self.assertIn('/%s/mpc_controller' % DRONE, rival[0][2])
+            self.assertIn(commander, rival[0][2])
             t1 = time.time()
             main = self.wait_controller(t1, lambda e: 'mpc_rival' in e[3].get(
                 'other publishers of the command topic', ''), 5.0, 'the rival listed by the controller')
             self.assertEqual((main[1], main[2]), (0, 'tracking'), main)
             time.sleep(3.0)
             only = callers(t1, time.time())
-            self.assertEqual(only, ['/%s/mpc_controller' % DRONE], 'commands from one node only')
+            self.assertEqual(only, [commander], 'commands from one node only')
             speed = g.speed() or 0.0
             self.assertGreater(speed, 0.6 * SPEED, 'the drone keeps flying')
             # 2. an operator takes over (this node publishes hover commands for 2 s): the controller yields
@@ -571,7 +675,7 @@ class TestFaultMatrix(unittest.TestCase):
             t3 = time.time()
             rec = self.recover(t3)
             after = self.controller(t3)
-            self.assertEqual(callers(time.time() - 1.0, time.time()), ['/%s/mpc_controller' % DRONE])
+            self.assertEqual(callers(time.time() - 1.0, time.time()), [commander])
         finally:
             sub.unregister()
             self.procs.stop('rival')
@@ -589,8 +693,7 @@ class TestFaultMatrix(unittest.TestCase):
     def test_07_cli_killed(self):
         g = self.g
         self.fly()
-        iface = psutil.Process(processes.node_pid('/%s/interface' % DRONE, self.uri))
-        cli = iface.children()[0]
+        cli = self.cli_of('/%s/interface' % DRONE, self.telemetry_port)
         before = self._interface()
         t0 = time.time()
         cli.kill()
@@ -612,8 +715,7 @@ class TestFaultMatrix(unittest.TestCase):
     def test_07b_cli_hung(self):
         g = self.g
         self.fly()
-        iface = psutil.Process(processes.node_pid('/%s/interface' % DRONE, self.uri))
-        cli = iface.children()[0]
+        cli = self.cli_of('/%s/interface' % DRONE, self.telemetry_port)
         before = self._interface()
         t0 = time.time()
         cli.suspend()                    # SIGSTOP: prints nothing, does not exit
@@ -663,16 +765,18 @@ class TestFaultMatrix(unittest.TestCase):
             return e[0] is not None and ref[0] is not None and e[0][1] == 0 \
                 and e[0][3].get('process last stderr') == 'flood done'
         processes.require(flooded, 60.0, 'the flood interface OK after the flood', lambda: str(e[0]))
-        rss = dict((n, psutil.Process(processes.node_pid('/%s/interface' % n, self.uri)).memory_info().rss / 2.0 ** 20)
+        rss = dict((n, psutil.Process(self.pid_of('/%s/interface' % n)).memory_info().rss / 2.0 ** 20)
                    for n in ('flood', 'garbage'))
         flood_bytes = counter(e[0], 'process stderr bytes')
         self.assertGreaterEqual(flood_bytes, FLOOD_MB * 2 ** 20, e[0])
         self.assertLess(rss['flood'], rss['garbage'] + 30.0, rss)     # the flood is not kept
         self.assertGreater(counter(e[0], 'samples published'), 100, e[0])
         self.record('stderr_flood', 'OK "%s"; process stderr bytes %d (%d oversize lines), last stderr "%s"; '
-                    'interface RSS %.0f MB (an interface without the flood: %.0f MB); samples published %s'
+                    'interface RSS %.0f MB (%s without the flood: %.0f MB); samples published %s'
                     % (e[0][2], flood_bytes, counter(e[0], 'process stderr oversize lines'),
-                       e[0][3].get('process last stderr'), rss['flood'], rss['garbage'],
+                       e[0][3].get('process last stderr'), rss['flood'],
+                       'the ground-truth host, two interfaces and the mirror,' if SHARED_LAYOUT else 'an interface',
+                       rss['garbage'],
                        e[0][3]['samples published']), 'not needed', None)
 
     def test_08d_hostile_command(self):
@@ -681,22 +785,33 @@ class TestFaultMatrix(unittest.TestCase):
         marker = os.path.join(self.workdir, 'pwned')
         original = rospy.get_param(name + '/telemetry_command')
 
+        node = self.node_of(name)     # the ground-truth host in the shared layout
+        status = name + (': hosted instance' if SHARED_LAYOUT else ': bad parameters')
+
         def shutdown():
-            uri = rosgraph.Master(rospy.get_name()).lookupNode(name)
-            xmlrpc.client.ServerProxy(uri).shutdown(rospy.get_name(), 'fault matrix: hostile_command')
-        old = processes.node_pid(name, self.uri)
+            def sent():
+                try:
+                    uri = rosgraph.Master(rospy.get_name()).lookupNode(node)
+                    xmlrpc.client.ServerProxy(uri).shutdown(rospy.get_name(), 'fault matrix: hostile_command')
+                    return True
+                except (OSError, rosgraph.MasterError):
+                    return False
+            processes.require(sent, 10.0, 'the XML-RPC shutdown of %s' % node,
+                              lambda: self.procs.log_tail('roslaunch', 30))
+        old = processes.node_pid(node, self.uri)
+        self.assertIsNotNone(old, '%s is not running:\n%s' % (node, self.procs.log_tail('roslaunch', 30)))
         rospy.set_param(name + '/telemetry_command', "sh -c 'touch %s'" % marker)
         t0 = time.time()
         shutdown()
         e, pid = [None], [None]
 
         def refused():
-            e[0], pid[0] = g.status(name + ': bad parameters', t0), processes.node_pid(name, self.uri)
+            e[0], pid[0] = g.status(status, t0), processes.node_pid(node, self.uri)
             return e[0] is not None and e[0][1] == 2 and 'refused' in e[0][2] and pid[0] not in (None, old)
         processes.require(refused, 30.0, 'the respawned interface refusing the command', lambda: str(e[0]))
         self.assertIn("telemetry_command: refused to run 'sh'", e[0][2])
         time.sleep(3.0)
-        self.assertEqual(processes.node_pid(name, self.uri), pid[0], 'up in ERROR, not respawned again')
+        self.assertEqual(processes.node_pid(node, self.uri), pid[0], 'up in ERROR, not respawned again')
         self.assertFalse(os.path.exists(marker), 'the hostile command ran')
         rospy.set_param(name + '/telemetry_command', original)
         t_fixed = time.time()
@@ -707,22 +822,25 @@ class TestFaultMatrix(unittest.TestCase):
             ok[0] = g.status(name + ': ground truth interface', t_fixed)
             return ok[0] is not None and ok[0][1] == 0 and 'publishing' in ok[0][2]
         processes.require(flowing, 30.0, 'the interface reading the telemetry again', lambda: str(ok[0]))
-        self.record('hostile_command', 'respawned (pid %d -> %d), ERROR "%s", same pid 3 s later, %s not created; '
-                    'parameter put back: OK "%s"' % (old, pid[0], e[0][2], os.path.basename(marker), ok[0][2]),
-                    'not needed (the drone\'s own interface untouched)', ok[0][0] - t_fixed)
+        self.record('hostile_command', '%srespawned (pid %d -> %d), ERROR "%s", same pid 3 s later, %s not created; '
+                    'parameter put back: OK "%s"' % ('%s (host of %s) ' % (node, name) if SHARED_LAYOUT else '', old,
+                                                     pid[0], e[0][2], os.path.basename(marker), ok[0][2]),
+                    'not needed (the drone\'s own interface %s)' % (
+                        'restarted with its host; the drone flies on its estimate' if SHARED_LAYOUT else 'untouched'),
+                    ok[0][0] - t_fixed)
 
     def test_08e_fleet_cap(self):
         from anafi_sim.launch_check import fleet_cap
         env = dict(self.env, ROS_MASTER_URI='http://127.0.0.1:%d' % processes.free_port())   # no master there
         t0 = time.time()
-        out = subprocess.run(['roslaunch', 'anafi_sim', 'fleet.launch', 'drones:=50'], env=env,
+        out = subprocess.run(['roslaunch', 'anafi_sim', 'fleet.launch', 'drones:=50', 'layout:=%s' % LAYOUT], env=env,
                              stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                              universal_newlines=True, timeout=120)
         seconds = time.time() - t0
         lines = [line for line in out.stdout.splitlines() if line.startswith('launch argument drones:=50')]
         self.assertNotEqual(out.returncode, 0, out.stdout[-2000:])
         self.assertEqual(len(lines), 1, out.stdout[-2000:])
-        self.assertIn('more than the fleet cap of %d' % fleet_cap(), lines[0])
+        self.assertIn('more than the fleet cap of %d' % fleet_cap(layout=LAYOUT), lines[0])
         self.assertNotIn('started with pid', out.stdout)               # nothing started, not even a master
         self.record('fleet_cap', 'exit status %d after %.1f s, nothing started: "%s"' % (out.returncode, seconds,
                                                                                         lines[0]),
@@ -731,7 +849,8 @@ class TestFaultMatrix(unittest.TestCase):
     def test_08b_simulator_restart(self):
         g = self.g
         self.fly()
-        old = processes.node_pid('/%s/anafi_sim' % DRONE, self.uri)
+        host = self.node_of('/%s/anafi_sim' % DRONE)     # the drones host in the shared layout
+        old = processes.node_pid(host, self.uri)
         before = self._interface()
         ctl_before = self.controller(0.0)
         t0 = time.time()
@@ -751,7 +870,7 @@ class TestFaultMatrix(unittest.TestCase):
                                       or stale_cycles(e) > stale_cycles(ctl_before), 8.0,
                                       'controller silent on the stale state')
         new = [None]
-        processes.require(lambda: new.__setitem__(0, processes.node_pid('/%s/anafi_sim' % DRONE, self.uri))
+        processes.require(lambda: new.__setitem__(0, processes.node_pid(host, self.uri))
                         or (new[0] not in (None, old)), 20.0, 'the simulator respawned')
         with g.lock:
             g.truth = []                  # the old flight's positions are not the new flight's
@@ -768,10 +887,13 @@ class TestFaultMatrix(unittest.TestCase):
         self.assertLess(iface_rec, 5.0 + 1.0, ok[0])     # + the 1 Hz diagnostics
         t_fixed = time.time()
         tracking_at = t_fixed + self.recover(t_fixed)
-        self.record('simulator_restart', 'interface ERROR "%s", controller silent (stale/no-state cycles %d -> %d); '
-                    'simulator respawned (pid %d -> %d); interface OK "%s" %.1f s after the new simulator\'s first '
+        self.record('simulator_restart', 'interface ERROR "%s", controller silent (%s); '
+                    'simulator respawned (%spid %d -> %d); interface OK "%s" %.1f s after the new simulator\'s first '
                     'sample (process restarts %d -> %d)'
-                    % (err[0][2], stale_cycles(ctl_before), stale_cycles(silent), old, new[0], ok[0][2], iface_rec,
+                    % (err[0][2], 'respawned with the host: "%s"' % silent[2] if SHARED_LAYOUT else
+                       'stale/no-state cycles %d -> %d' % (stale_cycles(ctl_before), stale_cycles(silent)),
+                       'the drones host %s with the controller, ' % host if SHARED_LAYOUT else '', old, new[0],
+                       ok[0][2], iface_rec,
                        counter(before, 'process restarts'), counter(ok[0], 'process restarts')),
                     'the simulated drone restarts (a new flight); no command meanwhile',
                     max(ok[0][0], tracking_at) - t_back)
@@ -809,7 +931,7 @@ class TestFaultMatrix(unittest.TestCase):
             before = self._interface()
             t0 = time.time()
             rospy.set_param(param, other.port)         # a stale / wrong port: the other drone's stream
-            psutil.Process(processes.node_pid('/%s/interface' % DRONE, self.uri)).children()[0].kill()
+            self.cli_of('/%s/interface' % DRONE, own_port).kill()
             err = [None]
 
             def refused():
@@ -880,12 +1002,14 @@ class TestFaultMatrix(unittest.TestCase):
         return self.g.status('/%s/gazebo_mirror' % DRONE, since)
 
     def test_08c_world_killed(self):
+        if SHARED_LAYOUT and self.node_of('/gazebo') != '/gazebo':
+            return self.world_host_killed()
         g = self.g
         self.fly()
         models = ('anafi', 'anafi_camera')
         processes.require(lambda: set(models) <= set(g.models[1]), 20.0, 'both models in the world',
                         lambda: str(g.models))
-        mirror = processes.node_pid('/%s/gazebo_mirror' % DRONE, self.uri)
+        mirror = self.pid_of('/%s/gazebo_mirror' % DRONE)
         world = processes.node_pid('/gazebo', self.uri)
         processes.require(lambda: self._mirror() is not None, 10.0, 'mirror diagnostics')
         before = self._mirror()
@@ -904,7 +1028,7 @@ class TestFaultMatrix(unittest.TestCase):
                 and g.models[0] > t0 and processes.node_pid('/gazebo', self.uri) not in (None, world)
         processes.require(back, 20.0, 'mirror reporting the lost world, then OK with both models back',
                         lambda: 'first non-OK %s, last %s, models %s' % (bad[0], ok[0], g.models))
-        self.assertEqual(processes.node_pid('/%s/gazebo_mirror' % DRONE, self.uri), mirror, 'the mirror died')
+        self.assertEqual(self.pid_of('/%s/gazebo_mirror' % DRONE), mirror, 'the mirror died')
         lost = counter(ok[0], 'world restarts') + counter(ok[0], 'world losses')
         self.assertGreater(lost, counter(before, 'world restarts') + counter(before, 'world losses'), ok[0])
         self.assertGreaterEqual(counter(ok[0], 'respawns'), counter(before, 'respawns') + 2, ok[0])
@@ -919,11 +1043,45 @@ class TestFaultMatrix(unittest.TestCase):
                        commands0),
                     'not needed (the drone keeps tracking at %.1f m/s)' % (g.speed() or 0.0), ok[0][0] - t0)
 
+    def world_host_killed(self):
+        """world_killed in the shared layout: the world's process is the ground-truth host (with the mirror)."""
+        g = self.g
+        self.fly()
+        models = ('anafi', 'anafi_camera')
+        processes.require(lambda: set(models) <= set(g.models[1]), 20.0, 'both models in the world',
+                          lambda: str(g.models))
+        host = self.node_of('/gazebo')
+        self.assertEqual(host, self.node_of('/%s/gazebo_mirror' % DRONE))
+        old = processes.node_pid(host, self.uri)
+        commands0 = g.command_rate()
+        t0 = time.time()
+        os.kill(old, signal.SIGKILL)
+        ok, new = [None], [None]
+
+        def back():
+            ok[0], new[0] = self._mirror(t0), processes.node_pid(host, self.uri)
+            return ok[0] is not None and ok[0][1] == 0 and set(models) <= set(g.models[1]) and g.models[0] > t0 \
+                and new[0] not in (None, old)
+        processes.require(back, 30.0, 'the host respawned, the world with both models, the mirror OK',
+                          lambda: 'mirror %s, models %s, host pid %s' % (ok[0], g.models, new[0]))
+        for m in models:      # the new mirror's models, in the new world (model_states since the kill: back())
+            self.assertIn('%s=spawned' % m, ok[0][3].get('models', ''), ok[0])
+        tracking = self.controller(t0)
+        self.assertEqual(tracking[2], 'tracking', 'the controller does not depend on the world')
+        self.assertGreater(g.command_rate(), 5.0)
+        self.record('world_killed', 'the ground-truth host %s (world, interfaces, mirror) killed and respawned '
+                    '(pid %d -> %d); the world back with both models, the new mirror OK "%s" (models %s); controller '
+                    '"%s", commands %.0f Hz (before %.0f Hz)'
+                    % (host, old, new[0], ok[0][2], ok[0][3].get('models'), tracking[2], g.command_rate(),
+                       commands0),
+                    'not needed (the drone keeps tracking at %.1f m/s)' % (g.speed() or 0.0), ok[0][0] - t0)
+
     def test_09_master_restart(self):
         g = self.g
         self.fly()
-        pids = dict((n, processes.node_pid(n, self.uri)) for n in ('/%s/mpc_controller' % DRONE,
+        pids = dict((n, self.pid_of(n)) for n in ('/%s/mpc_controller' % DRONE,
                                                                   '/%s/interface' % DRONE, '/%s/anafi_sim' % DRONE))
+        hosts = dict((n, self.node_of(n)) for n in pids)    # in the shared layout, the host of each
         t0 = time.time()
         self.procs.stop('roscore')
         time.sleep(2.0)
@@ -934,7 +1092,7 @@ class TestFaultMatrix(unittest.TestCase):
 
         def respawned():
             for n, old in pids.items():
-                p = processes.node_pid(n, self.uri)
+                p = self.pid_of(n)
                 if p is None or p == old:
                     return False
                 new[n] = p
@@ -950,13 +1108,15 @@ class TestFaultMatrix(unittest.TestCase):
         self.assertEqual(rc, 0, 'probe: the controller did not track a new waypoint publisher on the new master')
         recovery = time.time() - t0
         self.record('master_restart', 'nodes exited (75) and respawned: %s; a new waypoint publisher reaches the '
-                    'controller (OK tracking)' % ', '.join('%s %d -> %d' % (n.rsplit('/', 1)[1], pids[n], new[n])
-                                                          for n in sorted(new)),
+                    'controller (OK tracking)' % ', '.join(
+                        '%s%s %d -> %d' % (n.rsplit('/', 1)[1], ' (%s)' % hosts[n] if hosts[n] != n else '', pids[n],
+                                           new[n]) for n in sorted(new)),
                     'the respawned simulator starts a new flight', recovery)
         del t_back, g
 
     def test_10_clock_jump(self):
         """Own master with use_sim_time: the probe drives /clock, jumps it back, counts the commands."""
+        self.skip_shared('clock_jump')
         workdir = os.path.join(self.workdir, 'clock_jump')
         env = processes.ros_env(ros_home=os.path.join(workdir, 'ros_home'), log_dir=os.path.join(workdir, 'log'))
         env['PATH'] = os.path.dirname(sys.executable) + os.pathsep + env.get('PATH', '')
@@ -1184,4 +1344,4 @@ while True:
 
 
 if __name__ == '__main__':
-    rostest.rosrun('anafi_sim', 'fault_matrix', TestFaultMatrix, sys.argv)
+    rostest.rosrun('anafi_sim', 'fault_matrix_shared' if SHARED_LAYOUT else 'fault_matrix', TestFaultMatrix, sys.argv)

@@ -101,6 +101,28 @@ def test_doc_fault_table_lists_exactly_the_faults_of_the_test():
         assert fault_table.doc_faults(f.read()) == want
 
 
+def test_doc_shared_table_lists_the_fault_matrix_rows_and_how_each_runs():
+    rows = fault_table.shared_rows()
+    want = [name for name, _, _ in fault_table.test_faults(fault_table.TEST)]
+    assert [r[0] for r in rows] == want
+    assert set(fault_table._literal(fault_table.TEST, 'SHARED')) <= set(want)
+    assert set(kind for _, kind, _ in rows) <= {'runs', 'adapted', 'skipped'}
+    with open(fault_table.DOC) as f:
+        assert fault_table.doc_faults(f.read(), fault_table.SHARED_BEGIN, fault_table.SHARED_END) == want
+
+
+def test_shared_table_says_skipped_adapted_and_failed():
+    rows = [('a', 'runs', 'x'), ('b', 'adapted', 'the host'), ('c', 'skipped', 'why'), ('d', 'runs', 'x')]
+    text = fault_table.shared_table(rows, {'rows': [{'name': 'a', 'observed': 'fine', 'recovery': None},
+                                                    {'name': 'b', 'observed': 'ok | then', 'stop': '1 m', 'recovery': 2.04}],
+                                           'date': 'D'})
+    lines = text.splitlines()
+    assert lines[2] == '| `a` | runs | fine | - | - |'
+    assert lines[3] == '| `b` | adapted: the host | ok / then | 1 m | 2.0 |'
+    assert lines[4] == '| `c` | skipped: why | skipped | - | - |'
+    assert lines[5].startswith('| `d` | runs | FAILED')
+
+
 def test_fault_table_marks_unrecorded_faults_failed():
     faults = [('a', 'inj a', 'exp a'), ('b', 'inj b', 'exp b')]
     text = fault_table.table(faults, {'rows': [{'name': 'a', 'observed': 'x | y', 'stop': None, 'recovery': 1.26}],

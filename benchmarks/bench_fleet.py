@@ -263,6 +263,8 @@ def main(argv=None):
     ap.add_argument('--duration', type=float, default=30.0, help='s of wall time measured')
     ap.add_argument('--settle', type=float, default=10.0)
     ap.add_argument('--start-timeout', type=float, default=240.0)
+    ap.add_argument('--max-size', action='append', default=[], metavar='LAYOUT=N',
+                    help='run that layout only up to N drones (e.g. per_drone=10: larger ones never start in time)')
     ap.add_argument('--no-write', action='store_true')
     ap.add_argument('--from-json', action='store_true',
                     help='only rewrite fleet.md and the block of docs/fleet.md from fleet.json')
@@ -271,6 +273,12 @@ def main(argv=None):
         rewrite(fleet_report.load(RESULTS_JSON))
         return 0
     layouts = args.layouts or [args.layout or 'per_drone']
+    max_size = {}
+    for item in args.max_size:
+        layout, _, n = item.partition('=')
+        if layout not in fleet_report.LAYOUTS or not n.isdigit():
+            ap.error('--max-size: LAYOUT=N, got %r' % item)
+        max_size[layout] = int(n)
     if len(set(layouts)) != len(layouts):
         ap.error('--layouts: each layout once')
     if args.repeats < 1 or (args.repeats < 2 and not args.no_write):
@@ -285,6 +293,8 @@ def main(argv=None):
             for n in args.sizes:
                 for repeat in range(args.repeats):
                     for layout in layouts:
+                        if n > max_size.get(layout, n):
+                            continue
                         print('%s N = %d run %d ...' % (layout, n, repeat + 1), flush=True)
                         try:
                             r = bench.run_size(n, args, layout, repeat)

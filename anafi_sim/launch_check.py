@@ -91,9 +91,8 @@ def scenario_file(value):
 #: shared: fleet_host.py processes hosting one role of every drone): simulator + telemetry CLI + interface + mirror
 #: at 100 Hz + MPC + generator and the drone's share of the world and the master, the median over the runs at the
 #: largest fleet holding real time in benchmarks/results/fleet.json (benchmarks/bench_fleet.py; the generated
-#: block of docs/fleet.md quotes it; test/unit/sim/test_fleet_figures.py checks they agree). shared: the
-#: per_drone figure until the shared layout is measured.
-CPU_PER_DRONE = {'per_drone': 0.165, 'shared': 0.165}
+#: block of docs/fleet.md quotes it; test/unit/sim/test_fleet_figures.py checks they agree).
+CPU_PER_DRONE = {'per_drone': 0.271, 'shared': 0.087}
 #: the layout fleet.launch starts by default
 DEFAULT_LAYOUT = 'per_drone'
 

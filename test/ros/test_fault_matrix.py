@@ -128,8 +128,8 @@ FAULTS = (
      'refused to run \'sh\' ..." (not respawned again), FILE never created; the parameter put back and the '
      'node shut down again -> it reads the telemetry, OK'),
     ('fleet_cap', 'roslaunch anafi_sim fleet.launch drones:=50 (305 processes, 11 GB, the master unresponsive '
-     'for 150 s before)', 'refused before anything starts: one line naming drones and the cap (cores / 0.165 '
-     'core per drone, benchmarks/results/fleet.md), roslaunch exits non-zero, no node started'),
+     'for 150 s before)', 'refused before anything starts: one line naming drones and the cap (cores / the '
+     'layout\'s measured core per drone, benchmarks/results/fleet.md), roslaunch exits non-zero, no node started'),
     ('stderr_flood', '600 MB on the telemetry tool\'s stderr without a newline while it prints samples (a third '
      'interface, /flood, whose tlm-data-logger found on PATH is a test tool that floods stderr, then runs the '
      'stand-in)', 'stderr read with the same 4096-byte cap as stdout: the interface\'s memory stays that of an '

@@ -6,6 +6,7 @@ every run, the mirror included), the spread over the runs, the roles of a shared
 older one-run-per-size format. No ROS, no benchmark run."""
 import copy
 import importlib.util
+import functools
 import os
 import re
 
@@ -156,25 +157,30 @@ def test_the_fleet_cap_is_the_cpu_per_drone_measured_in_fleet_json():
 
 
 def stale_quotes(text, cpu_per_drone, cap):
-    """The quotes of the fleet cap in ``text`` that are not ``cpu_per_drone`` [core] or ``cap(cores)``."""
+    """The quotes of the fleet cap in ``text`` that are not ``cpu_per_drone`` [core] or ``cap(cores)`` (or, given
+    lists of each, not one of them: one per layout)."""
+    cpus = cpu_per_drone if isinstance(cpu_per_drone, (list, tuple)) else [cpu_per_drone]
+    caps = cap if isinstance(cap, (list, tuple)) else [cap]
     wrong = []
     for m in re.finditer(r'(\d+\.\d+)\s+core\s+per\s+drone|cores\s+/\s+(\d+\.\d+)', text):
         value = m.group(1) or m.group(2)
-        if value != '%.3f' % cpu_per_drone:
+        if value not in ['%.3f' % c for c in cpus]:
             wrong.append(m.group(0))
     for m in re.finditer(r'fleet\s+cap\s+of\s+(\d+)\s+\((\d+)\s+cores|(?:\(|:\s)(\d+)\s+on\s+(\d+)\s+cores', text):
         got, cores = (m.group(1), m.group(2)) if m.group(1) else (m.group(3), m.group(4))
-        if int(got) != cap(int(cores)):
+        if int(got) not in [c(int(cores)) for c in caps]:
             wrong.append(m.group(0))
     return wrong
 
 
 def test_every_quote_of_the_fleet_cap_is_the_cap_s():
-    cpu = launch_check.CPU_PER_DRONE['per_drone']
+    layouts = sorted(launch_check.CPU_PER_DRONE)
+    cpus = [launch_check.CPU_PER_DRONE[layout] for layout in layouts]
+    caps = [functools.partial(launch_check.fleet_cap, layout=layout) for layout in layouts]
     found = 0
     for name in QUOTE_FILES:
         text = _read(os.path.join(ROOT, name))
-        assert stale_quotes(text, cpu, launch_check.fleet_cap) == [], name
+        assert stale_quotes(text, cpus, caps) == [], name
         found += len(re.findall(r'core\s+per\s+drone|cores\s+/\s+\d|(?:\(|:\s)\d+\s+on\s+\d+\s+cores', text))
     assert found >= 3    # the docs block, docs/reliability.md, the fault table
 

@@ -93,21 +93,8 @@ def _odometry():
 def _drone_data():
     import rospy
     from anafi_sim.msg import DroneData
-    s = _sample()
-    d = DroneData()
-    d.header.stamp = rospy.Time.from_sec(time.time())
-    d.header.frame_id = 'world'
-    d.posX, d.posY, d.posZ = s.x, s.y, s.z
-    d.velXENU, d.velYENU, d.velZENU = s.vx, s.vy, s.vz
-    d.attitudeX, d.attitudeY, d.attitudeZ = s.roll, s.pitch, s.yaw
-    d.velXABC, d.velYABC, d.velZABC = s.body_vx, s.body_vy, s.body_vz
-    d.angVelXABC, d.angVelYABC, d.angVelZABC = s.body_wx, s.body_wy, s.body_wz
-    d.accXABC, d.accYABC, d.accZABC = s.body_ax, s.body_ay, s.body_az
-    d.angAccXABC, d.angAccYABC, d.angAccZABC = s.body_alpha_x, s.body_alpha_y, s.body_alpha_z
-    d.timeStamp = s.timestamp
-    d.gimbalPitchMotorAngle = s.gimbal_pitch
-    d.gimbalRollMotorAngle = s.gimbal_roll
-    return d
+    from anafi_sim.ros import conversions
+    return conversions.drone_data(DroneData(), _sample(), rospy.Time.from_sec(time.time()), 'world')
 
 
 def _sphinx():

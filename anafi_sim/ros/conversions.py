@@ -123,3 +123,21 @@ def waypoint_limits(p):
                           min_altitude=p.number('min_altitude', d['min_altitude']),
                           max_altitude=p.number('max_altitude', d['max_altitude']),
                           max_waypoint_jump=p.positive('max_waypoint_jump', d['max_waypoint_jump']))
+
+
+def drone_data(msg, s, stamp, frame_id):
+    """``msg`` (an anafi_sim/DroneData) filled with the telemetry sample ``s`` (TelemetrySample, SI units, world
+    ENU and body FLU frames), stamped ``stamp`` (rospy.Time) in ``frame_id``; returns it."""
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.posX, msg.posY, msg.posZ = s.x, s.y, s.z
+    msg.velXENU, msg.velYENU, msg.velZENU = s.vx, s.vy, s.vz
+    msg.attitudeX, msg.attitudeY, msg.attitudeZ = s.roll, s.pitch, s.yaw
+    msg.velXABC, msg.velYABC, msg.velZABC = s.body_vx, s.body_vy, s.body_vz
+    msg.angVelXABC, msg.angVelYABC, msg.angVelZABC = s.body_wx, s.body_wy, s.body_wz
+    msg.accXABC, msg.accYABC, msg.accZABC = s.body_ax, s.body_ay, s.body_az
+    msg.angAccXABC, msg.angAccYABC, msg.angAccZABC = s.body_alpha_x, s.body_alpha_y, s.body_alpha_z
+    msg.timeStamp = s.timestamp
+    msg.gimbalPitchMotorAngle = s.gimbal_pitch
+    msg.gimbalRollMotorAngle = s.gimbal_roll
+    return msg

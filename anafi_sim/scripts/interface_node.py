@@ -246,19 +246,7 @@ class InterfaceNode(object):
             self.pub_odom.publish(o)
         data = self.pub_data.get_num_connections()
         if data or self.pub_sphinx.get_num_connections():
-            d = DroneData()
-            d.header.stamp = stamp
-            d.header.frame_id = self.frame_id
-            d.posX, d.posY, d.posZ = s.x, s.y, s.z
-            d.velXENU, d.velYENU, d.velZENU = s.vx, s.vy, s.vz
-            d.attitudeX, d.attitudeY, d.attitudeZ = s.roll, s.pitch, s.yaw
-            d.velXABC, d.velYABC, d.velZABC = s.body_vx, s.body_vy, s.body_vz
-            d.angVelXABC, d.angVelYABC, d.angVelZABC = s.body_wx, s.body_wy, s.body_wz
-            d.accXABC, d.accYABC, d.accZABC = s.body_ax, s.body_ay, s.body_az
-            d.angAccXABC, d.angAccYABC, d.angAccZABC = s.body_alpha_x, s.body_alpha_y, s.body_alpha_z
-            d.timeStamp = s.timestamp
-            d.gimbalPitchMotorAngle = s.gimbal_pitch
-            d.gimbalRollMotorAngle = s.gimbal_roll
+            d = conversions.drone_data(DroneData(), s, stamp, self.frame_id)
             if data:
                 self.pub_data.publish(d)
             if self.pub_sphinx.get_num_connections():

@@ -138,6 +138,11 @@ def max_drones(value):
     return None if value.isdigit() else 'must be an integer >= 0 (0: the cap derived from the CPU cores)'
 
 
+def layout(value):
+    return None if value in ('',) + tuple(sorted(CPU_PER_DRONE)) else \
+        'must be %s, or empty (the fleet file\'s)' % ' or '.join(sorted(CPU_PER_DRONE))
+
+
 def controller(value):
     return None if value in ('mpc', 'pid', 'preview_mpc') else 'must be mpc, pid or preview_mpc'
 
@@ -154,6 +159,7 @@ RULES = {
     'pid_mode': pid_mode, 'mirror': flag, 'record': flag, 'plot': flag, 'rviz': flag, 'sync': flag,
     'sync_period': positive, 'sync_timeout': positive, 'progress_period': non_negative,
     'ready_timeout': positive, 'mirror_rate': positive, 'drones': drones, 'max_drones': max_drones,
+    'layout': layout,
 }
 
 
@@ -173,7 +179,9 @@ def check(args):
         problem = rule(value)
         if problem is None and name == 'drones' and int(value) > 0:
             limit = given.get('max_drones', '0')
-            problem = fleet_size_problem(int(value), int(limit) if limit.isdigit() else 0)
+            layout = given.get('layout') or DEFAULT_LAYOUT     # '' = the fleet file's: its launcher checks again
+            problem = fleet_size_problem(int(value), int(limit) if limit.isdigit() else 0,
+                                         layout=layout if layout in CPU_PER_DRONE else DEFAULT_LAYOUT)
         if problem:
             errors.append('launch argument %s:=%s: %s' % (name, value, problem))
     return errors

@@ -77,3 +77,13 @@ def test_drones_above_the_cap_fail_the_launch_check():
     assert line.startswith('launch argument drones:=') and 'fleet cap' in line
     assert check(parse(['drones=%d' % (fleet_cap() + 1), 'max_drones=%d' % (fleet_cap() + 1)])) == []
     assert check(parse(['drones=0'])) == []
+
+
+def test_the_fleet_size_is_checked_against_the_layout_given(monkeypatch):
+    monkeypatch.setattr(launch_check, 'CPU_PER_DRONE', {'per_drone': 0.2, 'shared': 0.1})
+    monkeypatch.setattr(launch_check, 'available_cores', lambda: 2)
+    assert launch_check.check([('drones', '15'), ('layout', 'shared')]) == []
+    [line] = launch_check.check([('drones', '15'), ('layout', '')])      # '' = per_drone here (its launcher rechecks)
+    assert 'fleet cap of 10' in line
+    [line] = launch_check.check([('layout', 'pooled')])
+    assert 'must be per_drone or shared' in line

@@ -5,6 +5,7 @@ import sys
 
 import pytest
 
+from anafi_sim import launch_check
 from anafi_sim.launch_check import RULES, check, parse
 from conftest import ROOT
 

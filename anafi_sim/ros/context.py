@@ -201,8 +201,13 @@ class LocalBus(object):
         with self._lock:
             self._subscribers[topic] = self._subscribers.get(topic, ()) + (entry,)
             latched = self._latched.get(topic)
-        if latched is not None:
-            self._call(topic, (entry,), latched)
+        if latched is not None:      # a latched topic: its last message, as rospy gives a late subscriber
+            if deferred:
+                with self._ready:
+                    self._queue.append((topic, (entry,), latched))
+                    self._ready.notify()
+            else:
+                self._call(topic, (entry,), latched)
         own = self.caller_id
 
         def from_elsewhere(msg):
@@ -226,29 +231,29 @@ class LocalBus(object):
             with self._lock:
                 self._latched[topic] = msg
         entries = self._subscribers.get(topic)
-        if entries:
-            self._call(topic, entries, msg)
+        if not entries:
+            return
+        self.delivered += 1
+        later = tuple(e for e in entries if e[1])
+        self._call(topic, [e for e in entries if not e[1]] if later else entries, msg)
+        if later:
+            with self._ready:
+                self._queue.append((topic, later, msg))
+                self._ready.notify()
 
-    def _call(self, topic, entries, msg, deferring=True):
-        later = None
+    def _call(self, topic, entries, msg):
+        """Each callback of ``entries`` with ``msg``, guarded: one instance's failing callback is counted and
+        logged, the others still get the message."""
         for entry in entries:
-            if entry[1] and deferring:
-                later = (later or ()) + (entry,)
-                continue
             try:
                 entry[0](msg)
-            except Exception as error:     # one instance's failing callback must not stop the others
+            except Exception as error:
                 self.callback_errors += 1
                 if self.on_error is not None:
                     self.on_error(topic, error)
                 else:
                     rospy.logerr_throttle(5.0, 'host: a callback of %s failed (%d so far): %s: %s' % (
                         topic, self.callback_errors, type(error).__name__, error))
-        if later:
-            with self._ready:
-                self._queue.append((topic, later, msg))
-                self._ready.notify()
-        self.delivered += 1
 
     def _start_delivery(self):
         with self._lock:
@@ -267,8 +272,7 @@ class LocalBus(object):
                 batch = list(queue)
                 queue.clear()
             for topic, entries, msg in batch:
-                self._call(topic, entries, msg, deferring=False)
-                self.delivered -= 1      # counted once, when published
+                self._call(topic, entries, msg)
 
     def pending(self):
         """Deferred deliveries waiting for the delivery thread."""

@@ -65,12 +65,28 @@ def new_stream_id(random_bytes=os.urandom):
     return int.from_bytes(random_bytes(4), 'big') % STREAM_ID_MAX + 1
 
 
+_TEMPLATES = {}
+
+
+def _template(prefix, stream_id):
+    """The ``%`` format string of one sample's lines, with the keys in, and the sample field of each ``%.9g``."""
+    entry = _TEMPLATES.get((prefix, stream_id))
+    if entry is None:
+        keys = key_map(prefix)
+        head = '' if stream_id is None else '%s%s : %d\n' % (prefix, STREAM_ID_KEY, stream_id)
+        text = head.replace('%', '%%') + ''.join(key.replace('%', '%%') + ' : %.9g\n' for key in keys)
+        index = dict((f, i) for i, f in enumerate(FIELDS))
+        entry = (text, tuple(index[field] for field in keys.values()))
+        if len(_TEMPLATES) < 1024:     # one per simulator; bounded whatever callers pass
+            _TEMPLATES[(prefix, stream_id)] = entry
+    return entry
+
+
 def format_sample(sample, prefix=DEFAULT_PREFIX, stream_id=None):
     """The lines ``tlm-data-logger`` prints for one sample, as one string (ends with a newline); with
     ``stream_id`` the sample starts with the stand-in's ``<prefix>streamId : N`` line."""
-    head = '' if stream_id is None else '%s%s : %d\n' % (prefix, STREAM_ID_KEY, stream_id)
-    return head + ''.join('%s : %.9g\n' % (key, getattr(sample, field))
-                   for key, field in key_map(prefix).items())
+    text, order = _template(prefix, stream_id)
+    return text % tuple([sample[i] for i in order])
 
 
 # --- Parsing (interface side) ------------------------------------------------

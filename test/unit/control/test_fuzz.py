@@ -147,6 +147,34 @@ def test_supervisor_line_reader_caps_lines_and_counts_the_dropped_ones(chunks):
     assert all(len(line.encode('utf-8')) <= 3 * 4096 for line in got)   # decoded with 'replace'
 
 
+class _Chunks(object):
+    """A stdout whose reads return the given chunks one by one (a pipe's reads cut anywhere)."""
+
+    def __init__(self, chunks):
+        self._chunks = [c for c in chunks if c]
+
+    def read1(self, size):
+        return self._chunks.pop(0) if self._chunks else b''
+
+
+@fuzz(max(20, EXAMPLES // 2))
+@given(st.lists(chunk, max_size=8), st.lists(st.integers(min_value=1, max_value=6000), max_size=12))
+def test_supervisor_line_reader_gives_the_same_lines_however_the_reads_cut_them(chunks, cuts):
+    data = b''.join(chunks)
+    whole, pieces = [], []
+    one = ProcessSupervisor(['true'], lambda line, t: whole.append(line) or False, max_line=4096)
+    one._read_stdout(types.SimpleNamespace(stdout=_Chunks([data])))
+    reads, at = [], 0
+    for size in cuts:
+        reads.append(data[at:at + size])
+        at += size
+    reads.append(data[at:])
+    cut = ProcessSupervisor(['true'], lambda line, t: pieces.append(line) or False, max_line=4096)
+    cut._read_stdout(types.SimpleNamespace(stdout=_Chunks(reads)))
+    assert pieces == whole
+    assert (cut.lines, cut.oversize_lines) == (one.lines, one.oversize_lines)
+
+
 def _csv_cell():
     return st.one_of(st.builds(repr, any_float), st.text(max_size=6), st.just(''))
 

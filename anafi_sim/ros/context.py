@@ -130,11 +130,19 @@ class LocalPublisher(object):
         self.latch = latch
         self.name = topic
         self.resolved_name = topic
+        self._counted = (None, 0, 0)     # (rospy's connection list, its length, external subscribers in it)
 
     def external_connections(self):
-        """Subscribers of this topic outside the host (rospy's connections, less the host's own)."""
+        """Subscribers of this topic outside the host (rospy's connections, less the host's own); counted again
+        only when rospy's list changed (rospy replaces the list on every change, or empties it in place)."""
+        connections = self.pub.impl.connections
+        listed, length, count = self._counted
+        if listed is connections and length == len(connections):
+            return count
         own = self.bus.caller_id
-        return sum(1 for c in list(self.pub.impl.connections) if getattr(c, 'endpoint_id', None) != own)
+        count = sum(1 for c in list(connections) if getattr(c, 'endpoint_id', None) != own)
+        self._counted = (connections, len(connections), count)
+        return count
 
     def get_num_connections(self):
         return self.external_connections() + len(self.bus.local_callbacks(self.topic))
@@ -185,6 +193,15 @@ class LocalBus(object):
         self._static_pub = None
         self.delivered = 0
         self.callback_errors = 0
+        self._shared = {}
+
+    def shared(self, key, make):
+        """The host's one object for ``key``, made by ``make()`` for the first instance that asks (e.g. one
+        world check for every mirror of the host)."""
+        with self._lock:
+            if key not in self._shared:
+                self._shared[key] = make()
+            return self._shared[key]
 
     def publisher(self, topic, data_class, latch=False, owner=None, **kwargs):
         """A LocalPublisher of ``topic``; ``owner``: the publishing instance's name (the callerid local

@@ -62,6 +62,20 @@ def test_local_subscribers_get_the_message_in_the_publishing_thread_with_its_pub
     assert pub.get_num_connections() == 1
 
 
+def test_external_subscribers_are_recounted_whenever_rospy_changes_its_connection_list(bus):
+    pub = bus.publisher('/a/t', String, owner='/a/node')
+    listed = pub.pub.impl.connections = [Conn('/rosbag')]
+    assert pub.external_connections() == 1
+    pub.pub.impl.connections = [Conn('/rosbag'), Conn('/rviz'), Conn('/host')]    # a subscriber came (a new list)
+    assert pub.external_connections() == 2
+    pub.pub.impl.connections = listed                                              # went again
+    assert pub.external_connections() == 1
+    del listed[:]                                                                  # rospy closing: emptied in place
+    assert pub.external_connections() == 0
+    pub.publish(String(data='x'))
+    assert pub.pub.sent == []
+
+
 def test_rospy_gets_it_when_another_process_listens_and_the_hosts_copies_are_dropped(bus):
     got = []
     bus.subscriber('/a/t', String, lambda m: got.append(m.data))

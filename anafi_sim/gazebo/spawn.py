@@ -157,6 +157,31 @@ def call_with_timeout(function, timeout):
     return True, box['result']
 
 
+class SharedCheck(object):
+    """One world check for the drivers of one process (a fleet host's mirrors): ``check()`` (e.g. the first
+    driver's ``probe``) runs at most once per ``max_age`` s; a caller in between gets its last answer, a caller
+    during it waits for it."""
+
+    def __init__(self, check, max_age, clock=time.monotonic):
+        if not max_age > 0:
+            raise ValueError('max_age must be > 0, got %r' % (max_age,))
+        self._check = check
+        self.max_age = float(max_age)
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._at = None
+        self._answer = None
+        self.checks = 0
+
+    def __call__(self):
+        with self._lock:
+            if self._at is None or self._clock() - self._at >= self.max_age:
+                self._answer = self._check()
+                self._at = self._clock()
+                self.checks += 1
+            return self._answer
+
+
 class SpawnDriver(object):
     """Keeps the models of a ``SpawnTracker`` in one world; the calls come from the node (no ROS here).
 
@@ -189,6 +214,7 @@ class SpawnDriver(object):
         self.absent_log_period = float(absent_log_period)
         self.lock = lock if lock is not None else threading.Lock()
         self._clock = clock
+        self.shared_check = None      # a SharedCheck of several drivers in one process (None: own checks)
         self.missed_checks = 0        # checks that found the world gone, not (yet) confirmed
         self._missed = False
         self._next_check = None
@@ -205,7 +231,14 @@ class SpawnDriver(object):
 
     # ------------------------------------------------------------------ the world
     def endpoint(self):
-        """URI of the reachable spawn service, or None (contacted first, looked up after: see module doc)."""
+        """URI of the reachable spawn service, or None (contacted first, looked up after: see module doc);
+        through ``shared_check`` when one is set."""
+        if self.shared_check is not None:
+            return self.shared_check()
+        return self.probe()
+
+    def probe(self):
+        """Contact the spawn service, then look up its URI: the URI, or None."""
         try:
             if self._contact(self.contact_timeout) is False:
                 return None

@@ -34,7 +34,7 @@ from nav_msgs.msg import Odometry
 
 from anafi_sim import paths
 from anafi_sim.gazebo.mirror import CAMERA_ATTITUDE_SOURCES, Mirror, model_names, model_warnings, namespaced_model_xml
-from anafi_sim.gazebo.spawn import SpawnDriver
+from anafi_sim.gazebo.spawn import SharedCheck, SpawnDriver
 from anafi_sim.msg import DroneData
 from anafi_sim import names
 from anafi_sim.ros import conversions, gazebo_types
@@ -129,6 +129,10 @@ class GazeboMirrorNode(object):
             lookup=lambda: master.lookupService(self.spawn_service), spawn=self._spawn, delete=self._delete,
             service=self.spawn_service, label='mirror', check_period=params['world_check_period'],
             absent_log_period=LOG_REPEAT, lock=self.lock)
+        if ctx.hosted:     # the host's mirrors share one world check (the same service, master and process)
+            self.spawner.shared_check = ctx.bus.shared(
+                ('world check', self.spawn_service),
+                lambda: SharedCheck(self.spawner.probe, 0.5 * params['world_check_period']))
         self.service_failures = 0
         self._set_proxy = None
         self.state_pub = None

@@ -303,3 +303,42 @@ def test_driver_refuses_non_positive_periods():
     world = FakeWorld()
     with pytest.raises(ValueError, match='periods and timeouts must be > 0'):
         driver(world, spawn_timeout=0.0)
+
+
+def test_a_shared_check_asks_the_world_once_per_max_age_for_every_driver():
+    world = FakeWorld()
+    clock = Clock()
+    drivers = [spawn.SpawnDriver(spawn.SpawnTracker(('anafi%d' % i,), retry_period=1.0), world.contact,
+                                 world.lookup, world.spawn, world.delete, clock=clock, label='mirror%d' % i)
+               for i in range(20)]
+    shared = spawn.SharedCheck(drivers[0].probe, 0.25, clock=clock)
+    for d in drivers:
+        d.shared_check = shared
+    for step in range(4):                 # every driver checks every 0.5 s (their default check period)
+        for d in drivers:
+            d.check_world()
+            d.do_actions()
+        clock.t += 0.5
+    assert shared.checks == 4 and world.calls == ['contact', 'lookup'] * 4
+    assert all(d.tracker.all_spawned for d in drivers)
+    world.kill()
+    world.uri = None                      # the world is lost: each driver confirms it on its next check
+    for d in drivers:
+        assert d.check_world() == []
+    clock.t += 0.5
+    for d in drivers:
+        logs = d.check_world()
+        assert logs and logs[0][0] == 'error' and not d.tracker.world_available
+
+
+def test_a_shared_check_answers_callers_in_between_and_refuses_a_bad_age():
+    clock = Clock()
+    answers = iter(['rosrpc://a:1', None])
+    shared = spawn.SharedCheck(lambda: next(answers), 0.25, clock=clock)
+    assert shared() == shared() == 'rosrpc://a:1'
+    clock.t = 0.24
+    assert shared() == 'rosrpc://a:1'
+    clock.t = 0.25
+    assert shared() is None and shared.checks == 2
+    with pytest.raises(ValueError):
+        spawn.SharedCheck(lambda: None, 0.0)

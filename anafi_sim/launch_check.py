@@ -93,6 +93,10 @@ def scenario_file(value):
 #: largest fleet holding real time in benchmarks/results/fleet.json (benchmarks/bench_fleet.py; the generated
 #: block of docs/fleet.md quotes it; test/unit/sim/test_fleet_figures.py checks they agree).
 CPU_PER_DRONE = {'per_drone': 0.271, 'shared': 0.087}
+#: [drones per core] the smallest fleet measured NOT to hold real time above the largest one holding, per core of
+#: the measuring machine, per layout (None: no larger size failed), from the same runs: the cap stays below it
+#: (where the latency of a busy process limits before the cores are full, cores / CPU_PER_DRONE overshoots)
+FAILING_PER_CORE = {'per_drone': 4.0, 'shared': 10.0}
 #: the layout fleet.launch starts by default
 DEFAULT_LAYOUT = 'per_drone'
 
@@ -106,9 +110,15 @@ def available_cores():
 
 
 def fleet_cap(cores=None, layout=DEFAULT_LAYOUT):
-    """The largest fleet this machine runs at real time in ``layout``: cores / CPU_PER_DRONE[layout], at least 1
+    """The largest fleet this machine runs at real time in ``layout``: cores / CPU_PER_DRONE[layout], and below
+    cores x FAILING_PER_CORE[layout] (the smallest size measured not to hold, scaled to the cores), at least 1
     (KeyError for an unknown layout)."""
-    return max(1, int((available_cores() if cores is None else cores) / CPU_PER_DRONE[layout]))
+    cores = available_cores() if cores is None else cores
+    cap = int(cores / CPU_PER_DRONE[layout])
+    failing = FAILING_PER_CORE[layout]
+    if failing:
+        cap = min(cap, int(math.ceil(cores * failing - 1e-9)) - 1)
+    return max(1, cap)
 
 
 def fleet_size_problem(count, max_drones=0, cores=None, layout=DEFAULT_LAYOUT):
@@ -121,8 +131,10 @@ def fleet_size_problem(count, max_drones=0, cores=None, layout=DEFAULT_LAYOUT):
         cap = fleet_cap(n, layout)
         where = 'benchmarks/results/fleet.md' if layout == DEFAULT_LAYOUT else \
             '%s layout, benchmarks/results/fleet.md' % layout
-        why = ('%d cores / %.3f core per drone (%s): slower than real time beyond it; max_drones:=N to raise it'
-               % (n, CPU_PER_DRONE[layout], where))
+        bound = '' if cap == int(n / CPU_PER_DRONE[layout]) or cap == 1 else \
+            ', below the %g drones per core measured not to hold' % FAILING_PER_CORE[layout]
+        why = ('%d cores / %.3f core per drone%s (%s): slower than real time beyond it; max_drones:=N to raise it'
+               % (n, CPU_PER_DRONE[layout], bound, where))
     if count > cap:
         return '%d drones is more than the fleet cap of %d (%s)' % (count, cap, why)
     return None

@@ -170,8 +170,22 @@ def headline(data, rows=None):
         failing = [r['n'] for r in mine if not r['holds'] and (best is None or r['n'] > best['n'])]
         out.append({'layout': layout, 'row': best, 'n': best['n'] if best else None,
                     'sizes': [r['n'] for r in mine], 'failing_above': failing,
-                    'cpu_per_drone': cap_cpu_per_drone(data, layout, rows)})
+                    'cpu_per_drone': cap_cpu_per_drone(data, layout, rows),
+                    'failing_per_core': cap_failing_per_core(data, layout, rows)})
     return out
+
+
+def cap_failing_per_core(data, layout, rows=None):
+    """[drones per core] the smallest size not holding real time above the largest one holding, divided by the
+    measuring machine's cores (anafi_sim.launch_check.FAILING_PER_CORE; None: none such, or no cores recorded)."""
+    rows = summary(data) if rows is None else rows
+    mine = [r for r in rows if r['layout'] == layout]
+    held = [r['n'] for r in mine if r['holds']]
+    failing = [r['n'] for r in mine if not r['holds'] and (not held or r['n'] > max(held))]
+    cores = (data.get('machine') or {}).get('cores')
+    if not failing or not cores:
+        return None
+    return round(min(failing) / float(cores), 3)
 
 
 def cap_cpu_per_drone(data, layout, rows=None):
@@ -211,9 +225,15 @@ def runs_text(k):
     return '1 run' if k == 1 else '%d runs' % k
 
 
-def fleet_cap(cores, cpu_per_drone):
-    """The fleet cap ``cores`` / ``cpu_per_drone`` [core] (anafi_sim.launch_check.fleet_cap's rule), at least 1."""
-    return max(1, int(cores / cpu_per_drone)) if cores and cpu_per_drone else None
+def fleet_cap(cores, cpu_per_drone, failing_per_core=None):
+    """The fleet cap ``cores`` / ``cpu_per_drone`` [core], below ``cores`` x ``failing_per_core`` (anafi_sim.
+    launch_check.fleet_cap's rule), at least 1."""
+    if not cores or not cpu_per_drone:
+        return None
+    cap = int(cores / cpu_per_drone)
+    if failing_per_core:
+        cap = min(cap, int(math.ceil(cores * failing_per_core - 1e-9)) - 1)
+    return max(1, cap)
 
 
 def environment():

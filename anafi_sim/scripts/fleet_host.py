@@ -21,8 +21,9 @@ share stopped gets no command (the simulated firmware hovers after its command t
 Parameters: ~instances (list of {name, type}; required), ~diagnostics_period (1.0 s). Sets ~wiring: per instance
 the global names of the topics it publishes and subscribes and its services (the master sees them as the
 host's; tests and users see here which drone's instance uses which).
-Publishes /diagnostics: '<host>: fleet host' (instances running / failed, bus deliveries and callback errors)
-and, for an instance that failed, '<instance>: hosted instance' ERROR.
+Publishes /diagnostics: '<host>: fleet host' (instances running / failed, bus deliveries, callback errors and
+deliveries waiting for the bus's delivery thread) and, for an instance that failed, '<instance>: hosted instance'
+ERROR.
 """
 import os
 import runpy
@@ -107,7 +108,8 @@ class FleetHost(object):
                 ', %d failed: %s' % (len(failed), ', '.join(i.name for i in failed)) if failed else ''),
             [('instances', str(len(self.instances))), ('failed', str(len(failed))),
              ('bus deliveries', str(self.bus.delivered)),
-             ('callback errors', str(self.bus.callback_errors))])]
+             ('callback errors', str(self.bus.callback_errors)),
+             ('deliveries waiting', str(self.bus.pending()))])]
         for inst in failed:
             statuses.append(diagnostic_status('%s: hosted instance' % inst.name, ERROR, inst.error,
                                               [('type', inst.kind), ('host', rospy.get_name())],

@@ -156,6 +156,28 @@ def test_the_fleet_cap_is_the_cpu_per_drone_measured_in_fleet_json():
             assert launch_check.CPU_PER_DRONE[layout] == launch_check.CPU_PER_DRONE['per_drone']
 
 
+def test_the_fleet_cap_stays_below_the_smallest_size_fleet_json_saw_fail():
+    data = report.load(FLEET_JSON)
+    for layout in report.LAYOUTS:
+        if layout in data['layouts']:
+            measured = report.cap_failing_per_core(data, layout)
+            assert launch_check.FAILING_PER_CORE[layout] == (None if measured is None else pytest.approx(measured)), \
+                'set launch_check.FAILING_PER_CORE[%r] = %r (fleet.json)' % (layout, measured)
+            head = [h for h in report.headline(data) if h['layout'] == layout][0]
+            if head['failing_above']:
+                assert launch_check.fleet_cap(data['machine']['cores'], layout) < min(head['failing_above'])
+
+
+def test_the_failing_size_per_core_is_the_smallest_failing_above_the_largest_holding():
+    runs = [_run(4), _run(4, 1), _run(8, mirror=90.0), _run(8, 1), _run(12), _run(12, 1), _run(16, rtf=0.5)]
+    data = _data(runs)
+    assert report.cap_failing_per_core(data, 'per_drone') == 8.0      # 8 failed once, 12 held: 16 fails above it
+    data = _data([_run(4), _run(8, truth=90.0), _run(12, mirror=80.0)])
+    assert report.cap_failing_per_core(data, 'per_drone') == 4.0
+    assert report.cap_failing_per_core(_data([_run(4), _run(8)]), 'per_drone') is None
+    assert report.fleet_cap(2, 0.06, 12.5) == 24 and report.fleet_cap(2, 0.271, None) == 7
+
+
 def stale_quotes(text, cpu_per_drone, cap):
     """The quotes of the fleet cap in ``text`` that are not ``cpu_per_drone`` [core] or ``cap(cores)`` (or, given
     lists of each, not one of them: one per layout)."""

@@ -58,6 +58,7 @@ def test_the_fleet_cap_comes_from_the_measured_cost_per_drone(monkeypatch):
     from anafi_sim import launch_check
     from anafi_sim.launch_check import fleet_cap, fleet_size_problem
     monkeypatch.setattr(launch_check, 'CPU_PER_DRONE', {'per_drone': 0.165, 'shared': 0.1})
+    monkeypatch.setattr(launch_check, 'FAILING_PER_CORE', {'per_drone': None, 'shared': None})
     assert fleet_cap(2) == 12 and fleet_cap(1) == 6 and fleet_cap(0.1) == 1
     assert fleet_cap(2, 'shared') == 20 and fleet_cap(2, layout='per_drone') == 12
     assert fleet_size_problem(12, cores=2) is None and fleet_size_problem(20, cores=2, layout='shared') is None
@@ -72,6 +73,21 @@ def test_the_fleet_cap_comes_from_the_measured_cost_per_drone(monkeypatch):
         fleet_cap(2, 'no_such_layout')
 
 
+def test_the_fleet_cap_stays_below_the_smallest_fleet_measured_not_to_hold(monkeypatch):
+    from anafi_sim import launch_check
+    from anafi_sim.launch_check import fleet_cap, fleet_size_problem
+    monkeypatch.setattr(launch_check, 'CPU_PER_DRONE', {'per_drone': 0.271, 'shared': 0.06})
+    monkeypatch.setattr(launch_check, 'FAILING_PER_CORE', {'per_drone': 4.0, 'shared': 12.5})
+    assert fleet_cap(2) == 7                     # 2 / 0.271 = 7.4 and 8 did not hold: 7 either way
+    assert fleet_cap(2, 'shared') == 24          # 2 / 0.06 = 33, but 25 did not hold on 2 cores
+    assert fleet_cap(4, 'shared') == 49 and fleet_cap(1, 'shared') == 12 and fleet_cap(0.01, 'shared') == 1
+    assert fleet_size_problem(24, cores=2, layout='shared') is None
+    problem = fleet_size_problem(25, cores=2, layout='shared')
+    assert problem.startswith('25 drones is more than the fleet cap of 24 (2 cores / 0.060 core per drone, below '
+                              'the 12.5 drones per core measured not to hold (shared layout')
+    assert 'measured not to hold' not in fleet_size_problem(8, cores=2)
+
+
 def test_drones_above_the_cap_fail_the_launch_check():
     from anafi_sim.launch_check import fleet_cap
     [line] = check(parse(['drones=%d' % (fleet_cap() + 1), 'max_drones=0']))
@@ -82,6 +98,7 @@ def test_drones_above_the_cap_fail_the_launch_check():
 
 def test_the_fleet_size_is_checked_against_the_layout_given(monkeypatch):
     monkeypatch.setattr(launch_check, 'CPU_PER_DRONE', {'per_drone': 0.2, 'shared': 0.1})
+    monkeypatch.setattr(launch_check, 'FAILING_PER_CORE', {'per_drone': None, 'shared': None})
     monkeypatch.setattr(launch_check, 'available_cores', lambda: 2)
     assert launch_check.check([('drones', '15'), ('layout', 'shared')]) == []
     [line] = launch_check.check([('drones', '15'), ('layout', '')])      # '' = per_drone here (its launcher rechecks)

@@ -92,11 +92,11 @@ def scenario_file(value):
 #: at 100 Hz + MPC + generator and the drone's share of the world and the master, the median over the runs at the
 #: largest fleet holding real time in benchmarks/results/fleet.json (benchmarks/bench_fleet.py; the generated
 #: block of docs/fleet.md quotes it; test/unit/sim/test_fleet_figures.py checks they agree).
-CPU_PER_DRONE = {'per_drone': 0.271, 'shared': 0.087}
+CPU_PER_DRONE = {'per_drone': 0.228, 'shared': 0.064}
 #: [drones per core] the smallest fleet measured NOT to hold real time above the largest one holding, per core of
 #: the measuring machine, per layout (None: no larger size failed), from the same runs: the cap stays below it
 #: (where the latency of a busy process limits before the cores are full, cores / CPU_PER_DRONE overshoots)
-FAILING_PER_CORE = {'per_drone': 4.0, 'shared': 10.0}
+FAILING_PER_CORE = {'per_drone': 4.0, 'shared': 15.0}
 #: the layout fleet.launch starts by default
 DEFAULT_LAYOUT = 'per_drone'
 
@@ -132,7 +132,7 @@ def fleet_size_problem(count, max_drones=0, cores=None, layout=DEFAULT_LAYOUT):
         where = 'benchmarks/results/fleet.md' if layout == DEFAULT_LAYOUT else \
             '%s layout, benchmarks/results/fleet.md' % layout
         bound = '' if cap == int(n / CPU_PER_DRONE[layout]) or cap == 1 else \
-            ', below the %g drones per core measured not to hold' % FAILING_PER_CORE[layout]
+            ', below %d drones (%g per core) measured not to hold' % (cap + 1, FAILING_PER_CORE[layout])
         why = ('%d cores / %.3f core per drone%s (%s): slower than real time beyond it; max_drones:=N to raise it'
                % (n, CPU_PER_DRONE[layout], bound, where))
     if count > cap:

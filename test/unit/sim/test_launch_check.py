@@ -84,7 +84,7 @@ def test_the_fleet_cap_stays_below_the_smallest_fleet_measured_not_to_hold(monke
     assert fleet_size_problem(24, cores=2, layout='shared') is None
     problem = fleet_size_problem(25, cores=2, layout='shared')
     assert problem.startswith('25 drones is more than the fleet cap of 24 (2 cores / 0.060 core per drone, below '
-                              'the 12.5 drones per core measured not to hold (shared layout')
+                              '25 drones (12.5 per core) measured not to hold (shared layout')
     assert 'measured not to hold' not in fleet_size_problem(8, cores=2)
 
 

@@ -34,9 +34,6 @@ import subprocess
 import threading
 import time
 
-#: [bytes] most read from the process's stdout at once (a telemetry sample is ~1.7 kB)
-READ_SIZE = 65536
-
 
 class ProcessSupervisor(object):
     """Keeps one subprocess running and streams its stdout lines.
@@ -246,54 +243,37 @@ class ProcessSupervisor(object):
             pass
 
     def _read_stdout(self, proc):
-        """stdout in chunks as they come (one read for a whole sample, not one per line), split into lines."""
-        read = proc.stdout.read1        # what the pipe has now (one read), up to READ_SIZE bytes
+        readline = proc.stdout.readline
+        on_line = self.on_line
         limit = self.max_line
-        pending = b''             # the start of a line not ended yet (shorter than max_line)
         dropping = False          # inside a line longer than max_line: skip to its end
         while True:
             try:
-                chunk = read(READ_SIZE)
-            except InterruptedError:
-                continue
+                raw = readline(limit)
             except (ValueError, OSError):
                 break
-            if not chunk:
+            if not raw:
                 break
             now = time.monotonic()
             if self._first_output is None:
                 self._first_output = now
             self._last_output = now
-            parts = chunk.split(b'\n')
-            tail = parts.pop()            # the bytes after the last newline (the start of the next line)
-            for part in parts:
-                if dropping:              # the end of a line that was too long
-                    dropping = False
-                    continue
-                if pending:
-                    part, pending = pending + part, b''
-                if len(part) >= limit:
-                    self.oversize_lines += 1
-                    continue
-                self._hand_line(part + b'\n', now)
+            complete = raw.endswith(b'\n')
             if dropping:
+                dropping = not complete
                 continue
-            pending += tail
-            if len(pending) >= limit:
+            if not complete and len(raw) >= limit:
                 self.oversize_lines += 1
-                pending, dropping = b'', True
-        if pending:                       # the last bytes before the end, without newline: cut short
-            self._hand_line(pending, time.monotonic())
-
-    def _hand_line(self, raw, now):
-        self.lines += 1
-        try:
-            if self.on_line(raw.decode('utf-8', 'replace'), time.time()):
-                self._last_sample = now
-        except Exception as exc:
-            self.callback_errors += 1
-            self.last_error = 'on_line: %s: %s' % (type(exc).__name__, exc)
-            self._event('callback_error', message=self.last_error)
+                dropping = True
+                continue
+            self.lines += 1
+            try:
+                if on_line(raw.decode('utf-8', 'replace'), time.time()):
+                    self._last_sample = now
+            except Exception as exc:
+                self.callback_errors += 1
+                self.last_error = 'on_line: %s: %s' % (type(exc).__name__, exc)
+                self._event('callback_error', message=self.last_error)
 
     def _read_stderr(self, proc):
         """stderr, read with the same cap as stdout: ``last_stderr`` = the start (500 characters) of the last

@@ -147,14 +147,24 @@ def test_supervisor_line_reader_caps_lines_and_counts_the_dropped_ones(chunks):
     assert all(len(line.encode('utf-8')) <= 3 * 4096 for line in got)   # decoded with 'replace'
 
 
-class _Chunks(object):
-    """A stdout whose reads return the given chunks one by one (a pipe's reads cut anywhere)."""
+class _Chunks(io.RawIOBase):
+    """A pipe whose reads return the given chunks one by one (cut anywhere), behind a BufferedReader."""
 
     def __init__(self, chunks):
         self._chunks = [c for c in chunks if c]
 
-    def read1(self, size):
-        return self._chunks.pop(0) if self._chunks else b''
+    def readable(self):
+        return True
+
+    def readinto(self, buffer):
+        if not self._chunks:
+            return 0
+        chunk = self._chunks[0][:len(buffer)]
+        self._chunks[0] = self._chunks[0][len(chunk):]
+        if not self._chunks[0]:
+            self._chunks.pop(0)
+        buffer[:len(chunk)] = chunk
+        return len(chunk)
 
 
 @fuzz(max(20, EXAMPLES // 2))
@@ -163,14 +173,14 @@ def test_supervisor_line_reader_gives_the_same_lines_however_the_reads_cut_them(
     data = b''.join(chunks)
     whole, pieces = [], []
     one = ProcessSupervisor(['true'], lambda line, t: whole.append(line) or False, max_line=4096)
-    one._read_stdout(types.SimpleNamespace(stdout=_Chunks([data])))
+    one._read_stdout(types.SimpleNamespace(stdout=io.BufferedReader(_Chunks([data]))))
     reads, at = [], 0
     for size in cuts:
         reads.append(data[at:at + size])
         at += size
     reads.append(data[at:])
     cut = ProcessSupervisor(['true'], lambda line, t: pieces.append(line) or False, max_line=4096)
-    cut._read_stdout(types.SimpleNamespace(stdout=_Chunks(reads)))
+    cut._read_stdout(types.SimpleNamespace(stdout=io.BufferedReader(_Chunks(reads))))
     assert pieces == whole
     assert (cut.lines, cut.oversize_lines) == (one.lines, one.oversize_lines)
 

@@ -3,11 +3,17 @@ lines are throttled per (instance, call site); the process's own node logs throu
 text, rospy's throttle per line of code). No ROS master: rospy's log functions are replaced by recorders, or its
 own throttle runs on a fake ROS time."""
 import logging
+import threading
 
 import pytest
 
 rospy = pytest.importorskip('rospy')
-from anafi_sim.ros import context  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+
+from anafi_control.commanders import DOWN  # noqa: E402
+from anafi_sim.ros import context, conversions, node  # noqa: E402
+from anafi_sim.ros.commander_watch import CommandTopicWatch  # noqa: E402
 from anafi_sim.ros.context import NodeContext  # noqa: E402
 
 LEVELS = ('logdebug', 'loginfo', 'logwarn', 'logerr', 'logfatal')
@@ -154,3 +160,56 @@ def test_the_process_node_logs_through_rospy_unchanged(monkeypatch, rosout):
                       ('ERROR', 'interface: publishing failed (7 times)'),
                       ('INFO', 'interface: waiting'),
                       ('WARNING', 'interface: telemetry process 3 exited with code 1')]
+
+
+class ClosedPublisher(object):
+    def publish(self, msg):
+        raise rospy.ROSException('publish() to a closed topic')     # ends the diagnostics thread
+
+
+def failing_once():
+    """make_statuses for start_diagnostics_thread: raises, then no status."""
+    calls = []
+
+    def make_statuses():
+        calls.append(1)
+        if len(calls) == 1:
+            raise KeyError('boom')
+        return []
+    return make_statuses
+
+
+def test_the_helpers_log_for_their_instance(lines, clock, monkeypatch):
+    """node.log_lines, node.start_diagnostics_thread, node.Timer, conversions.subscribe_inputs and
+    CommandTopicWatch log through the instance's context: two instances' lines from one helper line both pass,
+    each naming its instance."""
+    monkeypatch.setattr(rospy, 'Timer', lambda period, cb, reset=False: cb)
+    monkeypatch.setattr(rospy, 'get_time', lambda: 1.0)
+    a, b = hosted('/anafi1/mpc_controller'), hosted('/anafi2/mpc_controller')
+    for ctx in (a, b):
+        node.log_lines([('warn', 'mirror: %s spawned' % ctx.namespace_id)], ctx)
+    for ctx in (a, b):
+        node.start_diagnostics_thread(0.0, failing_once(), ClosedPublisher(), stamp=lambda: rospy.Time(1),
+                                      ctx=ctx).join(5.0)
+    for ctx in (a, b):
+        on_event = node.Timer(0.1, lambda event: 1 / 0, 'control', ctx=ctx)._timer
+        on_event(rospy.timer.TimerEvent(None, None, None, rospy.Time(5), None))
+
+    class Refusing(object):
+        counters = {'rejected_states': 1, 'rejected_waypoints': 0}
+
+        def on_state(self, *args):
+            return False
+    for ctx in (a, b):
+        conversions.subscribe_inputs(Refusing(), threading.Lock(), 'drone/odom', 'waypoint', ctx=ctx)
+        ctx.bus.subscriptions[0][1](Odometry())
+    for ctx in (a, b):
+        watch = CommandTopicWatch('drone/rpyt', String, ctx=ctx)
+        ctx.bus.subscriptions[-1][1](String(data='x'))       # another instance of the host commands the drone
+        assert watch.check() == DOWN
+    assert [text.split(':')[0] for _, text in lines] == [
+        '[/anafi1/mpc_controller] mirror', '[/anafi2/mpc_controller] mirror'] + [
+        '[/anafi%d/mpc_controller] /anafi%d/mpc_controller' % (i, i) for i in (1, 2, 1, 2, 1, 2, 1, 2)]
+    assert [text.split(': ', 1)[1][:24] for _, text in lines[2:]] == [
+        "diagnostics failed: KeyE"] * 2 + ['control timer callback f'] * 2 + ['unusable state on /anafi'] * 2 + [
+        'second commander on /ana'] * 2

@@ -20,7 +20,6 @@ import threading
 import time
 
 import rosgraph
-import rospy
 
 from anafi_control.commanders import DOWN, LISTEN, RESUMED, CommanderGuard
 from anafi_sim.processes import xmlrpc_proxy
@@ -40,7 +39,7 @@ def _answers(uri, caller, timeout=PRESENCE_TIMEOUT):
 
 class CommandTopicWatch(object):
     def __init__(self, topic, msg_class, quiet_time=2.0, ctx=None):
-        ctx = ctx or NodeContext.process()
+        self.ctx = ctx = ctx or NodeContext.process()     # also what logs
         self.topic = ctx.resolve(topic)
         self.me = ctx.name
         self.host = ctx.bus.caller_id if ctx.hosted else None     # the process's node name, hosted
@@ -87,11 +86,11 @@ class CommandTopicWatch(object):
             others = self.guard.others(time.monotonic()) if state == DOWN else []
             self.silent = state in (DOWN, LISTEN)
         if state == DOWN and others != self._others:
-            rospy.logerr('%s: second commander on %s: %s publishes piloting commands too; standing down (no '
-                         'command: the firmware hover brake stops the drone) until it is gone (episode %d)',
-                         self.me, self.topic, ', '.join(others), self.guard.episodes)
+            self.ctx.logerr('%s: second commander on %s: %s publishes piloting commands too; standing down (no '
+                            'command: the firmware hover brake stops the drone) until it is gone (episode %d)',
+                            self.me, self.topic, ', '.join(others), self.guard.episodes)
         elif state == RESUMED:
-            rospy.logwarn('%s: the other commander on %s is gone: commanding again', self.me, self.topic)
+            self.ctx.logwarn('%s: the other commander on %s is gone: commanding again', self.me, self.topic)
         self._others = others
         return state
 

@@ -23,9 +23,18 @@ publishers, subscribers and services. Two kinds:
 A delivered message is shared by every local subscriber, as with roscpp's nodelets: callbacks read it and
 do not change it. Its ``_connection_header`` names the publishing instance as 'callerid', as rospy's
 received messages name the publishing node.
+
+Log lines: a node class logs through its context (``ctx.logwarn(text, *args)``, ``ctx.logwarn_throttle(period,
+text, *args)``: rospy's arguments). The process's node: rospy's own functions, same text, rospy's throttle (per
+line of code, ROS time); /rosout names the node. Hosted: /rosout names the host, so the text starts with the
+instance's name in square brackets ('[/anafi3/interface] interface: ...'), and a throttled line passes at most
+once per ``period`` s of monotonic wall time per (instance, call site): one drone's warning never hides
+another's (the first line of each always passes).
 """
 import collections
+import sys
 import threading
+import time
 
 import rosgraph.names
 import rospy
@@ -44,6 +53,8 @@ class NodeContext(object):
         self.namespace = rosgraph.names.namespace(self.name)
         self.bus = bus
         self.wiring = {'publishes': [], 'subscribes': [], 'services': []}   # global names, in creation order
+        self._log_lock = threading.Lock()
+        self._last_logged = {}     # hosted: call site -> time.monotonic() [s] of the last throttled line it logged
 
     @classmethod
     def process(cls):
@@ -64,6 +75,65 @@ class NodeContext(object):
         if self.bus is None:
             return rospy.resolve_name(name)
         return rosgraph.names.resolve_name(name, self.name)
+
+    # ------------------------------------------------------------------ log lines
+    def logdebug(self, text, *args):
+        self._log('logdebug', text, args)
+
+    def loginfo(self, text, *args):
+        self._log('loginfo', text, args)
+
+    def logwarn(self, text, *args):
+        self._log('logwarn', text, args)
+
+    def logerr(self, text, *args):
+        self._log('logerr', text, args)
+
+    def logfatal(self, text, *args):
+        self._log('logfatal', text, args)
+
+    # rospy keys its throttle by the frame that called its log function's caller: the process's node calls
+    # rospy.core._base_logger (what rospy.log*_throttle call) from here, so the key is the caller's line, as if
+    # it had called rospy.log*_throttle itself.
+    def loginfo_throttle(self, period, text, *args):
+        """At most one line per ``period`` [s] from the calling line (hosted: per instance and calling line)."""
+        if self.bus is None:
+            rospy.core._base_logger(text, args, {}, throttle=period, level='info')
+        else:
+            self._throttled('loginfo', period, text, args)
+
+    def logwarn_throttle(self, period, text, *args):
+        """At most one line per ``period`` [s] from the calling line (hosted: per instance and calling line)."""
+        if self.bus is None:
+            rospy.core._base_logger(text, args, {}, throttle=period, level='warning')
+        else:
+            self._throttled('logwarn', period, text, args)
+
+    def logerr_throttle(self, period, text, *args):
+        """At most one line per ``period`` [s] from the calling line (hosted: per instance and calling line)."""
+        if self.bus is None:
+            rospy.core._base_logger(text, args, {}, throttle=period, level='error')
+        else:
+            self._throttled('logerr', period, text, args)
+
+    def _log(self, level, text, args):
+        if self.bus is None:
+            getattr(rospy, level)(text, *args)
+        else:
+            getattr(rospy, level)('[%s] %s' % (self.name, text), *args)
+
+    def _throttled(self, level, period, text, args):
+        """Hosted: the line, unless the same call site (the caller of the log*_throttle method) of this instance
+        logged one less than ``period`` s ago (monotonic wall clock)."""
+        caller = sys._getframe(2)
+        site = (caller.f_code, caller.f_lasti)       # the calling code and the call's instruction in it
+        now = time.monotonic()
+        with self._log_lock:
+            last = self._last_logged.get(site)
+            if last is not None and now - last < period:
+                return
+            self._last_logged[site] = now
+        getattr(rospy, level)('[%s] %s' % (self.name, text), *args)
 
     # ------------------------------------------------------------------ parameters
     def private(self, name):

@@ -58,13 +58,13 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=wa
     under ``lock``. A refused sample is logged (throttled, with the count of ``target.counters``).
     ``admission`` (``anafi_control.waypoint_admission.WaypointAdmission``): waypoints whose header stamp or
     frame it refuses are dropped before the target (counted there, logged throttled); a waypoint type without a
-    header (``anafi_control``) is not checked. ``ctx``: the NodeContext of the node instance (default the
-    process's node). Returns the resolved (state topic, waypoint topic)."""
+    header (``anafi_control``) is not checked. ``ctx``: the NodeContext of the node instance, which also logs
+    (default the process's node). Returns the resolved (state topic, waypoint topic)."""
     if ctx is None:
-        resolve, subscribe, me = rospy.resolve_name, rospy.Subscriber, rospy.get_name()
+        resolve, subscribe, me, log = rospy.resolve_name, rospy.Subscriber, rospy.get_name(), rospy
         deferred = {}
     else:       # hosted: off the publisher's thread (the feed waits while the controller solves)
-        resolve, subscribe, me = ctx.resolve, ctx.subscriber, ctx.name
+        resolve, subscribe, me, log = ctx.resolve, ctx.subscriber, ctx.name, ctx
         deferred = {'deferred': True}
     resolved = resolve(state_topic), resolve(waypoint_topic)
 
@@ -74,8 +74,8 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=wa
                 ok, why = admission.admit(rospy.get_time(), msg.header.stamp.to_sec(), msg.header.frame_id)
                 dropped = admission.dropped
             if not ok:
-                rospy.logwarn_throttle(5.0, '%s: waypoint on %s dropped (%d so far): %s'
-                                       % (me, resolved[1], dropped, why))
+                log.logwarn_throttle(5.0, '%s: waypoint on %s dropped (%d so far): %s'
+                                     % (me, resolved[1], dropped, why))
                 return
         feed('waypoint', (waypoint_numbers(msg),), resolved[1])
 
@@ -84,9 +84,9 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=wa
             ok = getattr(target, 'on_' + kind)(rospy.get_time(), *numbers)
             refused = target.counters['rejected_%ss' % kind]
         if not ok:
-            rospy.logwarn_throttle(5.0, '%s: unusable %s on %s refused (%d so far): %s'
-                                   % (me, kind, topic, refused,
-                                      'holding position' if kind == 'waypoint' else 'no command'))
+            log.logwarn_throttle(5.0, '%s: unusable %s on %s refused (%d so far): %s'
+                                 % (me, kind, topic, refused,
+                                    'holding position' if kind == 'waypoint' else 'no command'))
 
     subscribe(state_topic, Odometry, lambda m: feed('state', odometry_numbers(m), resolved[0]),
               queue_size=5, tcp_nodelay=True, **deferred)

@@ -86,10 +86,11 @@ def sleep_until_aligned(period, phase):
             pass
 
 
-def log_lines(lines):
-    """Log ``[(level, text)]`` lines of a core (levels 'info', 'warn', 'error')."""
+def log_lines(lines, ctx=None):
+    """Log ``[(level, text)]`` lines of a core (levels 'info', 'warn', 'error'; ``ctx``: through a NodeContext)."""
+    log = rospy if ctx is None else ctx
     for level, text in lines:
-        getattr(rospy, _LOG[level])(text)
+        getattr(log, _LOG[level])(text)
 
 
 # ------------------------------------------------------------------ diagnostics
@@ -124,13 +125,17 @@ def publish_diagnostics(pub, statuses, stamp=None):
     return True
 
 
-def start_diagnostics_thread(period, make_statuses, pub, stamp=None, first=None, node=None):
+def start_diagnostics_thread(period, make_statuses, pub, stamp=None, first=None, node=None, ctx=None):
     """Daemon thread publishing ``make_statuses()`` on ``pub`` every ``period`` s of wall time until shutdown.
 
     The first array goes out after ``first`` s (default: one period). ``stamp``: a function giving the
     arrays' stamp (default rospy.Time.now()). An exception in ``make_statuses`` is logged (throttled, naming
-    ``node``, default the process's node) and the thread goes on.
+    ``node``, default the node of ``ctx``, a NodeContext that logs it, else the process's node) and the thread
+    goes on.
     """
+    log = rospy if ctx is None else ctx
+    node = node or (None if ctx is None else ctx.name)
+
     def loop():
         delay = period if first is None else first
         while True:
@@ -143,8 +148,8 @@ def start_diagnostics_thread(period, make_statuses, pub, stamp=None, first=None,
             except Exception as error:  # never let diagnostics kill the node, nor stop reporting
                 if rospy.is_shutdown():
                     return
-                rospy.logerr_throttle(10.0, '%s: diagnostics failed: %s: %s'
-                                      % (node or rospy.get_name(), type(error).__name__, error))
+                log.logerr_throttle(10.0, '%s: diagnostics failed: %s: %s'
+                                    % (node or rospy.get_name(), type(error).__name__, error))
                 continue
             if not publish_diagnostics(pub, statuses, None if stamp is None else stamp()):
                 return
@@ -315,12 +320,13 @@ class Timer(object):
     This one is started with ``reset=True`` (the period restarts from the new time) and counts the jumps
     (``jumps_back``; ``last_jump`` [s], how far back): one WARN line per jump naming the node and the
     timer. ``callback(event)`` as rospy's; an exception from it is logged (throttled) and counted
-    (``callback_errors``), the timer goes on. ``node``: the name the log lines give (default the process's
-    node)."""
+    (``callback_errors``), the timer goes on. ``node``: the name the log lines give (default the node of
+    ``ctx``, a NodeContext that logs them, else the process's node)."""
 
-    def __init__(self, period, callback, name='timer', node=None):
+    def __init__(self, period, callback, name='timer', node=None, ctx=None):
         self.name = name
-        self.node = node
+        self.node = node or (None if ctx is None else ctx.name)
+        self.log = rospy if ctx is None else ctx
         self.jumps_back = 0
         self.last_jump = 0.0
         self.callback_errors = 0
@@ -333,8 +339,8 @@ class Timer(object):
         if self._last is not None and now < self._last:
             self.jumps_back += 1
             self.last_jump = (self._last - now).to_sec()
-            rospy.logwarn('%s: ROS time moved backwards by %.3f s (%d times): %s timer kept running',
-                          self.node or rospy.get_name(), self.last_jump, self.jumps_back, self.name)
+            self.log.logwarn('%s: ROS time moved backwards by %.3f s (%d times): %s timer kept running',
+                             self.node or rospy.get_name(), self.last_jump, self.jumps_back, self.name)
         self._last = now
         try:
             self._callback(event)
@@ -342,7 +348,7 @@ class Timer(object):
             self.callback_errors += 1
             # shutting down: rospy closes the topics before is_shutdown() turns true (publish() to a closed topic)
             if not (rospy.is_shutdown() or rospy.core.is_shutdown_requested()):
-                rospy.logerr_throttle(5.0, '%s: %s timer callback failed (%d times): %s: %s' % (
+                self.log.logerr_throttle(5.0, '%s: %s timer callback failed (%d times): %s: %s' % (
                     self.node or rospy.get_name(), self.name, self.callback_errors, type(error).__name__, error))
 
     def shutdown(self):

@@ -50,6 +50,7 @@ class TracedServer(Server):
         self.minimum = dict((n, type.min[n]) for n in self.names if type.min.get(n, '') != '')
         self.maximum = dict((n, type.max[n]) for n in self.names if type.max.get(n, '') != '')
         self.node = rospy.get_name() if ctx is None else ctx.name
+        self.log = rospy if ctx is None else ctx     # what logs the changes
         if ctx is not None and ctx.hosted:    # Server's '~' names are the process's node: the instance's instead
             namespace = ctx.resolve('~' + namespace.strip('~')) if namespace else ctx.name
         Server.__init__(self, type, callback, namespace)
@@ -76,9 +77,9 @@ class TracedServer(Server):
         for record in records:
             line = 'tuning %s: %s' % (self.node, describe(record, self.minimum, self.maximum))
             if record['outcome'] == 'applied':
-                rospy.loginfo(line)
+                self.log.loginfo(line)
             else:
-                rospy.logwarn(line)
+                self.log.logwarn(line)
             self.history.append(dict(stamp=round(stamp, 6), wall=round(wall, 3), node=self.node, **record))
         if records:
             self.trace_pub.publish(String(yaml.safe_dump({'node': self.node, 'changes': self.history},

@@ -110,11 +110,11 @@ class AnafiSimNode(object):
         if lockstep is not None:
             rospy.on_shutdown(lockstep.close)
         self._connect(base, publish_clock, publish_state_enu)
-        rospy.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz, stream id %d)%s%s',
-                      self.drone, rate, rtf, host, self.server.port, telemetry_rate, self.stream_id,
-                      ', publishing /clock' if publish_clock else '',
-                      ', lockstep with the controller every %g s (time-out %g s wall)'
-                      % (sync['period'], sync['timeout']) if sync else '')
+        self.ctx.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz, stream id '
+                         '%d)%s%s', self.drone, rate, rtf, host, self.server.port, telemetry_rate, self.stream_id,
+                         ', publishing /clock' if publish_clock else '',
+                         ', lockstep with the controller every %g s (time-out %g s wall)'
+                         % (sync['period'], sync['timeout']) if sync else '')
 
     @staticmethod
     def _sync_settings(p, publish_clock):
@@ -132,8 +132,7 @@ class AnafiSimNode(object):
             raise ValueError('~sync needs ~publish_clock true (lockstep holds the simulation clock)')
         return settings if sync else None
 
-    @staticmethod
-    def _model(p, seed):
+    def _model(self, p, seed):
         """The drone model: ~model (a mapping) or ~model_file, the bridge's limits, the model settings."""
         mapping = PilotingMapping(p.positive('max_tilt_deg', MAX_TILT_DEG),
                                   p.positive('max_vertical_speed', MAX_VERTICAL_SPEED),
@@ -144,7 +143,7 @@ class AnafiSimNode(object):
         if model_params is None:     # a name in anafi_sim/config (e.g. anafi_model_fitted.yaml) or a path
             model_path = model_file if os.path.isabs(model_file) else paths.config_path(model_file)
             model_params = load_model_params(model_path)
-            rospy.loginfo('anafi_sim: model parameters from %s', model_path)
+            self.ctx.loginfo('anafi_sim: model parameters from %s', model_path)
         return AnafiModel(model_params, mapping=mapping, seed=seed, settings=settings)
 
     def _time_base(self, publish_clock):
@@ -152,7 +151,7 @@ class AnafiSimNode(object):
         use_sim_time = rospy.get_param('/use_sim_time', False)
         self.sim_stamps = bool(use_sim_time) and publish_clock
         if use_sim_time and not publish_clock:
-            rospy.loginfo('anafi_sim: /use_sim_time is set and ~publish_clock is false: waiting for /clock')
+            self.ctx.loginfo('anafi_sim: /use_sim_time is set and ~publish_clock is false: waiting for /clock')
             try:
                 rospy.wait_for_message(names.CLOCK, Clock, timeout=5.0)
             except (rospy.ROSException, rospy.ROSInterruptException):
@@ -200,8 +199,8 @@ class AnafiSimNode(object):
     # ------------------------------------------------------------ callbacks
     def _on_rpyt(self, msg):
         if not self.sim.on_command(msg.roll, msg.pitch, msg.yaw, msg.gaz, stamp=msg.header.stamp.to_sec()):
-            rospy.logwarn_throttle(5.0, 'anafi_sim: ignored a non-finite piloting command %r (%d so far)'
-                                   % ((msg.roll, msg.pitch, msg.yaw, msg.gaz), self.sim.bad_commands))
+            self.ctx.logwarn_throttle(5.0, 'anafi_sim: ignored a non-finite piloting command %r (%d so far)'
+                                      % ((msg.roll, msg.pitch, msg.yaw, msg.gaz), self.sim.bad_commands))
 
     # -------------------------------------------------------------- outputs
     def _stamp(self, t):
@@ -278,7 +277,7 @@ class AnafiSimNode(object):
             if hold.ready(time.monotonic(), self.pub_clock.get_num_connections()):
                 break
             time.sleep(0.05)
-        (rospy.logwarn if hold.timed_out else rospy.loginfo)(
+        (self.ctx.logwarn if hold.timed_out else self.ctx.loginfo)(
             'anafi_sim: lockstep: %d /clock subscribers%s, starting simulation time', hold.count or 0,
             ' (start hold timed out)' if hold.timed_out else '')
 
@@ -290,7 +289,7 @@ class AnafiSimNode(object):
     def start_stepping(self, wall):
         """Diagnostics, then simulation time 0 at wall time ``wall`` [s] (a host starts its simulators at one
         instant, so that their steps fall due together: one wake-up per step for all)."""
-        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag,
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag, ctx=self.ctx,
                                  stamp=lambda: self._stamp(self.sim.clock.t))
         self.sim.start(wall)
 
@@ -305,8 +304,8 @@ class AnafiSimNode(object):
 
     def _log_events(self, step):
         for event, accepted, state in step.events:
-            rospy.loginfo('anafi_sim: %s %s %s, state now %s', self.drone, event, 'accepted' if accepted else 'ignored',
-                          state)
+            self.ctx.loginfo('anafi_sim: %s %s %s, state now %s', self.drone, event,
+                             'accepted' if accepted else 'ignored', state)
 
     def _publish_step(self, step):
         if step.sample is not None:
@@ -319,7 +318,7 @@ class AnafiSimNode(object):
     def run(self):
         sim = self.sim
         clock_msg = Clock()
-        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag,
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag, ctx=self.ctx,
                                  stamp=lambda: self._stamp(sim.clock.t))
         if self.start_hold is not None:
             self._hold_at_zero(clock_msg)
@@ -344,8 +343,9 @@ class AnafiSimNode(object):
             waited = sim.sync(step.t, poke)     # lockstep: the controller's command of the period at step.t
             if waited is not None:
                 if not waited and not rospy.is_shutdown():
-                    rospy.logwarn_throttle(5.0, 'anafi_sim: lockstep: no command within %g s wall at t = %.3f s '
-                                           '(%d timeouts)' % (sim.lockstep.timeout, step.t, sim.lockstep.timeouts))
+                    self.ctx.logwarn_throttle(5.0, 'anafi_sim: lockstep: no command within %g s wall at t = %.3f '
+                                              's (%d timeouts)' % (sim.lockstep.timeout, step.t,
+                                                                   sim.lockstep.timeouts))
                 sim.clock.resume(time.monotonic())
             self._publish_step(step)
             delay = sim.pace(time.monotonic())
@@ -353,8 +353,9 @@ class AnafiSimNode(object):
                 time.sleep(delay)
         if sim.lockstep is not None:
             r = sim.lockstep.report()
-            rospy.loginfo('anafi_sim: lockstep: %d periods waited, %d timeouts, %d times silent; wait mean %.4f s, '
-                          'max %.3f s wall', r.waits, r.timeouts, r.disarms, r.wait_wall_mean, r.wait_wall_max)
+            self.ctx.loginfo('anafi_sim: lockstep: %d periods waited, %d timeouts, %d times silent; wait mean '
+                             '%.4f s, max %.3f s wall', r.waits, r.timeouts, r.disarms, r.wait_wall_mean,
+                             r.wait_wall_max)
         self.server.stop()
 
     def shutdown(self):

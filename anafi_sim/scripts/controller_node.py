@@ -149,13 +149,13 @@ class MpcAdapter(Adapter):
     def setup(self):
         core, ctx = self.node.core, self.node.ctx
         if abs(self.node.rate * core.mpc.dt - 1.0) > 1e-6:
-            rospy.logwarn('%s: ~rate %.3g Hz does not match the MPC step dt %.3g s (the model assumes one '
-                          'solve per dt)', self.node.who, self.node.rate, core.mpc.dt)
+            ctx.logwarn('%s: ~rate %.3g Hz does not match the MPC step dt %.3g s (the model assumes one '
+                        'solve per dt)', self.node.who, self.node.rate, core.mpc.dt)
         self.pub_pred = ctx.publisher('mpc/predicted_path', Path, queue_size=2)
         self.pub_ref = ctx.publisher('mpc/reference_path', Path, queue_size=2)
         self.pub_stats = ctx.publisher(names.MPC_STATS, MpcStats, queue_size=10)
         self.reconfigure_server = TracedServer(MpcConfig, self._on_reconfigure, ctx=ctx)
-        rospy.loginfo('%s: N=%d, dt=%.2f s', self.node.who, core.mpc.N, core.mpc.dt)
+        ctx.loginfo('%s: N=%d, dt=%.2f s', self.node.who, core.mpc.N, core.mpc.dt)
 
     def _on_reconfigure(self, config, level):
         core, keys = self.node.core, self.reconfigurable
@@ -165,10 +165,11 @@ class MpcAdapter(Adapter):
                 applied = core.reconfigure(dict((k, config[k]) for k in keys))
                 changed = [k for k in keys if applied[k] != before[k]]
                 if changed:
-                    rospy.loginfo('%s: reconfigured %s', self.node.who,
-                                  ', '.join('%s=%s' % (k, applied[k]) for k in changed))
+                    self.node.ctx.loginfo('%s: reconfigured %s', self.node.who,
+                                          ', '.join('%s=%s' % (k, applied[k]) for k in changed))
             except ValueError as err:
-                rospy.logerr('%s: reconfiguration refused (%s); keeping the current values', self.node.who, err)
+                self.node.ctx.logerr('%s: reconfiguration refused (%s); keeping the current values', self.node.who,
+                                     err)
                 applied = core.config()
         for k in keys:
             config[k] = applied[k]
@@ -301,8 +302,8 @@ class PreviewAdapter(MpcAdapter):
         self.pub_stats = ctx.publisher('preview_mpc/stats', MpcStats, queue_size=10)
         ctx.subscriber(self.reference_topic, MultiDOFJointTrajectory, self._on_reference, queue_size=2)
         self.reconfigure_server = TracedServer(PreviewMpcConfig, self._on_reconfigure, ctx=ctx)
-        rospy.loginfo('%s: N=%d, dt=%.3f s, preview on %s', self.node.who, core.N, core.dt,
-                      ctx.resolve(self.reference_topic))
+        ctx.loginfo('%s: N=%d, dt=%.3f s, preview on %s', self.node.who, core.N, core.dt,
+                    ctx.resolve(self.reference_topic))
 
     def _on_reference(self, msg):
         try:
@@ -312,7 +313,7 @@ class PreviewAdapter(MpcAdapter):
         with self.node.lock:
             ok = self.node.core.on_reference(rospy.get_time(), samples)
         if not ok:
-            rospy.logwarn_throttle(5.0, '%s: unusable preview refused (%d so far)' % (
+            self.node.ctx.logwarn_throttle(5.0, '%s: unusable preview refused (%d so far)' % (
                 self.node.ctx.name, self.node.core.counters['rejected_previews']))
 
     def cycle_info(self):
@@ -348,9 +349,9 @@ class ControllerNode(object):
         p = private_params(ctx)
         kind = p.choice('controller', controller or 'mpc', sorted(ADAPTERS))
         self.adapter = ADAPTERS[kind](self)
-        #: the name the adapter's log lines give: its label (the process's node is named on /rosout), or the
-        #: instance's name when hosted
-        self.who = ctx.name if ctx.hosted else self.adapter.label
+        #: the name the adapter's log lines give: its label (the node is named on /rosout, or, hosted, by the
+        #: context's prefix)
+        self.who = self.adapter.label
         self.core = self.adapter.build(p)
         self.rate = p.positive('rate', self.core.RATE)
         self.command_rate = None if self.core.COMMAND_RATE is None else \
@@ -371,9 +372,9 @@ class ControllerNode(object):
         self.admission = waypoint_admission(p)
         self.state_topic, self.waypoint_topic = subscribe_inputs(self.core, self.lock, state_topic, waypoint_topic,
                                                                   waypoint_type, self.admission, ctx=ctx)
-        rospy.loginfo('%s: %s controller, state %s, waypoint %s (%s/Waypoint) -> %s; cycle %g Hz, command %g Hz',
-                      ctx.name, kind, self.state_topic, self.waypoint_topic, waypoint_type,
-                      ctx.resolve(command_topic), self.rate, self.command_rate or self.rate)
+        ctx.loginfo('%s: %s controller, state %s, waypoint %s (%s/Waypoint) -> %s; cycle %g Hz, command %g Hz',
+                    ctx.name, kind, self.state_topic, self.waypoint_topic, waypoint_type,
+                    ctx.resolve(command_topic), self.rate, self.command_rate or self.rate)
 
     # -- cycle and command ----------------------------------------------------------------------
     def _on_cycle(self, _event=None):
@@ -390,11 +391,11 @@ class ControllerNode(object):
             info = self.adapter.cycle_info()
         if out.key != self.last_key:
             if out.ok:
-                rospy.loginfo('%s: tracking the waypoint', self.ctx.name)
+                self.ctx.loginfo('%s: tracking the waypoint', self.ctx.name)
             elif out.key in WAITING:
-                rospy.loginfo('%s: %s', self.ctx.name, health(out.key, out.reason).message)
+                self.ctx.loginfo('%s: %s', self.ctx.name, health(out.key, out.reason).message)
             else:
-                rospy.logwarn('%s: %s', self.ctx.name, health(out.key, out.reason).message)
+                self.ctx.logwarn('%s: %s', self.ctx.name, health(out.key, out.reason).message)
             self.last_key = out.key
         if self.command_rate is None:
             self._publish(out.command, stamp)
@@ -441,13 +442,12 @@ class ControllerNode(object):
 
     def run(self):
         """Cycle until rospy shuts down (any thread)."""
-        name = self.ctx.name
-        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag, node=name)
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag, ctx=self.ctx)
         sleep_until_aligned(1.0 / self.rate, self.timer_phase)      # cycles at timer_phase + k / rate
         # survive /clock going back (simulator respawned): the core sees the jump and goes SILENT, then tracks
-        timers = [Timer(1.0 / self.rate, self._on_cycle, 'control', node=name)]
+        timers = [Timer(1.0 / self.rate, self._on_cycle, 'control', ctx=self.ctx)]
         if self.command_rate is not None:
-            timers.append(Timer(1.0 / self.command_rate, self._on_command, 'command', node=name))
+            timers.append(Timer(1.0 / self.command_rate, self._on_command, 'command', ctx=self.ctx))
         self.timers = timers
         if self.stopped:        # shut down while waiting for the first cycle
             self.shutdown()

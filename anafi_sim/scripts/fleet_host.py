@@ -7,7 +7,9 @@ anafi_sim.mission.fleet_layout.HOSTABLE). Each instance is the same node class a
 built with a NodeContext of its own name (anafi_sim/ros/context.py): its ~params are read from the master under its name (fleet_launcher.py
 writes them, from the same launch files as the per-drone layout), and it keeps its own topics, services,
 telemetry port and stream id and /diagnostics statuses. Messages between the instances of this host go through
-its LocalBus (in the process; other processes still get every topic they subscribe to).
+its LocalBus (in the process; other processes still get every topic they subscribe to). /rosout names this
+process as the node of every line: an instance's lines start with its name in square brackets, and its throttled
+lines are throttled per instance (NodeContext's log functions).
 
 Every simulator that runs without lockstep is stepped by one loop of the host (one wake-up per physics step for
 all drones, instead of one per drone); the other instances run their own run().

@@ -48,7 +48,8 @@ STATE_QUEUE = 100
 publisher per topic and process), 2 per drone per cycle, and a full queue drops the oldest silently."""
 
 
-def _load_model(path, what):
+def _load_model(path, what, ctx):
+    """The model XML of ``path`` (~``what``); its warnings logged through ``ctx`` (a NodeContext)."""
     if not os.path.isfile(path):
         raise ValueError('~%s: no such file: %s' % (what, path))
     with open(path) as f:
@@ -58,7 +59,7 @@ def _load_model(path, what):
     except ValueError as error:
         raise ValueError('~%s (%s): %s' % (what, path, error))
     for warning in warnings:
-        rospy.logwarn('mirror: %s has %s', path, warning)
+        ctx.logwarn('mirror: %s has %s', path, warning)
     return xml
 
 
@@ -102,11 +103,11 @@ class GazeboMirrorNode(object):
         self.p = params = read_params(ctx)
         drone_model, camera_model = model_names(params['drone_name'], params['drone_model_name'],
                                                 params['camera_model_name'])
-        self.models = {drone_model: namespaced_model_xml(_load_model(params['urdf_file'], 'urdf_file'),
+        self.models = {drone_model: namespaced_model_xml(_load_model(params['urdf_file'], 'urdf_file', ctx),
                                                          params['drone_name'])}   # {model name: xml}
         if params['spawn_camera']:
             self.models[camera_model] = namespaced_model_xml(
-                _load_model(params['camera_urdf_file'], 'camera_urdf_file'), params['drone_name'])
+                _load_model(params['camera_urdf_file'], 'camera_urdf_file', ctx), params['drone_name'])
         self.core = Mirror(drone_name=params['drone_name'], rate=params['rate'],
                            stale_timeout=params['stale_timeout'], camera_offset=params['camera_offset'],
                            drone_model_name=params['drone_model_name'],
@@ -150,9 +151,9 @@ class GazeboMirrorNode(object):
         self.states_sub = ctx.subscriber(names.gazebo(names.MODEL_STATES, ns), gazebo_types.model_states_class(),
                                          self.on_model_states, queue_size=1)
         self._last_model_states = 0.0
-        rospy.loginfo('mirror: %s -> models %s at up to %g Hz via the %s %s', params['odom_topic'],
-                      ', '.join(sorted(self.models)), params['rate'],
-                      'service' if params['use_service'] else 'topic', self.state_service)
+        self.ctx.loginfo('mirror: %s -> models %s at up to %g Hz via the %s %s', params['odom_topic'],
+                         ', '.join(sorted(self.models)), params['rate'],
+                         'service' if params['use_service'] else 'topic', self.state_service)
 
     # ------------------------------------------------------------------ callbacks
     def on_drone_data(self, msg):
@@ -204,14 +205,14 @@ class GazeboMirrorNode(object):
                 res = self._set_proxy(self._message(state))
                 if not res.success:
                     ok = False
-                    rospy.logwarn_throttle(5.0, 'mirror: set_model_state(%s) failed: %s'
-                                           % (state.model_name, res.status_message))
+                    self.ctx.logwarn_throttle(5.0, 'mirror: set_model_state(%s) failed: %s'
+                                              % (state.model_name, res.status_message))
             except (rospy.ServiceException, rospy.ROSException, OSError) as error:
                 ok = False
                 self.service_failures += 1
                 self._set_proxy = None
-                rospy.logwarn_throttle(5.0, 'mirror: set_model_state service call failed (%d so far): %s'
-                                       % (self.service_failures, error))
+                self.ctx.logwarn_throttle(5.0, 'mirror: set_model_state service call failed (%d so far): %s'
+                                          % (self.service_failures, error))
         return ok
 
     # ------------------------------------------------------------------ spawn calls (for the SpawnDriver)
@@ -233,8 +234,8 @@ class GazeboMirrorNode(object):
         with self.lock:
             held = self.core.check_stale(rospy.get_time())
         if held:
-            rospy.logwarn('mirror: ground truth stale for more than %.2f s: holding the models (zero twist)',
-                          self.p['stale_timeout'])
+            self.ctx.logwarn('mirror: ground truth stale for more than %.2f s: holding the models (zero twist)',
+                             self.p['stale_timeout'])
             self.send(held)
 
     def diagnostic_statuses(self):
@@ -246,9 +247,10 @@ class GazeboMirrorNode(object):
 
     def spin(self):
         """Main loop (wall clock): world checks and spawns, stale holds. Returns on shutdown."""
-        start_diagnostics_thread(self.p['diagnostics_period'], self.diagnostic_statuses, self.diag_pub, first=0.0)
+        start_diagnostics_thread(self.p['diagnostics_period'], self.diagnostic_statuses, self.diag_pub, first=0.0,
+                                 ctx=self.ctx)
         while not rospy.is_shutdown():
-            log_lines(self.spawner.poll())
+            log_lines(self.spawner.poll(), self.ctx)
             self.check_stale()
             time.sleep(0.05)
 
@@ -265,7 +267,7 @@ class GazeboMirrorNode(object):
 
     def delete_models(self):
         if self.p['delete_on_shutdown']:
-            log_lines(self.spawner.delete_all(timeout=2.0))
+            log_lines(self.spawner.delete_all(timeout=2.0), self.ctx)
 
 
 if __name__ == '__main__':

@@ -149,11 +149,11 @@ class InterfaceNode(object):
             prepare=self._prepare if self.source is not None else None)
 
     def run(self):
-        rospy.loginfo('interface: running %r, publishing %s at %.0f Hz', self.supervisor.argv,
-                      self.p['topic_base'] + names.GROUND_TRUTH, self.p['rate'])
+        self.ctx.loginfo('interface: running %r, publishing %s at %.0f Hz', self.supervisor.argv,
+                         self.p['topic_base'] + names.GROUND_TRUTH, self.p['rate'])
         rospy.on_shutdown(self.supervisor.stop)
         self.supervisor.start()
-        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag)
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag, ctx=self.ctx)
         rospy.spin()
         self.supervisor.stop()
 
@@ -166,8 +166,8 @@ class InterfaceNode(object):
         argv = self.source.prepare(argv)
         with self.lock:
             if self.core.expected_stream_id != self.source.stream_id:
-                rospy.loginfo('interface: reading the telemetry of %s on port %d, stream id %d',
-                              self.source.node, self.source.port, self.source.stream_id)
+                self.ctx.loginfo('interface: reading the telemetry of %s on port %d, stream id %d',
+                                 self.source.node, self.source.port, self.source.stream_id)
             self.core.expected_stream_id = self.source.stream_id
         return argv
 
@@ -177,30 +177,30 @@ class InterfaceNode(object):
                 self.parser.reset()  # a sample cut by the previous process must not be completed by this one
                 self.parser.stream_id = None
                 self.core.on_process_start()   # ERROR until samples flow again
-            rospy.loginfo('interface: telemetry process started (pid %s)', info.get('pid'))
+            self.ctx.loginfo('interface: telemetry process started (pid %s)', info.get('pid'))
         elif kind == 'exit':     # throttled: a simulator that is down makes the tool exit again and again
-            rospy.logwarn_throttle(10.0, 'interface: telemetry process %s exited with code %s%s; restarting in %.1f s '
-                                   '(%d exits so far)' % (
-                                       info.get('pid'), info.get('code'),
-                                       (' (stderr: %s)' % info['stderr']) if info.get('stderr') else '',
-                                       info.get('restart_in', 0.0), self.supervisor.exits))
+            self.ctx.logwarn_throttle(10.0, 'interface: telemetry process %s exited with code %s%s; restarting in '
+                                      '%.1f s (%d exits so far)' % (
+                                          info.get('pid'), info.get('code'),
+                                          (' (stderr: %s)' % info['stderr']) if info.get('stderr') else '',
+                                          info.get('restart_in', 0.0), self.supervisor.exits))
         elif kind == 'hang':
-            rospy.logwarn_throttle(10.0, 'interface: telemetry process %s printed no sample for %.1f s: killed, '
-                                   'restarting in %.1f s (%d hangs so far)' % (
-                                       info.get('pid'), info.get('silent_for', float('nan')),
-                                       info.get('restart_in', 0.0), self.supervisor.hangs))
+            self.ctx.logwarn_throttle(10.0, 'interface: telemetry process %s printed no sample for %.1f s: killed, '
+                                      'restarting in %.1f s (%d hangs so far)' % (
+                                          info.get('pid'), info.get('silent_for', float('nan')),
+                                          info.get('restart_in', 0.0), self.supervisor.hangs))
         elif kind == 'spawn_failed' and WAITING_FOR_SIMULATOR in str(info.get('message')):
             # the usual start-up order (the simulator binds its port after the interface starts): not an error
             # yet; the diagnostics say ERROR "no telemetry received yet" until samples flow
-            rospy.loginfo_throttle(10.0, 'interface: %s; retrying in %.1f s' % (
+            self.ctx.loginfo_throttle(10.0, 'interface: %s; retrying in %.1f s' % (
                 info.get('message'), info.get('restart_in', 0.0)))
         elif kind == 'spawn_failed':
-            rospy.logerr_throttle(10.0, 'interface: cannot start telemetry command %r: %s; retrying in %.1f s '
-                                  '(%d failures so far)' % (self.supervisor.argv, info.get('message'),
-                                                            info.get('restart_in', 0.0),
-                                                            self.supervisor.spawn_failures))
+            self.ctx.logerr_throttle(10.0, 'interface: cannot start telemetry command %r: %s; retrying in %.1f s '
+                                     '(%d failures so far)' % (self.supervisor.argv, info.get('message'),
+                                                               info.get('restart_in', 0.0),
+                                                               self.supervisor.spawn_failures))
         elif kind == 'callback_error':
-            rospy.logerr('interface: %s', info.get('message'))
+            self.ctx.logerr('interface: %s', info.get('message'))
 
     def on_line(self, line, wall_time):
         with self.lock:
@@ -212,13 +212,14 @@ class InterfaceNode(object):
             refused = self.core.foreign_samples > refused
             restarted = self.core.restarted
         if refused:
-            rospy.logerr_throttle(5.0, 'interface: refusing the telemetry of another drone (stream id %s, expected '
-                                  '%s; %d samples refused): nothing published' % (
-                                      self.parser.stream_id, self.core.expected_stream_id, self.core.foreign_samples))
+            self.ctx.logerr_throttle(5.0, 'interface: refusing the telemetry of another drone (stream id %s, '
+                                     'expected %s; %d samples refused): nothing published' % (
+                                         self.parser.stream_id, self.core.expected_stream_id,
+                                         self.core.foreign_samples))
             return False    # not our sample: after restart_timeout the supervisor restarts (re-reads the port)
         if restarted:
-            rospy.logwarn('interface: simulator restart detected (timestamp jumped back to %.3f s); state reset',
-                          sample.timestamp)
+            self.ctx.logwarn('interface: simulator restart detected (timestamp jumped back to %.3f s); state reset',
+                             sample.timestamp)
         if out is not None:
             try:
                 self.publish(out)
@@ -226,8 +227,8 @@ class InterfaceNode(object):
                 self.publish_errors += 1
                 self.last_publish_error = '%s: %s' % (type(exc).__name__, exc)
                 if not rospy.is_shutdown():
-                    rospy.logerr_throttle(5.0, 'interface: publishing failed (%d times): %s'
-                                          % (self.publish_errors, self.last_publish_error))
+                    self.ctx.logerr_throttle(5.0, 'interface: publishing failed (%d times): %s'
+                                             % (self.publish_errors, self.last_publish_error))
         return True     # a sample: the supervisor's sample timer (hang on bytes without samples)
 
     # -- publishing --------------------------------------------------------------------
@@ -270,11 +271,11 @@ class InterfaceNode(object):
             notice = self.core.outage_notice(now, STALE_LOG_PERIOD)
             age = self.core.sample_age(now)
         if notice == 'stale':
-            rospy.logerr('interface: %s (telemetry process %s): publishing paused',
-                         'no ground truth received yet' if age is None else 'no ground truth for %.1f s' % age,
-                         'running' if self.supervisor.running else 'not running')
+            self.ctx.logerr('interface: %s (telemetry process %s): publishing paused',
+                            'no ground truth received yet' if age is None else 'no ground truth for %.1f s' % age,
+                            'running' if self.supervisor.running else 'not running')
         elif notice == 'flowing':
-            rospy.loginfo('interface: ground truth flowing again')
+            self.ctx.loginfo('interface: ground truth flowing again')
         return [health_status(self.diag_name, health, self.p['drone_name'],
                               [('publish errors', str(self.publish_errors)),
                                ('telemetry command', ' '.join(self.supervisor.argv))])]

@@ -104,9 +104,9 @@ class KinematicWorldNode(object):
         ]
         self.state_sub = ctx.subscriber(names.gazebo(names.SET_MODEL_STATE, ns), gazebo_types.model_state_class(),
                                         self.on_state_topic, queue_size=STATE_QUEUE)
-        rospy.loginfo('kinematic_world: serving %s/* at %g Hz (rtf %g, clock %s, ground_plane %s)',
-                      ns, params['rate'], params['rtf'], 'on' if params['publish_clock'] else 'off',
-                      params['ground_plane'])
+        self.ctx.loginfo('kinematic_world: serving %s/* at %g Hz (rtf %g, clock %s, ground_plane %s)',
+                         ns, params['rate'], params['rtf'], 'on' if params['publish_clock'] else 'off',
+                         params['ground_plane'])
 
     # ------------------------------------------------------------------ services and topic
     def _stamp(self):
@@ -122,13 +122,13 @@ class KinematicWorldNode(object):
                 self.world.counters['rejected'] += 1
                 result = Result(False, 'SpawnModel: Failure - unreadable model_xml (%s: %s)'
                                 % (type(error).__name__, error))
-        (rospy.loginfo if result.success else rospy.logerr)('%s [%s]' % (result.status_message, req.model_name))
+        (self.ctx.loginfo if result.success else self.ctx.logerr)('%s [%s]' % (result.status_message, req.model_name))
         return gazebo_types.spawn_model_class()._response_class(result.success, result.status_message)
 
     def on_delete(self, req):
         with self.lock:
             result = self.world.delete(req.model_name)
-        (rospy.loginfo if result.success else rospy.logwarn)('%s [%s]' % (result.status_message, req.model_name))
+        (self.ctx.loginfo if result.success else self.ctx.logwarn)('%s [%s]' % (result.status_message, req.model_name))
         return gazebo_types.delete_model_class()._response_class(result.success, result.status_message)
 
     def _set(self, state):
@@ -141,15 +141,15 @@ class KinematicWorldNode(object):
     def on_set_state(self, req):
         result = self._set(req.model_state)
         if not result.success:
-            rospy.logwarn_throttle(5.0, result.status_message)
+            self.ctx.logwarn_throttle(5.0, result.status_message)
         return gazebo_types.set_model_state_class()._response_class(result.success, result.status_message)
 
     def on_state_topic(self, msg):
         result = self._set(msg)
         if not result.success:
             self.topic_rejected += 1
-            rospy.logwarn_throttle(5.0, '%s (topic %s; %d rejected so far)'
-                                   % (result.status_message, self.state_sub.name, self.topic_rejected))
+            self.ctx.logwarn_throttle(5.0, '%s (topic %s; %d rejected so far)'
+                                      % (result.status_message, self.state_sub.name, self.topic_rejected))
 
     def on_get_state(self, req):
         with self.lock:
@@ -191,8 +191,8 @@ class KinematicWorldNode(object):
         for event in events:
             self.contact_pub.publish(String(data=json.dumps(contact_record(event))))
             if event.event == 'begin':
-                rospy.loginfo('contact: %s/%s touches %s/%s (depth %.3f m)', event.model_a, event.geom_a,
-                              event.model_b, event.geom_b, event.depth)
+                self.ctx.loginfo('contact: %s/%s touches %s/%s (depth %.3f m)', event.model_a, event.geom_a,
+                                 event.model_b, event.geom_b, event.depth)
 
     def _fill_states(self, states):
         """The reused ModelStates message holding ``states`` [(name, State)]: its Pose and Twist objects are
@@ -224,7 +224,7 @@ class KinematicWorldNode(object):
         last = time.monotonic()
         self.pacer.start(last)
         start_diagnostics_thread(1.0 / self.p['diagnostics_rate'], self.diagnostic_statuses, self.diag_pub,
-                                 stamp=self._stamp, first=0.0)
+                                 stamp=self._stamp, first=0.0, ctx=self.ctx)
         while not rospy.is_shutdown():
             now = time.monotonic()
             try:

@@ -34,8 +34,9 @@ exit code 0; 1 when the drone never flew within ~start_timeout), ~frame_id
 
 Hosting (``anafi_sim.ros.context``): ``TrajectoryGeneratorNode(ctx)`` runs the instance ``ctx`` names (e.g.
 NodeContext('/anafi1/trajectory_generator', bus) in a host process) with that name's parameters, topics,
-services and diagnostics; its log lines start with the name. ``run()`` works in any thread; hosted,
-~exit_when_done ends the instance's ``run()`` only (the host goes on); ``shutdown()`` ends the loop.
+services and diagnostics; its log lines start with the name in square brackets (the context's, as every hosted
+instance's). ``run()`` works in any thread; hosted, ~exit_when_done ends the instance's ``run()`` only (the host
+goes on); ``shutdown()`` ends the loop.
 """
 import math
 import os
@@ -70,8 +71,6 @@ class TrajectoryGeneratorNode(object):
 
     def __init__(self, ctx=None):
         self.ctx = ctx = ctx or NodeContext.process()
-        #: before each log line: nothing for the process's node (/rosout names it), the name when hosted
-        self.prefix = ctx.name + ': ' if ctx.hosted else ''
         self.stopped = False
         p = private_params(ctx)
         self.rate = p.positive('rate', 10.0)
@@ -118,7 +117,7 @@ class TrajectoryGeneratorNode(object):
             ctx.service('~stop', Trigger, lambda _: self._service('stop'))
         self.pub_diag = diagnostics_publisher(ctx=ctx)
         for line in scenario.describe():
-            rospy.loginfo('%s%s', self.prefix, line)
+            self.ctx.loginfo('%s', line)
         self._status('')
 
     def diagnostic_statuses(self):
@@ -136,12 +135,12 @@ class TrajectoryGeneratorNode(object):
 
     def _service(self, command):
         ok, text = self.command(command)
-        rospy.loginfo('%sservice %s: %s', self.prefix, command, text)
+        self.ctx.loginfo('service %s: %s', command, text)
         return TriggerResponse(success=ok, message=text)
 
     def _on_command(self, msg):
         ok, text = self.command(msg.data)
-        (rospy.loginfo if ok else rospy.logwarn)('%scommand %r: %s', self.prefix, msg.data, text)
+        (self.ctx.loginfo if ok else self.ctx.logwarn)('command %r: %s', msg.data, text)
 
     def command(self, text):
         """Apply 'start' | 'stop' | 'restart' | 'switch NAME'; returns (ok, message)."""
@@ -189,16 +188,16 @@ class TrajectoryGeneratorNode(object):
         for ev in events:
             if ev.kind == 'begin':
                 self.pub_begin.publish(self._header(ev.time, ev.scenario))
-                rospy.loginfo('%s%s: measured segment begins (t = %.3f s)', self.prefix, ev.scenario, ev.time)
+                self.ctx.loginfo('%s: measured segment begins (t = %.3f s)', ev.scenario, ev.time)
             elif ev.kind == 'end':
                 self.pub_end.publish(self._header(ev.time, ev.scenario))
-                rospy.loginfo('%s%s: measured segment ends (t = %.3f s)', self.prefix, ev.scenario, ev.time)
+                self.ctx.loginfo('%s: measured segment ends (t = %.3f s)', ev.scenario, ev.time)
             elif ev.kind == 'abort':
-                rospy.logwarn('%s%s: measured segment aborted (t = %.3f s)', self.prefix, ev.scenario, ev.time)
+                self.ctx.logwarn('%s: measured segment aborted (t = %.3f s)', ev.scenario, ev.time)
             elif ev.kind == 'phase':
-                rospy.loginfo('%s%s: phase %s', self.prefix, ev.scenario, ev.phase)
+                self.ctx.loginfo('%s: phase %s', ev.scenario, ev.phase)
             elif ev.kind == 'done':
-                rospy.loginfo('%s%s: scenario done', self.prefix, ev.scenario)
+                self.ctx.loginfo('%s: scenario done', ev.scenario)
             if ev.kind in ('phase', 'done', 'stop', 'start'):
                 self._status(ev.phase)
 
@@ -242,7 +241,7 @@ class TrajectoryGeneratorNode(object):
 
     def run(self):
         """Publish until rospy shuts down (any thread), ``shutdown()`` or, with ~exit_when_done, the end."""
-        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag, node=self.ctx.name)
+        start_diagnostics_thread(1.0, self.diagnostic_statuses, self.pub_diag, ctx=self.ctx)
         wait_for_clock()
         sleep_until_aligned(1.0 / self.rate, self.timer_phase)      # ticks at timer_phase + k / rate
         t_start = rospy.get_time()
@@ -254,21 +253,21 @@ class TrajectoryGeneratorNode(object):
             if self.gen.state == IDLE and self.pending_start and self.start_timeout > 0 \
                     and now - t_start > self.start_timeout and not warned:
                 warned = True
-                rospy.logerr('%sdrone not flying after %.1f s (drone/state %r)', self.prefix, self.start_timeout,
-                             self.drone_state)
+                self.ctx.logerr('drone not flying after %.1f s (drone/state %r)', self.start_timeout,
+                                self.drone_state)
                 if self.exit_when_done:
                     self.failed = True
                     self._end('drone never flying')
                     break
             if self.exit_when_done and self.done_time is not None and now - self.done_time >= self.exit_delay:
-                rospy.loginfo('%s%s done, %d waypoints published: exiting', self.prefix, self.gen.scenario.name,
-                              self.published)
+                self.ctx.loginfo('%s done, %d waypoints published: exiting', self.gen.scenario.name,
+                                 self.published)
                 self._end('scenario done')
                 break
             try:
                 rate.sleep()
             except rospy.ROSTimeMovedBackwardsException:
-                rospy.logwarn('%sROS time moved backwards: restarting %s', self.prefix, self.gen.scenario.name)
+                self.ctx.logwarn('ROS time moved backwards: restarting %s', self.gen.scenario.name)
                 with self.lock:
                     self.gen.reset()
                     self.pending_start = True

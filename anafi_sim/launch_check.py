@@ -92,7 +92,7 @@ def scenario_file(value):
 #: at 100 Hz + MPC + generator and the drone's share of the world and the master, the median over the runs at the
 #: largest fleet holding real time in benchmarks/results/fleet.json (benchmarks/bench_fleet.py; the generated
 #: block of docs/fleet.md quotes it; test/unit/sim/test_fleet_figures.py checks they agree).
-CPU_PER_DRONE = {'per_drone': 0.228, 'shared': 0.064}
+CPU_PER_DRONE = {'per_drone': 0.206, 'shared': 0.063}
 #: [drones per core] the smallest fleet measured NOT to hold real time above the largest one holding, per core of
 #: the measuring machine, per layout (None: no larger size failed), from the same runs: the cap stays below it
 #: (where the latency of a busy process limits before the cores are full, cores / CPU_PER_DRONE overshoots)

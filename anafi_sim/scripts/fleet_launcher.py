@@ -90,7 +90,7 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
                      rviz=rviz, rviz_file=rviz_file, conditions=conditions, world=world)
     path = os.path.join(out_dir, 'fleet.launch')
     if layout == 'shared':
-        xml = shared_launch(xml, out_dir, output, fleet.name)
+        xml = shared_launch(xml, out_dir, output, fleet.name, fleet.drones_per_host)
     with open(path, 'w') as f:
         f.write(xml)
     for drone in fleet.drones:
@@ -100,7 +100,7 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
     return path
 
 
-def shared_launch(per_drone_xml, out_dir, output, title):
+def shared_launch(per_drone_xml, out_dir, output, title, drones_per_host=None):
     """The shared layout's launch XML (its parameters written to out_dir/fleet.params.yaml): roslaunch expands
     the per-drone launch (out_dir/fleet.per_drone.launch, kept for reading) into nodes and parameters, and
     anafi_sim.mission.fleet_layout puts the hostable nodes into hosts."""
@@ -115,7 +115,8 @@ def shared_launch(per_drone_xml, out_dir, output, title):
     params = dict((key, p.value) for key, p in config.params.items()
                   if key not in ('/rosdistro', '/rosversion'))
     params_file = os.path.join(out_dir, 'fleet.params.yaml')
-    xml, document = shared_layout(nodes, params, params_file, output=output, title='fleet ' + title)
+    xml, document = shared_layout(nodes, params, params_file, output=output, title='fleet ' + title,
+                                  drones_per_host=drones_per_host)
     with open(params_file, 'w') as f:
         yaml.safe_dump(document, f, default_flow_style=False, sort_keys=True)
     return xml

@@ -145,6 +145,8 @@ def test_the_docs_block_check_fails_on_a_figure_that_is_not_fleet_json_s():
 
 def test_the_fleet_cap_is_the_cpu_per_drone_measured_in_fleet_json():
     data = report.load(FLEET_JSON)
+    machine = data['machine']       # the reference the conservative default scales names the machine measured
+    assert launch_check.REFERENCE_MACHINE == dict((k, machine[k]) for k in ('cpu_model', 'cores', 'date'))
     assert sorted(launch_check.CPU_PER_DRONE) == sorted(report.LAYOUTS)
     for layout in report.LAYOUTS:
         if layout in data['layouts']:

@@ -20,10 +20,14 @@ import re
 
 import jinja2
 
+from anafi_sim.mission import fleet_realtime
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 #: a fleet holds real time when, in every run, every drone has at least these: simulator RTF (sim time / wall
 #: time), ground-truth rate [Hz] (interface: samples published / wall time), mirror rate [Hz] (samples sent)
-HOLD = {'rtf': 0.98, 'truth_hz': 97.0, 'mirror_hz': 97.0}
+#: (anafi_sim.mission.fleet_realtime's thresholds, which a fleet host reports against on /diagnostics, at 100 Hz)
+HOLD = {'rtf': fleet_realtime.MIN_RTF, 'truth_hz': round(100.0 * fleet_realtime.MIN_RATE_FRACTION, 6),
+        'mirror_hz': round(100.0 * fleet_realtime.MIN_RATE_FRACTION, 6)}
 HOLD_TEXT = ("every drone's RTF >= %.2f, ground truth >= %g Hz and mirror sent >= %g Hz"
              % (HOLD['rtf'], HOLD['truth_hz'], HOLD['mirror_hz']))
 LAYOUTS = ('per_drone', 'shared')

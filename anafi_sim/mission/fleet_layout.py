@@ -49,8 +49,9 @@ file's ``drones_per_host`` sets its own). One interpreter runs one thread at a t
 simulator step's telemetry send and each controller's solve wait for it, and beyond about ten drones the
 simulators' loop falls behind; fleet_ground_truth (every interface and mirror at 100 Hz) took 53 % of a core
 at 20 drones on the reference machine (benchmarks/results/fleet.md) and about 74 % on a 2-core Intel Xeon,
-where those 20 drones no longer held real time. An instance outside the drones' namespaces (the kinematic world) stays in the
-first host of its group: the mirrors there reach it in the process, the others through its topic."""
+where those 20 drones no longer held real time. An instance outside the drones' namespaces (the kinematic
+world) goes to the first host of the split: the mirrors there reach it in the process, the others through its
+topic."""
 
 NodeSpec = collections.namedtuple('NodeSpec', 'package type name namespace args output respawn respawn_delay '
                                               'required launch_prefix cwd env_args remap_args')

@@ -79,7 +79,8 @@ def real_time_status(rtf, truth_hz, expected_hz, min_rtf=MIN_RTF, min_fraction=M
     values = [('drones rated', str(len(drones))), ('drones behind', str(len(behind))),
               ('behind', ', '.join(behind) if behind else 'none'),
               ('RTF min', '-' if worst_rtf is None else '%.3f (%s)' % (rtf[worst_rtf], worst_rtf)),
-              ('ground truth min [Hz]', '-' if worst_truth is None else '%.1f (%s)' % (truth[worst_truth], worst_truth)),
+              ('ground truth min [Hz]',
+               '-' if worst_truth is None else '%.1f (%s)' % (truth[worst_truth], worst_truth)),
               ('thresholds', 'RTF >= %g, ground truth >= %g x its rate, over %g s' % (min_rtf, min_fraction, WINDOW))]
     if behind:
         parts = []

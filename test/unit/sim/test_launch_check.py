@@ -138,6 +138,16 @@ def test_a_bad_cache_gives_the_default_never_an_error(tmp_path, text):
     assert not launch_check.machine_cap('shared', 2, 'Test CPU', str(path)).measured
 
 
+def test_the_cache_key_names_the_cpu_model_the_benchmark_pages_name(tmp_path):
+    from anafi_sim import processes
+    assert launch_check.cpu_model() == processes.cpu_model()
+    info = tmp_path / 'cpuinfo'
+    info.write_text('processor\t: 0\nmodel name\t: Intel(R) Xeon(R) CPU @ 2.20GHz\nprocessor\t: 1\n')
+    assert launch_check.cpu_model(str(info)) == 'Intel(R) Xeon(R) CPU @ 2.20GHz'
+    assert launch_check.cpu_model(str(tmp_path / 'none'))                    # what platform knows, or 'unknown'
+    assert launch_check.machine_key('Intel(R) Xeon(R) CPU @ 2.20GHz', 2) == 'Intel(R) Xeon(R) CPU @ 2.20GHz, 2 cores'
+
+
 def test_the_cache_is_under_the_ros_home_and_refuses_bad_figures(tmp_path):
     assert launch_check.cap_cache_path({'ROS_HOME': '/r'}) == '/r/anafi_sim/fleet_cap.yaml'
     assert launch_check.cap_cache_path({}).endswith('/.ros/anafi_sim/fleet_cap.yaml')

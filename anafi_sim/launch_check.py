@@ -8,6 +8,7 @@ respawned again and again (``sim.launch rtf:=-1``) or an experiment failing 90 s
 argument. ``check(args)`` holds the rules, one per argument name (``RULES``); unknown names are an error
 of the launch file itself.
 """
+import collections
 import math
 import os
 import re
@@ -91,14 +92,38 @@ def scenario_file(value):
 #: shared: fleet_host.py processes hosting one role of every drone): simulator + telemetry CLI + interface + mirror
 #: at 100 Hz + MPC + generator and the drone's share of the world and the master, the median over the runs at the
 #: largest fleet holding real time in benchmarks/results/fleet.json (benchmarks/bench_fleet.py; the generated
-#: block of docs/fleet.md quotes it; test/unit/sim/test_fleet_figures.py checks they agree).
+#: block of docs/fleet.md quotes it; test/unit/sim/test_fleet_figures.py checks they agree). Figures of the
+#: machine that measured them (REFERENCE_MACHINE): another machine's cap comes from its own measurement
+#: (``machine_cap``), these only scale its conservative default.
 CPU_PER_DRONE = {'per_drone': 0.206, 'shared': 0.063}
 #: [drones per core] the smallest fleet measured NOT to hold real time above the largest one holding, per core of
 #: the measuring machine, per layout (None: no larger size failed), from the same runs: the cap stays below it
 #: (where the latency of a busy process limits before the cores are full, cores / CPU_PER_DRONE overshoots)
 FAILING_PER_CORE = {'per_drone': 4.0, 'shared': 15.0}
+#: the machine benchmarks/results/fleet.json measured CPU_PER_DRONE and FAILING_PER_CORE on (its 'machine')
+REFERENCE_MACHINE = {'cpu_model': 'AMD EPYC', 'cores': 2, 'date': '2026-11-27 05:55'}
+#: the conservative default cap of a machine that has not measured its own: the reference machine's cap for
+#: these cores times this (another CPU may be slower: on a 2-core Intel Xeon the shared layout held 16 drones
+#: where the reference held 20 and its cap said 29)
+DEFAULT_CAP_SCALE = 0.5
+#: the cache of this machine's own cap figures, under the ROS home ($ROS_HOME, else ~/.ros): one entry per CPU
+#: model and core count, written by CALIBRATE_COMMAND
+CAP_CACHE = ('anafi_sim', 'fleet_cap.yaml')
+CALIBRATE_COMMAND = 'python benchmarks/bench_fleet.py --calibrate-cap'
 #: the layout fleet.launch starts by default
 DEFAULT_LAYOUT = 'per_drone'
+
+CapFigures = collections.namedtuple('CapFigures', 'cpu_per_drone failing_per_core cpu_model cores date source')
+CapFigures.__doc__ = ('The figures a fleet cap comes from: cpu_per_drone {layout: core per drone}, failing_per_core '
+                      '{layout: drones per core or None}, the machine that measured them (cpu_model, cores, date) '
+                      'and where they were read (source: a path, or the reference\'s results page).')
+Cap = collections.namedtuple('Cap', 'drones cores layout figures measured why')
+Cap.__doc__ = ('A fleet cap: drones (the largest fleet), cores, layout, figures (CapFigures), measured (True: '
+               'this machine\'s own measurement; False: the conservative default), why (the text naming the '
+               'figure and where it came from, for the refusal line).')
+
+REFERENCE = CapFigures(CPU_PER_DRONE, FAILING_PER_CORE, REFERENCE_MACHINE['cpu_model'], REFERENCE_MACHINE['cores'],
+                       REFERENCE_MACHINE['date'], 'benchmarks/results/fleet.md')
 
 
 def available_cores():
@@ -109,34 +134,157 @@ def available_cores():
         return os.cpu_count() or 1
 
 
-def fleet_cap(cores=None, layout=DEFAULT_LAYOUT):
-    """The largest fleet this machine runs at real time in ``layout``: cores / CPU_PER_DRONE[layout], and below
-    cores x FAILING_PER_CORE[layout] (the smallest size measured not to hold, scaled to the cores), at least 1
-    (KeyError for an unknown layout)."""
+def cpu_model(cpuinfo='/proc/cpuinfo'):
+    """This machine's CPU model name: the first 'model name' of ``cpuinfo``, else what platform knows (as
+    anafi_sim.processes.cpu_model, which the benchmark pages name; test_launch_check checks they agree)."""
+    try:
+        with open(cpuinfo) as f:
+            for line in f:
+                if line.startswith('model name'):
+                    return line.split(':', 1)[1].strip()
+    except (IOError, OSError):
+        pass
+    import platform
+    return platform.processor() or 'unknown'
+
+
+def ros_home(environ=None):
+    """The ROS home folder: $ROS_HOME, else ~/.ros."""
+    environ = os.environ if environ is None else environ
+    return environ.get('ROS_HOME') or os.path.join(os.path.expanduser('~'), '.ros')
+
+
+def cap_cache_path(environ=None):
+    """Where this machine's cap figures are cached: <ROS home>/anafi_sim/fleet_cap.yaml."""
+    return os.path.join(ros_home(environ), *CAP_CACHE)
+
+
+def machine_key(model, cores):
+    """The cache's key of a machine: its CPU model and core count."""
+    return '%s, %d cores' % (model, int(cores))
+
+
+def fleet_cap(cores=None, layout=DEFAULT_LAYOUT, figures=REFERENCE):
+    """The largest fleet of ``figures`` (default the reference machine's) at real time in ``layout`` on ``cores``:
+    cores / cpu_per_drone[layout], and below cores x failing_per_core[layout] (the smallest size measured not to
+    hold, scaled to the cores), at least 1 (KeyError for an unknown layout)."""
     cores = available_cores() if cores is None else cores
-    cap = int(cores / CPU_PER_DRONE[layout])
-    failing = FAILING_PER_CORE[layout]
+    cap = int(cores / figures.cpu_per_drone[layout])
+    failing = figures.failing_per_core.get(layout)
     if failing:
         cap = min(cap, int(math.ceil(cores * failing - 1e-9)) - 1)
     return max(1, cap)
 
 
-def fleet_size_problem(count, max_drones=0, cores=None, layout=DEFAULT_LAYOUT):
-    """None when ``count`` drones fit (``max_drones`` > 0: the user's own cap instead of ``fleet_cap``), else
-    what is wrong (names the cap, where it comes from and how to override it)."""
+def default_cap(cores, layout=DEFAULT_LAYOUT):
+    """The conservative cap of a machine that has not measured its own: DEFAULT_CAP_SCALE x the reference's cap
+    for ``cores``, at least 1."""
+    return max(1, int(DEFAULT_CAP_SCALE * fleet_cap(cores, layout)))
+
+
+def _number_or_none(value, positive=True):
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or \
+            (positive and value <= 0):
+        raise ValueError('not a finite number > 0: %r' % (value,))
+    return float(value)
+
+
+def parse_cap_entry(entry, source):
+    """One machine's entry of the cache -> CapFigures; ValueError naming what is wrong. Entry: {cpu_model, cores,
+    date, layouts: {layout: {cpu_per_drone: core, failing_per_core: drones per core or null, ...}}}."""
+    if not isinstance(entry, dict) or not isinstance(entry.get('layouts'), dict):
+        raise ValueError('an entry must be a mapping with layouts: {layout: {cpu_per_drone, ...}}')
+    cpu, failing = {}, {}
+    for layout, figs in entry['layouts'].items():
+        if layout not in CPU_PER_DRONE or not isinstance(figs, dict):
+            raise ValueError('layouts: unknown layout or not a mapping: %r' % (layout,))
+        cpu[layout] = _number_or_none(figs.get('cpu_per_drone'))
+        if cpu[layout] is None:
+            raise ValueError('layouts.%s: no cpu_per_drone' % layout)
+        failing[layout] = _number_or_none(figs.get('failing_per_core'))
+    return CapFigures(cpu, failing, str(entry.get('cpu_model', '')), entry.get('cores'), str(entry.get('date', '?')),
+                      source)
+
+
+def read_cap_cache(path, model, cores):
+    """This machine's cap figures (CapFigures) from the cache at ``path`` for CPU ``model`` and ``cores``; None
+    when the file or the machine's entry is missing, or the file or entry is unreadable (the default applies)."""
+    import yaml
+    try:
+        with open(path) as f:
+            data = yaml.safe_load(f)
+        entry = (data or {}).get('machines', {}).get(machine_key(model, cores))
+        return None if entry is None else parse_cap_entry(entry, path)
+    except Exception:     # a missing, cut or malformed cache never stops a launch: the default applies
+        return None
+
+
+def cap_cache_with(data, model, cores, date, layouts, **extra):
+    """The cache's document ``data`` (None: a new one) with the entry of (``model``, ``cores``) replaced by one
+    measured at ``date`` (text): ``layouts`` {layout: {cpu_per_drone, failing_per_core, ...}}, merged over the
+    layouts it had before; ``extra``: more facts of the measurement. ValueError for a figure that is not one."""
+    data = dict(data) if isinstance(data, dict) else {}
+    machines = dict(data.get('machines') or {}) if isinstance(data.get('machines'), dict) else {}
+    key = machine_key(model, cores)
+    old = machines.get(key) if isinstance(machines.get(key), dict) else {}
+    merged = dict(old.get('layouts') or {}) if isinstance(old.get('layouts'), dict) else {}
+    merged.update(layouts)
+    entry = dict(extra, cpu_model=model, cores=int(cores), date=date, layouts=merged)
+    parse_cap_entry(entry, 'new entry')
+    machines[key] = entry
+    data['machines'] = machines
+    data.setdefault('about', 'fleet caps measured on this machine (%s); anafi_sim.launch_check reads them'
+                    % CALIBRATE_COMMAND)
+    return data
+
+
+def machine_cap(layout=DEFAULT_LAYOUT, cores=None, model=None, cache_path=None):
+    """The fleet cap of this machine (Cap): from its own figures in the cache (``cache_path``, default
+    cap_cache_path()) for its CPU ``model`` and ``cores`` when they hold ``layout``, else the conservative
+    default (``default_cap``). ``why`` names the figure and where it came from."""
+    cores = available_cores() if cores is None else cores
+    model = cpu_model() if model is None else model
+    path = cap_cache_path() if cache_path is None else cache_path
+    figures = read_cap_cache(path, model, cores)
+    if figures is not None and layout in figures.cpu_per_drone:
+        cap = fleet_cap(cores, layout, figures)
+        why = 'measured here on %s, %d cores at %s: %s (%s)' % (
+            model, int(cores), figures.date, _cap_reason(cap, cores, layout, figures), path)
+        return Cap(cap, cores, layout, figures, True, why)
+    cap = default_cap(cores, layout)
+    reference = fleet_cap(cores, layout)
+    where = 'benchmarks/results/fleet.md' if layout == DEFAULT_LAYOUT else \
+        '%s layout, benchmarks/results/fleet.md' % layout
+    why = ('conservative default, not measured on this machine (%s, %d cores): %g x the %d of the reference '
+           'machine (%s, %d cores at %s: %s, %s)' % (
+               model, int(cores), DEFAULT_CAP_SCALE, reference, REFERENCE_MACHINE['cpu_model'],
+               REFERENCE_MACHINE['cores'], REFERENCE_MACHINE['date'], _cap_reason(reference, cores, layout, REFERENCE),
+               where))
+    return Cap(cap, cores, layout, REFERENCE, False, why)
+
+
+def _cap_reason(cap, cores, layout, figures):
+    failing = figures.failing_per_core.get(layout)
+    bound = '' if cap == int(cores / figures.cpu_per_drone[layout]) or cap == 1 or not failing else \
+        ', below %d drones (%g per core) measured not to hold' % (cap + 1, failing)
+    return '%g cores / %.3f core per drone%s' % (cores, figures.cpu_per_drone[layout], bound)
+
+
+def fleet_size_problem(count, max_drones=0, cores=None, layout=DEFAULT_LAYOUT, cap=None):
+    """None when ``count`` drones fit (``max_drones`` > 0: the user's own cap instead of the machine's), else
+    what is wrong (names the cap, the figure it comes from and where, and how to override it). ``cap``: the
+    machine's Cap (default ``machine_cap(layout, cores)``)."""
     if max_drones and max_drones > 0:
-        cap, why = int(max_drones), 'max_drones:=%d' % max_drones
+        limit, why = int(max_drones), 'max_drones:=%d' % max_drones
     else:
-        n = available_cores() if cores is None else cores
-        cap = fleet_cap(n, layout)
-        where = 'benchmarks/results/fleet.md' if layout == DEFAULT_LAYOUT else \
-            '%s layout, benchmarks/results/fleet.md' % layout
-        bound = '' if cap == int(n / CPU_PER_DRONE[layout]) or cap == 1 else \
-            ', below %d drones (%g per core) measured not to hold' % (cap + 1, FAILING_PER_CORE[layout])
-        why = ('%d cores / %.3f core per drone%s (%s): slower than real time beyond it; max_drones:=N to raise it'
-               % (n, CPU_PER_DRONE[layout], bound, where))
-    if count > cap:
-        return '%d drones is more than the fleet cap of %d (%s)' % (count, cap, why)
+        cap = machine_cap(layout, cores) if cap is None else cap
+        limit = cap.drones
+        why = '%s: slower than real time beyond it; %smax_drones:=N to raise it' % (
+            cap.why, '' if cap.measured else 'measure this machine\'s cap: %s; or ' % CALIBRATE_COMMAND)
+    if count > limit:
+        return '%d drones is more than the fleet cap of %d (%s)' % (count, limit, why)
     return None
 
 
@@ -175,10 +323,11 @@ RULES = {
 }
 
 
-def check(args):
+def check(args, cap_cache=None):
     """``args``: (name, value text) pairs. Returns the error lines (empty when every argument is good);
     ValueError for an argument name without a rule (a mistake in the launch file). A scenario is not
-    checked when a scenario_file is given (the file wins)."""
+    checked when a scenario_file is given (the file wins). ``cap_cache``: the fleet cap's cache file (default
+    cap_cache_path())."""
     errors = []
     given = dict(args)
     for name, value in args:
@@ -192,8 +341,9 @@ def check(args):
         if problem is None and name == 'drones' and int(value) > 0:
             limit = given.get('max_drones', '0')
             layout = given.get('layout') or DEFAULT_LAYOUT     # '' = the fleet file's: its launcher checks again
-            problem = fleet_size_problem(int(value), int(limit) if limit.isdigit() else 0,
-                                         layout=layout if layout in CPU_PER_DRONE else DEFAULT_LAYOUT)
+            layout = layout if layout in CPU_PER_DRONE else DEFAULT_LAYOUT
+            problem = fleet_size_problem(int(value), int(limit) if limit.isdigit() else 0, layout=layout,
+                                         cap=machine_cap(layout, cache_path=cap_cache))
         if problem:
             errors.append('launch argument %s:=%s: %s' % (name, value, problem))
     return errors

@@ -422,6 +422,11 @@ class TreeCpu(object):
         self.last.update(snap)
         return snap
 
+    def processes(self):
+        """[(role, CPU seconds in the window)] of every process seen (after ``end_window``), largest first."""
+        return sorted(((self.role.get(key, 'other'), cpu - self.base.get(key, 0.0)) for key, cpu in self.last.items()),
+                      key=lambda item: -item[1])
+
     def end_window(self):
         """{role: [CPU seconds in the window, processes]}; ``ended`` = processes gone during the window."""
         snap = self.poll()

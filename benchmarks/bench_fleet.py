@@ -50,6 +50,10 @@ RESULTS = os.path.join(ROOT, 'benchmarks', 'results', 'fleet.md')
 RESULTS_JSON = os.path.join(ROOT, 'benchmarks', 'results', 'fleet.json')
 DOCS = os.path.join(ROOT, 'docs', 'fleet.md')
 MASTER_PORTS = (12000, 12500)
+#: the processes with the most CPU a run records ([role, % of one core], largest first)
+LARGEST_PROCESSES = 5
+#: --calibrate-cap: the sizes tried per layout, in order until one does not hold real time
+CALIBRATION_SIZES = {'per_drone': [2, 4, 6, 8, 10, 12], 'shared': [4, 8, 12, 16, 20, 24, 28, 32, 40]}
 
 
 def role_of(proc, is_root):
@@ -155,6 +159,8 @@ class Bench(object):
             after = diag.snapshot()
         finally:
             self.procs.stop(name)
+        procs = sorted(((role, 100.0 * cpu / window.wall) for tree in ('launch', 'core')
+                        for role, cpu in window.trees[tree].processes()), key=lambda item: -item[1])
         per_role = {}
         for tree in ('launch', 'core'):
             for role, (cpu, count) in window.cpu[tree].items():
@@ -164,7 +170,8 @@ class Bench(object):
         run = {'layout': layout, 'n': n, 'repeat': repeat, 'startup_s': startup, 'wall': window.wall,
                'roles': per_role, 'drones': drone_figures(names, before, after), 'load_before': window.load_before,
                'load_after': window.load_after, 'busy': window.busy,
-               'bench_cpu': 100.0 * window.bench_cpu / window.wall}
+               'bench_cpu': 100.0 * window.bench_cpu / window.wall,
+               'largest_processes': [[role, cpu] for role, cpu in procs[:LARGEST_PROCESSES]]}
         run['other_jobs'] = fleet_report.other_jobs(dict(run), os.cpu_count() or 1)
         return run
 
@@ -249,29 +256,113 @@ def report_run(r):
              fleet_report.fmt(r['other_jobs'], 0)), flush=True)
     for role, (cpu, count) in sorted(r['roles'].items(), key=lambda kv: -kv[1][0]):
         print('    %-24s %5.1f %% (%d processes)' % (role, cpu, count), flush=True)
+    print('    largest processes: %s' % ', '.join('%s %.1f %%' % (role, cpu) for role, cpu in
+                                                   r.get('largest_processes', [])), flush=True)
+
+
+def calibrate(args, layouts, bench_runs):
+    """The fleet cap of this machine: per layout, the sizes of ``args.sizes`` (default CALIBRATION_SIZES) one run
+    each, in order until one does not hold real time; the cap's figures (fleet_report.cap_cpu_per_drone,
+    cap_failing_per_core) written into the cap cache (launch_check.cap_cache_path(), or --cap-cache) under this
+    machine's CPU model and cores, unless --no-write. ``bench_runs(n, layout)``: one run's figures."""
+    from anafi_sim import launch_check
+    cores = launch_check.available_cores()
+    model = launch_check.cpu_model()
+    data = {'format': 2, 'fleet': args.fleet, 'settle': args.settle, 'duration': args.duration, 'repeats': 1,
+            'sizes': [], 'layouts': layouts, 'machine': dict(machine_facts(), cores=cores, cpu_model=model),
+            'hold': dict(fleet_report.HOLD), 'runs': []}
+    figures = {}
+    for layout in layouts:
+        sizes = args.sizes or CALIBRATION_SIZES[layout]
+        for n in sizes:
+            print('calibrating the %s layout: N = %d ...' % (layout, n), flush=True)
+            try:
+                r = bench_runs(n, layout)
+            except TimeoutError as error:
+                r = {'layout': layout, 'n': n, 'repeat': 0, 'error': str(error)}
+                print('%s N = %d: %s' % (layout, n, error), flush=True)
+            else:
+                report_run(r)
+            data['runs'].append(r)
+            data['sizes'] = sorted(set(data['sizes'] + [n]))
+            if not fleet_report.run_holds(r):
+                break
+        cpu = fleet_report.cap_cpu_per_drone(data, layout)
+        if cpu is None:
+            print('%s: no size held real time here (smallest tried %d): no cap written for it (the conservative '
+                  'default stays; try smaller --sizes)' % (layout, sizes[0]), flush=True)
+            continue
+        mine = [r for r in data['runs'] if r['layout'] == layout]
+        others = [fleet_report.other_jobs(r, cores) for r in mine]
+        figures[layout] = {
+            'cpu_per_drone': cpu, 'failing_per_core': fleet_report.cap_failing_per_core(data, layout),
+            'largest_holding': [h for h in fleet_report.headline(data) if h['layout'] == layout][0]['n'],
+            'sizes': [r['n'] for r in mine], 'duration_s': args.duration,
+            'other_jobs_max_pct_core': round(max([o for o in others if o is not None] or [0.0]), 1),
+            'load_1min_max': round(max(max(r.get('load_before', [0])[0], r.get('load_after', [0])[0])
+                                       for r in mine), 2)}
+    caps = dict((layout, launch_check.fleet_cap(cores, layout, launch_check.CapFigures(
+        dict((k, v['cpu_per_drone']) for k, v in figures.items()),
+        dict((k, v['failing_per_core']) for k, v in figures.items()), model, cores, '', ''))) for layout in figures)
+    for layout, figs in figures.items():
+        print('%s layout on %s, %d cores: %.3f core per drone, %s drones per core failing: fleet cap %d'
+              % (layout, model, cores, figs['cpu_per_drone'], figs['failing_per_core'], caps[layout]), flush=True)
+        if figs['other_jobs_max_pct_core'] > fleet_report.OTHER_JOBS_LIMIT:
+            print('  (other jobs used up to %.0f %% of a core meanwhile: the machine was busy, the cap is what the '
+                  'fleet got then; rerun on a quiet machine)' % figs['other_jobs_max_pct_core'], flush=True)
+    if figures and not args.no_write:
+        from anafi_sim import run_files
+        path = args.cap_cache or launch_check.cap_cache_path()
+        document = launch_check.cap_cache_with(run_files.read_yaml(path, default=None, tolerant=True), model, cores,
+                                               data['machine']['date'], figures,
+                                               python=data['machine']['python'], command=' '.join(sys.argv))
+        run_files.write_yaml(path, document)
+        print('written %s (%s): fleet.launch refuses above these caps now' % (
+            path, launch_check.machine_key(model, cores)), flush=True)
+    return data
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument('--sizes', type=int, nargs='+', default=[1, 2, 4, 8, 10, 12])
+    ap.add_argument('--sizes', type=int, nargs='+', default=None, help='default 1 2 4 8 10 12')
     ap.add_argument('--repeats', type=int, default=2, help='runs per size and layout (>= 2 for written results)')
     which = ap.add_mutually_exclusive_group()
     which.add_argument('--layout', choices=fleet_report.LAYOUTS, help='one layout (default per_drone)')
     which.add_argument('--layouts', choices=fleet_report.LAYOUTS, nargs='+',
                        help='several layouts side by side, interleaved run by run')
     ap.add_argument('--fleet', default='three_circles')
-    ap.add_argument('--duration', type=float, default=30.0, help='s of wall time measured')
-    ap.add_argument('--settle', type=float, default=10.0)
+    ap.add_argument('--duration', type=float, default=None, help='s of wall time measured (30; --calibrate-cap 20)')
+    ap.add_argument('--settle', type=float, default=None, help='s (10; --calibrate-cap 5)')
     ap.add_argument('--start-timeout', type=float, default=240.0)
     ap.add_argument('--max-size', action='append', default=[], metavar='LAYOUT=N',
                     help='run that layout only up to N drones (e.g. per_drone=10: larger ones never start in time)')
     ap.add_argument('--no-write', action='store_true')
+    ap.add_argument('--calibrate-cap', action='store_true',
+                    help='measure this machine\'s fleet cap (one run per size, sizes in order until one does not '
+                         'hold; default sizes per layout %s, default layouts both) and write it into the cap cache '
+                         '(~/.ros/anafi_sim/fleet_cap.yaml) instead of the results page' % CALIBRATION_SIZES)
+    ap.add_argument('--cap-cache', default='', metavar='PATH', help='--calibrate-cap: the cache file to write')
     ap.add_argument('--from-json', action='store_true',
                     help='only rewrite fleet.md and the block of docs/fleet.md from fleet.json')
     args = ap.parse_args(argv)
     if args.from_json:
         rewrite(fleet_report.load(RESULTS_JSON))
         return 0
+    if args.duration is None:
+        args.duration = 20.0 if args.calibrate_cap else 30.0
+    if args.settle is None:
+        args.settle = 5.0 if args.calibrate_cap else 10.0
+    if args.calibrate_cap:
+        layouts = args.layouts or ([args.layout] if args.layout else list(fleet_report.LAYOUTS))
+        with tempfile.TemporaryDirectory(prefix='bench_fleet_') as workdir:
+            bench = Bench(workdir)
+            try:
+                calibrate(args, layouts, lambda n, layout: bench.run_size(n, args, layout, 0))
+            finally:
+                bench.close()
+        return 0
+    if args.sizes is None:
+        args.sizes = [1, 2, 4, 8, 10, 12]
     layouts = args.layouts or [args.layout or 'per_drone']
     max_size = {}
     for item in args.max_size:

@@ -8,7 +8,8 @@ block in docs/fleet.md (Jinja2 templates beside this file: fleet.md.j2, fleet_do
 fleet.json: {'format': 2, 'fleet', 'settle' [s], 'duration' [s], 'repeats', 'sizes', 'layouts', 'machine':
 {'date', 'python', 'cores', 'cpu_model'}, 'core_cost', 'runs': [one measurement window each: 'layout', 'n',
 'repeat', 'drones' {name: {'rtf', 'truth_hz', 'mirror_hz', ...}}, 'roles' {role: [% of one core, processes]},
-'busy' [%], 'other_jobs' [% of one core], 'load_before', 'load_after', 'bench_cpu', 'startup_s', 'wall'; or
+'busy' [%], 'other_jobs' [% of one core], 'load_before', 'load_after', 'bench_cpu', 'startup_s', 'wall',
+'largest_processes' [[role, % of one core], largest first; runs before it was recorded have none]; or
 'error' when the fleet never flew]}. The older format ({'results': [...]}, one run per size, per-drone layout,
 no machine facts) loads as repeats = 1.
 """
@@ -19,10 +20,14 @@ import re
 
 import jinja2
 
+from anafi_sim.mission import fleet_realtime
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 #: a fleet holds real time when, in every run, every drone has at least these: simulator RTF (sim time / wall
 #: time), ground-truth rate [Hz] (interface: samples published / wall time), mirror rate [Hz] (samples sent)
-HOLD = {'rtf': 0.98, 'truth_hz': 97.0, 'mirror_hz': 97.0}
+#: (anafi_sim.mission.fleet_realtime's thresholds, which a fleet host reports against on /diagnostics, at 100 Hz)
+HOLD = {'rtf': fleet_realtime.MIN_RTF, 'truth_hz': round(100.0 * fleet_realtime.MIN_RATE_FRACTION, 6),
+        'mirror_hz': round(100.0 * fleet_realtime.MIN_RATE_FRACTION, 6)}
 HOLD_TEXT = ("every drone's RTF >= %.2f, ground truth >= %g Hz and mirror sent >= %g Hz"
              % (HOLD['rtf'], HOLD['truth_hz'], HOLD['mirror_hz']))
 LAYOUTS = ('per_drone', 'shared')
@@ -35,7 +40,7 @@ OTHER_JOBS_LIMIT = 30.0
 DOCS_BEGIN = '<!-- fleet-benchmark:begin -->'
 DOCS_END = '<!-- fleet-benchmark:end -->'
 #: the spread's keys: a run's figure -> its name in the tables
-SPREAD_KEYS = ('rtf_min', 'truth_min', 'mirror_min', 'cpu_total', 'cpu_per_drone')
+SPREAD_KEYS = ('rtf_min', 'truth_min', 'mirror_min', 'cpu_total', 'cpu_per_drone', 'largest_process')
 
 
 #: command-line substring -> role (the first that matches); a shared layout's host: ``host_role``
@@ -121,9 +126,10 @@ def run_holds(run):
 def run_figures(run):
     """The figures of one run the summary spreads: minima over the drones, CPU total and per drone."""
     total = cpu_total(run)
+    largest = (run.get('largest_processes') or [[None, None]])[0]
     return {'rtf_min': _min(run, 'rtf'), 'truth_min': _min(run, 'truth_hz'), 'mirror_min': _min(run, 'mirror_hz'),
             'cpu_total': total, 'cpu_per_drone': None if total is None else total / run['n'],
-            'holds': run_holds(run)}
+            'largest_process': largest[1], 'largest_role': largest[0], 'holds': run_holds(run)}
 
 
 def median(values):
@@ -150,7 +156,8 @@ def summary(data):
                           key=lambda r: r['repeat'])
             figs = [run_figures(r) for r in runs]
             roles = sorted(set(k for r in runs for k in r.get('roles', {})))
-            rows.append({'layout': layout, 'n': n, 'runs': runs, 'figures': figs,
+            roles_largest = sorted(set(f['largest_role'] for f in figs if f['largest_role']))
+            rows.append({'layout': layout, 'n': n, 'runs': runs, 'figures': figs, 'largest_roles': roles_largest,
                          'holds': bool(runs) and all(f['holds'] for f in figs),
                          'held': sum(1 for f in figs if f['holds']),
                          'spread': dict((k, spread([f[k] for f in figs])) for k in SPREAD_KEYS),
@@ -262,7 +269,8 @@ def context(data):
     return {'data': data, 'machine': machine, 'cores': cores, 'rows': rows, 'heads': headline(data, rows),
             'roles': role_order(rows), 'hold': HOLD, 'hold_text': HOLD_TEXT, 'loaded': loaded,
             'limit': OTHER_JOBS_LIMIT, 'cost': cost, 'repeats': data.get('repeats', 1),
-            'layouts': data['layouts']}
+            'layouts': data['layouts'],
+            'any_largest': any(r.get('largest_processes') for r in data['runs'])}
 
 
 def markdown(data):

@@ -14,6 +14,8 @@ Fleet file schema (every key optional except ``drones`` unless ``drones:=N`` is 
     defaults: {controller: mpc, scenario: circle_r2_v1}   # every drone's settings unless it sets its own
     row: {spacing: 6.0, axis: y}    # drones:=N -> anafi1..anafiN, drone i at (i - 1) * spacing along axis
     layout: per_drone               # per_drone (a process per node) | shared (hosts: mission/fleet_layout.py)
+    drones_per_host: {fleet_ground_truth: 10}   # shared layout: split a host by this many drones (default:
+                                    # fleet_layout.DRONES_PER_HOST, 10 for fleet_drones and fleet_ground_truth)
     drones:
       - name: anafi1                # a ROS name: namespace, tf prefix, models <name> and <name>_camera
         source: sim                 # sim (stand-in, default) | sphinx (the real Sphinx drone: at most one)
@@ -40,7 +42,7 @@ from anafi_sim import paths
 from anafi_sim.mission.model_following import OFFSET_FRAMES, YAW_MODES
 from anafi_sim.mission.trajectory import SCENARIO_DIR, airship_defaults, scenario_from_dict, scenario_path
 from anafi_sim.gazebo.mirror import model_names
-from anafi_sim.mission.fleet_layout import DEFAULT_LAYOUT, check_layout
+from anafi_sim.mission.fleet_layout import DEFAULT_LAYOUT, check_drones_per_host, check_layout
 from anafi_sim.interface.telemetry_command import allowed_argv
 
 FLEET_DIR = paths.config_path('fleets')
@@ -51,7 +53,7 @@ CONTROLLERS = ('mpc', 'pid', 'pid_single', 'preview_mpc', 'none')
 DRONE_KEYS = ('name', 'source', 'start', 'controller', 'scenario', 'waypoint', 'target', 'offset',
               'telemetry_port', 'telemetry_command')
 DEFAULT_KEYS = tuple(k for k in DRONE_KEYS if k not in ('name', 'start', 'telemetry_port'))
-FLEET_KEYS = ('name', 'description', 'defaults', 'row', 'drones', 'layout')
+FLEET_KEYS = ('name', 'description', 'defaults', 'row', 'drones', 'layout', 'drones_per_host')
 TARGET_KEYS = ('model', 'offset_frame', 'yaw_mode', 'yaw_offset')
 RESERVED_MODELS = ('ground_plane', 'airship')
 NAME_RE = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
@@ -66,7 +68,8 @@ Drone.__doc__ = ('One drone of a fleet: name, source (sim | sphinx), start (x, y
                  '(int or None = choose at launch), telemetry_command (sphinx source; \'\' = the interface\'s '
                  'default).')
 
-Fleet = collections.namedtuple('Fleet', 'name description drones layout')
+Fleet = collections.namedtuple('Fleet', 'name description drones layout drones_per_host')
+Fleet.__new__.__defaults__ = ({},)
 
 
 def _number(value, what):
@@ -200,7 +203,8 @@ def fleet_from_dict(data, name='fleet', drones=0, what=None):
         layout = data.get('layout', DEFAULT_LAYOUT)
         fleet = Fleet(str(data.get('name', name)), str(data.get('description', '')),
                       tuple(drone_from_dict(e, 'drone %d' % (i + 1)) for i, e in enumerate(entries)),
-                      check_layout(layout) if isinstance(layout, str) else check_layout(repr(layout)))
+                      check_layout(layout) if isinstance(layout, str) else check_layout(repr(layout)),
+                      check_drones_per_host(data.get('drones_per_host')))
         check_fleet(fleet)
         return fleet
     except ValueError as e:

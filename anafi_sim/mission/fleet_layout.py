@@ -7,7 +7,9 @@ Stage: experiments (beside mission/fleet.py, which writes the per-drone launch).
   (scripts/fleet_host.py): ``fleet_drones`` hosts every drone's simulator, controller and trajectory generator
   (their estimate, command and waypoint messages stay in the process), ``fleet_ground_truth`` every drone's
   interface and mirror, and the kinematic world when the fleet runs ours (the 100 Hz ground truth reaches the
-  mirror, and the mirror's model states the world, in the process). Everything else (the
+  mirror, and the mirror's model states the world, in the process); both split by ten drones (DRONES_PER_HOST:
+  ``fleet_drones_1``, ``fleet_drones_2``, ..., ``fleet_ground_truth_1``, ... the world in the first).
+  Everything else (the
   distributed PID nodes, evaluators, model followers, rviz helpers, the telemetry CLIs the interfaces
   supervise) stays a process of its own, as does any node a launch file gives remappings, a launch prefix or
   environment of its own.
@@ -41,10 +43,15 @@ HOSTABLE = {
     'trajectory_generator.py': ('trajectory_generator.py', 'TrajectoryGeneratorNode', ()),
 }
 
-DRONES_PER_HOST = {'fleet_drones': 10}
-"""Hosts split by drone: at most this many drones' instances in one such host (fleet_drones_1, _2, ...). One
-interpreter runs one thread at a time: each simulator step's telemetry send and each controller's solve wait
-for it, and beyond about ten drones the simulators' loop falls behind (benchmarks/results/fleet.md)."""
+DRONES_PER_HOST = {'fleet_drones': 10, 'fleet_ground_truth': 10}
+"""Hosts split by drone: at most this many drones' instances in one such host (<host>_1, <host>_2, ...; a fleet
+file's ``drones_per_host`` sets its own). One interpreter runs one thread at a time: in fleet_drones each
+simulator step's telemetry send and each controller's solve wait for it, and beyond about ten drones the
+simulators' loop falls behind; fleet_ground_truth (every interface and mirror at 100 Hz) took 53 % of a core
+at 20 drones on the reference machine (benchmarks/results/fleet.md) and about 74 % on a 2-core Intel Xeon,
+where those 20 drones no longer held real time. An instance outside the drones' namespaces (the kinematic
+world) goes to the first host of the split: the mirrors there reach it in the process, the others through its
+topic."""
 
 NodeSpec = collections.namedtuple('NodeSpec', 'package type name namespace args output respawn respawn_delay '
                                               'required launch_prefix cwd env_args remap_args')
@@ -98,21 +105,40 @@ def drone_of(instance_name):
     return parts[0] if len(parts) > 1 else ''
 
 
-def split_by_drone(hosted):
-    """{host: instances} with each host of DRONES_PER_HOST split into <host>_1, <host>_2, ... of at most that
-    many drones each (one name unchanged when it fits), the drones in launch order."""
+def check_drones_per_host(value):
+    """A fleet file's ``drones_per_host`` ({host: drones >= 1}, hosts of DRONES_PER_HOST) -> a dict; ValueError
+    naming what is wrong."""
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise ValueError('drones_per_host must be a mapping {host: drones}, got %r' % (value,))
+    for host, limit in value.items():
+        if host not in DRONES_PER_HOST:
+            raise ValueError('drones_per_host: %r is not a host split by drone (%s)'
+                             % (host, ', '.join(sorted(DRONES_PER_HOST))))
+        if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
+            raise ValueError('drones_per_host.%s must be an integer >= 1, got %r' % (host, limit))
+    return dict(value)
+
+
+def split_by_drone(hosted, drones_per_host=None):
+    """{host: instances} with each host of DRONES_PER_HOST (``drones_per_host`` overrides) split into <host>_1,
+    <host>_2, ... of at most that many drones each (one name unchanged when it fits), the drones in launch order;
+    instances outside the drones' namespaces (the world) go with the first group."""
+    limits = dict(DRONES_PER_HOST, **(drones_per_host or {}))
     out = collections.OrderedDict()
     for host, instances in hosted.items():
-        limit = DRONES_PER_HOST.get(host)
+        limit = limits.get(host)
         drones = []
         for inst in instances:
-            if drone_of(inst['name']) not in drones:
-                drones.append(drone_of(inst['name']))
+            drone = drone_of(inst['name'])
+            if drone and drone not in drones:
+                drones.append(drone)
         if not limit or len(drones) <= limit:
             out[host] = instances
             continue
         for k in range(0, len(drones), limit):
-            group = set(drones[k:k + limit])
+            group = set(drones[k:k + limit]) | ({''} if k == 0 else set())
             out['%s_%d' % (host, k // limit + 1)] = [i for i in instances if drone_of(i['name']) in group]
     return out
 
@@ -149,11 +175,12 @@ def _node_xml(node, indent='  '):
     return [head + '>'] + inner + ['%s</node>' % indent]
 
 
-def shared_layout(nodes, params, params_file, output='log', title=''):
+def shared_layout(nodes, params, params_file, output='log', title='', drones_per_host=None):
     """The shared layout of an expanded per-drone launch: (launch XML, params document).
 
     ``nodes``: NodeSpecs; ``params``: {global name: value} (every parameter the launch sets, nodes' private
-    ones included); ``params_file``: where the caller writes the params document (the XML loads it).
+    ones included); ``params_file``: where the caller writes the params document (the XML loads it);
+    ``drones_per_host``: the fleet file's (split_by_drone).
     The XML loads every parameter, starts each host with ``~instances`` (its nodes, in launch order; a host
     with none is not started) and every other node as it was."""
     hosted = collections.OrderedDict((host, []) for host in HOSTS)
@@ -164,7 +191,7 @@ def shared_layout(nodes, params, params_file, output='log', title=''):
             others.append(node)
         else:
             hosted[host].append({'name': full_name(node), 'type': node.type})
-    hosted = split_by_drone(hosted)
+    hosted = split_by_drone(hosted, drones_per_host)
     lines = ['<?xml version="1.0"?>',
              '<!-- Generated by fleet_launcher.py: %s, shared layout (hosts: %s). Do not edit; edit the fleet file. -->'
              % (title or 'fleet', ', '.join(h for h, i in hosted.items() if i)),

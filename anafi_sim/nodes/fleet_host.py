@@ -24,8 +24,10 @@ Parameters: ~instances (list of {name, type}; required), ~diagnostics_period (1.
 the global names of the topics it publishes and subscribes and its services (the master sees them as the
 host's; tests and users see here which drone's instance uses which).
 Publishes /diagnostics: '<host>: fleet host' (instances running / failed, bus deliveries, callback errors and
-deliveries waiting for the bus's delivery thread) and, for an instance that failed, '<instance>: hosted instance'
-ERROR.
+deliveries waiting for the bus's delivery thread), '<host>: real time' (WARN "behind real time: RTF 0.93
+(anafi3) / ground truth 89 Hz (anafi7); 2 of 10 drones" when a hosted simulator's RTF or a hosted interface's
+ground-truth rate over the last 5 s falls under anafi_sim.mission.fleet_realtime's thresholds, else OK with the
+minima) and, for an instance that failed, '<instance>: hosted instance' ERROR.
 """
 import os
 import runpy
@@ -35,7 +37,8 @@ import traceback
 
 import rospy
 
-from anafi_sim.mission.fleet_layout import HOSTABLE, read_instances
+from anafi_sim.mission.fleet_layout import HOSTABLE, drone_of, read_instances
+from anafi_sim.mission.fleet_realtime import RateWindow, real_time_status
 from anafi_sim.ros.context import LocalBus, NodeContext
 from anafi_sim.ros.node import (ERROR, OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 run_until_interrupted, start_diagnostics_thread)
@@ -69,6 +72,7 @@ class FleetHost(object):
         self.callback_errors = {}
         self.bus = LocalBus(rospy.get_name(), on_error=self._on_callback_error)
         self.pub_diag = diagnostics_publisher()
+        self.rates = RateWindow()
         for inst in self.instances:
             self._build(inst)
         rospy.set_param('~wiring', dict((i.name, i.ctx.wiring) for i in self.instances if i.ctx is not None))
@@ -112,11 +116,37 @@ class FleetHost(object):
              ('bus deliveries', str(self.bus.delivered)),
              ('callback errors', str(self.bus.callback_errors)),
              ('deliveries waiting', str(self.bus.pending()))])]
+        try:
+            statuses.append(self.real_time_status(time.monotonic()))
+        except Exception as error:     # an instance without the counters read: the other statuses still go out
+            statuses.append(diagnostic_status('%s: real time' % rospy.get_name(), WARN, 'real time: not measured: '
+                                              '%s: %s' % (type(error).__name__, error), []))
         for inst in failed:
             statuses.append(diagnostic_status('%s: hosted instance' % inst.name, ERROR, inst.error,
                                               [('type', inst.kind), ('host', rospy.get_name())],
                                               hardware_id=inst.name.strip('/').split('/')[0]))
         return statuses
+
+    def real_time_status(self, now):
+        """'<host>: real time': whether this host's drones keep real time (anafi_sim.mission.fleet_realtime):
+        the RTF of its simulators and the ground-truth rate of its interfaces over the last seconds."""
+        rtf, truth, expected = {}, {}, {}
+        for inst in self.instances:
+            drone = drone_of(inst.name) or inst.name
+            key = (inst.kind, inst.name)
+            if inst.error or inst.node is None:
+                self.rates.forget(key)
+                continue
+            if inst.kind == 'anafi_sim_node.py':
+                self.rates.add(key, now, inst.node.sim.clock.t)
+                rtf[drone] = self.rates.rate(key)
+            elif inst.kind == 'interface_node.py':
+                self.rates.add(key, now, inst.node.core.published)
+                truth[drone] = self.rates.rate(key)
+                expected[drone] = inst.node.core.publish_rate
+        status = real_time_status(rtf, truth, expected)
+        return diagnostic_status('%s: real time' % rospy.get_name(), WARN if status.behind else OK, status.message,
+                                 status.values)
 
     def _step_together(self, group):
         """One loop steps every simulator of ``group`` (started at one instant: their steps fall due together,

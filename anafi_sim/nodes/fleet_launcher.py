@@ -14,8 +14,9 @@ Parameters: ~fleet (name in anafi_sim/config/fleets or a path; three_circles), ~
 N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
 ~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false; true: rviz.launch
 per drone and rviz on the fleet's generated view ~out_dir/fleet.rviz, anafi_sim/mission/rviz_config.py),
-~stop_timeout (30 s), ~max_drones (0: the fleet cap derived from the CPU cores and the measured CPU per drone,
-anafi_sim.launch_check.fleet_cap; a larger fleet is refused with a message naming the cap).
+~stop_timeout (30 s), ~max_drones (0: this machine's fleet cap, anafi_sim.launch_check.machine_cap: its own
+measurement cached under the ROS home, else the conservative default; a larger fleet is refused with a message
+naming the cap, its figure and where it came from).
 
 Also a command-line tool, to see or check what a fleet file starts without starting it:
 
@@ -90,7 +91,7 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
                      rviz=rviz, rviz_file=rviz_file, conditions=conditions, world=world)
     path = os.path.join(out_dir, 'fleet.launch')
     if layout == 'shared':
-        xml = shared_launch(xml, out_dir, output, fleet.name)
+        xml = shared_launch(xml, out_dir, output, fleet.name, fleet.drones_per_host)
     with open(path, 'w') as f:
         f.write(xml)
     for drone in fleet.drones:
@@ -100,7 +101,7 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
     return path
 
 
-def shared_launch(per_drone_xml, out_dir, output, title):
+def shared_launch(per_drone_xml, out_dir, output, title, drones_per_host=None):
     """The shared layout's launch XML (its parameters written to out_dir/fleet.params.yaml): roslaunch expands
     the per-drone launch (out_dir/fleet.per_drone.launch, kept for reading) into nodes and parameters, and
     anafi_sim.mission.fleet_layout puts the hostable nodes into hosts."""
@@ -115,7 +116,8 @@ def shared_launch(per_drone_xml, out_dir, output, title):
     params = dict((key, p.value) for key, p in config.params.items()
                   if key not in ('/rosdistro', '/rosversion'))
     params_file = os.path.join(out_dir, 'fleet.params.yaml')
-    xml, document = shared_layout(nodes, params, params_file, output=output, title='fleet ' + title)
+    xml, document = shared_layout(nodes, params, params_file, output=output, title='fleet ' + title,
+                                  drones_per_host=drones_per_host)
     with open(params_file, 'w') as f:
         yaml.safe_dump(document, f, default_flow_style=False, sort_keys=True)
     return xml
@@ -202,7 +204,8 @@ def tool(argv):
     ap.add_argument('--aggregator', type=flag, default=False, metavar='true|false')
     ap.add_argument('--rviz', type=flag, default=False, metavar='true|false')
     ap.add_argument('--conditions', default='', help='flight-conditions profile NAME for every simulated drone')
-    ap.add_argument('--max-drones', type=int, default=0, help='the fleet cap (0: derived from the CPU cores)')
+    ap.add_argument('--max-drones', type=int, default=0,
+                    help='the fleet cap (0: this machine\'s, launch_check.machine_cap)')
     ap.add_argument('--world', default='kinematic', choices=('kinematic', 'gazebo', 'none'),
                     help='as fleet.launch world:= (kinematic: the world is in the generated launch)')
     ap.add_argument('--layout', default='', choices=('',) + LAYOUTS,

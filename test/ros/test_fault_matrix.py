@@ -128,8 +128,9 @@ FAULTS = (
      'refused to run \'sh\' ..." (not respawned again), FILE never created; the parameter put back and the '
      'node shut down again -> it reads the telemetry, OK'),
     ('fleet_cap', 'roslaunch anafi_sim fleet.launch drones:=50 (305 processes, 11 GB, the master unresponsive '
-     'for 150 s before)', 'refused before anything starts: one line naming drones and the cap (cores / the '
-     'layout\'s measured core per drone, benchmarks/results/fleet.md), roslaunch exits non-zero, no node started'),
+     'for 150 s before)', 'refused before anything starts: one line naming drones and the cap (this machine\'s '
+     'own measured figure from the ROS home\'s cache, else the conservative default: which, and where it came '
+     'from), roslaunch exits non-zero, no node started'),
     ('stderr_flood', '600 MB on the telemetry tool\'s stderr without a newline while it prints samples (a third '
      'interface, /flood, whose tlm-data-logger found on PATH is a test tool that floods stderr, then runs the '
      'stand-in)', 'stderr read with the same 4096-byte cap as stdout: the interface\'s memory stays that of an '
@@ -830,7 +831,7 @@ class TestFaultMatrix(unittest.TestCase):
                     ok[0][0] - t_fixed)
 
     def test_08e_fleet_cap(self):
-        from anafi_sim.launch_check import fleet_cap
+        from anafi_sim.launch_check import cap_cache_path, machine_cap
         env = dict(self.env, ROS_MASTER_URI='http://127.0.0.1:%d' % processes.free_port())   # no master there
         t0 = time.time()
         out = subprocess.run(['roslaunch', 'anafi_sim', 'fleet.launch', 'drones:=50', 'layout:=%s' % LAYOUT], env=env,
@@ -840,7 +841,8 @@ class TestFaultMatrix(unittest.TestCase):
         lines = [line for line in out.stdout.splitlines() if line.startswith('launch argument drones:=50')]
         self.assertNotEqual(out.returncode, 0, out.stdout[-2000:])
         self.assertEqual(len(lines), 1, out.stdout[-2000:])
-        self.assertIn('more than the fleet cap of %d' % fleet_cap(layout=LAYOUT), lines[0])
+        cap = machine_cap(LAYOUT, cache_path=cap_cache_path(env))   # this machine's, as the launch check reads it
+        self.assertIn('more than the fleet cap of %d' % cap.drones, lines[0])
         self.assertNotIn('started with pid', out.stdout)               # nothing started, not even a master
         self.record('fleet_cap', 'exit status %d after %.1f s, nothing started: "%s"' % (out.returncode, seconds,
                                                                                         lines[0]),

@@ -11,6 +11,8 @@
    both ends; each drone's chain is complete (simulator, interface, mirror, controller, generator).
    In the shared layout (fleet_shared.test, ~layout shared) the master sees the fleet hosts' ends: each
    host's ~wiring says which instance uses which topic, and those instances are checked as nodes.
+4. a fleet file that splits the ground-truth host (drones_per_host, fleet_three_split.yaml): each mirror in
+   the host of its group, the world in the first (1. and 2. checked every drone's models in the one world).
 """
 import math
 import threading
@@ -130,6 +132,24 @@ class FleetTest(unittest.TestCase):
             controller = [n for n in self._nodes(master) if n.startswith('/%s/' % name)
                           and n.rsplit('/', 1)[-1] in ('mpc_controller', 'pid_framework', 'pid_command')]
             self.assertTrue(controller, 'no controller node in /%s' % name)
+
+    def test_4_a_split_ground_truth_host_keeps_every_mirror_in_one_world(self):
+        """A fleet file's drones_per_host splits the ground-truth host: every drone's mirror runs in the host of
+        its group (the world in the first), and test_1 / test_2 saw each one's models in the one world."""
+        split = self.fleet.drones_per_host.get('fleet_ground_truth')
+        if rospy.get_param('~layout', 'per_drone') != 'shared' or not split:
+            return
+        master = rosgraph.Master('/test_fleet')
+        groups = [self.names[k:k + split] for k in range(0, len(self.names), split)]
+        want = ['/fleet_ground_truth_%d' % (i + 1) for i in range(len(groups))]
+        self.assertTrue(wait_for(lambda: set(want) <= set(self._hosts(master)), 30.0, 0.5),
+                        'hosts: %s' % sorted(self._hosts(master)))
+        hosts = self._hosts(master)
+        for host, group in zip(want, groups):
+            mirrors = sorted(n for n in hosts[host] if n.endswith('/gazebo_mirror'))
+            self.assertEqual(mirrors, sorted('/%s/gazebo_mirror' % d for d in group), host)
+        worlds = [[n for n in hosts[h] if namespace(n) == ''] for h in want]     # the world at the root
+        self.assertEqual([len(w) for w in worlds], [1] + [0] * (len(want) - 1), 'root instances: %s' % worlds)
 
     @staticmethod
     def _hosts(master):

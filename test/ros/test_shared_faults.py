@@ -145,6 +145,12 @@ class SharedFaults(unittest.TestCase):
         self.assertEqual(interface2[1], 2, interface2)
         rate = w.truth_rate()
         self.assertGreaterEqual(rate, 97.0)
+        # each host says whether its drones keep real time; a drone without telemetry is not 'behind' (its own
+        # statuses say why), so anafi2 is not named whatever the machine's load does to anafi1
+        self.require(lambda: w.status('/fleet_ground_truth: real time') is not None and
+                     w.status('/fleet_drones: real time') is not None, 10.0, 'the hosts\' real time statuses')
+        for name in ('/fleet_ground_truth: real time', '/fleet_drones: real time'):
+            self.assertNotIn('anafi2', w.status(name)[2], w.status(name))
         mirror1 = w.status('/anafi1/gazebo_mirror: gazebo mirror')
         self.assertIsNotNone(mirror1)
         self.assertEqual(mirror1[1], 0, mirror1)

@@ -83,3 +83,44 @@ def test_layout_in_the_fleet_file(tmp_path):
     path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\nlayout: pooled\n')
     with pytest.raises(ValueError, match='layout must be one of per_drone, shared'):
         load_fleet(str(path))
+
+
+def _ground_truth(n, world=True):
+    out = [{'name': '/kinematic_world', 'type': 'kinematic_world_node.py'}] if world else []
+    for i in range(1, n + 1):
+        out += [{'name': '/anafi%d/interface' % i, 'type': 'interface_node.py'},
+                {'name': '/anafi%d/gazebo_mirror' % i, 'type': 'gazebo_mirror_node.py'}]
+    return out
+
+
+def test_the_ground_truth_host_splits_by_ten_drones_with_the_world_in_the_first():
+    assert fl.DRONES_PER_HOST['fleet_ground_truth'] == 10 and fl.DRONES_PER_HOST['fleet_drones'] == 10
+    hosts = fl.split_by_drone({'fleet_ground_truth': _ground_truth(10)})
+    assert list(hosts) == ['fleet_ground_truth'] and len(hosts['fleet_ground_truth']) == 21   # fits: one host
+    hosts = fl.split_by_drone({'fleet_ground_truth': _ground_truth(25)})
+    assert list(hosts) == ['fleet_ground_truth_1', 'fleet_ground_truth_2', 'fleet_ground_truth_3']
+    first = [i['name'] for i in hosts['fleet_ground_truth_1']]
+    assert first[0] == '/kinematic_world' and len(first) == 21 and '/anafi10/gazebo_mirror' in first
+    assert [i['name'] for i in hosts['fleet_ground_truth_3']] == \
+        ['/anafi%d/%s' % (d, r) for d in range(21, 26) for r in ('interface', 'gazebo_mirror')]
+    every = [i['name'] for h in hosts.values() for i in h]
+    assert sorted(every) == sorted(i['name'] for i in _ground_truth(25))           # each instance once
+    # a world that comes after the drones in launch order still goes with the first group, counted as no drone
+    late = _ground_truth(4, world=False) + [{'name': '/kinematic_world', 'type': 'kinematic_world_node.py'}]
+    hosts = fl.split_by_drone({'fleet_ground_truth': late}, {'fleet_ground_truth': 2})
+    assert [i['name'] for i in hosts['fleet_ground_truth_1']][-1] == '/kinematic_world'
+    assert len(hosts['fleet_ground_truth_2']) == 4
+    assert list(fl.split_by_drone({'fleet_ground_truth': late}, {'fleet_ground_truth': 4})) == ['fleet_ground_truth']
+
+
+def test_drones_per_host_in_the_fleet_file(tmp_path):
+    path = tmp_path / 'f.yaml'
+    path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\nlayout: shared\n'
+                    'drones_per_host: {fleet_ground_truth: 2}\n')
+    assert load_fleet(str(path)).drones_per_host == {'fleet_ground_truth': 2}
+    assert load_fleet('three_circles').drones_per_host == {}
+    for bad, problem in (('{fleet_world: 2}', 'not a host split by drone'), ('{fleet_drones: 0}', '>= 1'),
+                         ('[2]', 'a mapping'), ('{fleet_drones: 2.5}', 'an integer')):
+        path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\ndrones_per_host: %s\n' % bad)
+        with pytest.raises(ValueError, match=problem):
+            load_fleet(str(path))

@@ -145,6 +145,8 @@ def test_the_docs_block_check_fails_on_a_figure_that_is_not_fleet_json_s():
 
 def test_the_fleet_cap_is_the_cpu_per_drone_measured_in_fleet_json():
     data = report.load(FLEET_JSON)
+    machine = data['machine']       # the reference the conservative default scales names the machine measured
+    assert launch_check.REFERENCE_MACHINE == dict((k, machine[k]) for k in ('cpu_model', 'cores', 'date'))
     assert sorted(launch_check.CPU_PER_DRONE) == sorted(report.LAYOUTS)
     for layout in report.LAYOUTS:
         if layout in data['layouts']:
@@ -216,3 +218,21 @@ def test_the_quote_check_finds_a_stale_figure():
     assert len(stale_quotes(bad, 0.165, cap)) == 3
     assert stale_quotes('the fleet cap of 10 (2 cores / 0.165 core per drone', 0.165, cap) == \
         ['fleet cap of 10 (2 cores']
+
+
+def test_the_page_shows_the_largest_single_process_and_the_machine():
+    runs = [_run(20, 0, 'shared'), _run(20, 1, 'shared')]
+    runs[0]['largest_processes'] = [['host fleet_ground_truth_1', 41.0], ['host fleet_drones_1', 30.0]]
+    runs[1]['largest_processes'] = [['host fleet_ground_truth_1', 45.0]]
+    data = _data(runs, layouts=('shared',))
+    [row] = report.summary(data)
+    assert row['spread']['largest_process'] == (41.0, 43.0, 45.0)
+    assert row['largest_roles'] == ['host fleet_ground_truth_1']
+    text = report.markdown(data)
+    assert '| 41.0 / 43.0 / 45.0 (host fleet_ground_truth_1) |' in text
+    assert '| 41.0 (host fleet_ground_truth_1) |' in text and '2 CPU cores, test' in text
+    assert 'not recorded' not in text
+    block = report.docs_block(data)
+    assert 'test, 2 cores' in block and 'the largest process 41.0 / 43.0 / 45.0 % of a core' in block
+    del runs[0]['largest_processes'], runs[1]['largest_processes']
+    assert 'not recorded by the runs of this file' in report.markdown(data)

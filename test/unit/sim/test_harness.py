@@ -110,6 +110,8 @@ def test_cpu_accounting_of_a_busy_process():
         tree = processes.TreeCpu(proc.pid)
         window = processes.CpuWindow({'busy': tree}, 0.6).run()
         assert window.share('busy') > 5.0 and window.count('busy') == 1 and window.count('busy', 'root') == 1
+        [(role, cpu)] = tree.processes()                # one process: its CPU is the tree's
+        assert role == 'root' and 100.0 * cpu / window.wall == window.share('busy')
         snap0 = processes.cpu_snapshot({'busy': proc.pid})
         time.sleep(0.3)
         delta = processes.cpu_delta(snap0, processes.cpu_snapshot({'busy': proc.pid}))

@@ -54,54 +54,126 @@ def test_the_script_exits_non_zero_with_the_line_and_prints_ok_otherwise():
     assert good.returncode == 0 and good.stdout == 'ok'
 
 
-def test_the_fleet_cap_comes_from_the_measured_cost_per_drone(monkeypatch):
-    from anafi_sim import launch_check
+def figures(cpu, failing=None, model='Test CPU', cores=2, date='2026-01-01 00:00', source='cache'):
+    failing = failing or dict((k, None) for k in cpu)
+    return launch_check.CapFigures(cpu, failing, model, cores, date, source)
+
+
+def test_the_fleet_cap_comes_from_the_measured_cost_per_drone():
     from anafi_sim.launch_check import fleet_cap, fleet_size_problem
-    monkeypatch.setattr(launch_check, 'CPU_PER_DRONE', {'per_drone': 0.165, 'shared': 0.1})
-    monkeypatch.setattr(launch_check, 'FAILING_PER_CORE', {'per_drone': None, 'shared': None})
-    assert fleet_cap(2) == 12 and fleet_cap(1) == 6 and fleet_cap(0.1) == 1
-    assert fleet_cap(2, 'shared') == 20 and fleet_cap(2, layout='per_drone') == 12
-    assert fleet_size_problem(12, cores=2) is None and fleet_size_problem(20, cores=2, layout='shared') is None
-    problem = fleet_size_problem(50, cores=2)
-    assert problem == ('50 drones is more than the fleet cap of 12 (2 cores / 0.165 core per drone '
-                       '(benchmarks/results/fleet.md): slower than real time beyond it; max_drones:=N to raise it)')
-    problem = fleet_size_problem(50, 0, 2, 'shared')
-    assert problem.startswith('50 drones is more than the fleet cap of 20 (2 cores / 0.100 core per drone '
-                              '(shared layout, benchmarks/results/fleet.md)')
-    assert fleet_size_problem(50, max_drones=60) is None and 'max_drones:=20' in fleet_size_problem(30, 20)
+    f = figures({'per_drone': 0.165, 'shared': 0.1})
+    assert fleet_cap(2, figures=f) == 12 and fleet_cap(1, figures=f) == 6 and fleet_cap(0.1, figures=f) == 1
+    assert fleet_cap(2, 'shared', f) == 20 and fleet_cap(2, layout='per_drone', figures=f) == 12
+    cap = launch_check.Cap(12, 2, 'per_drone', f, True, 'measured here on Test CPU')
+    assert fleet_size_problem(12, cap=cap) is None
+    assert fleet_size_problem(50, cap=cap) == (
+        '50 drones is more than the fleet cap of 12 (measured here on Test CPU: slower than real time beyond it; '
+        'max_drones:=N to raise it)')
+    assert fleet_size_problem(50, max_drones=60, cap=cap) is None
+    assert 'max_drones:=20' in fleet_size_problem(30, 20, cap=cap)
     with pytest.raises(KeyError):
         fleet_cap(2, 'no_such_layout')
 
 
-def test_the_fleet_cap_stays_below_the_smallest_fleet_measured_not_to_hold(monkeypatch):
-    from anafi_sim import launch_check
-    from anafi_sim.launch_check import fleet_cap, fleet_size_problem
-    monkeypatch.setattr(launch_check, 'CPU_PER_DRONE', {'per_drone': 0.271, 'shared': 0.06})
-    monkeypatch.setattr(launch_check, 'FAILING_PER_CORE', {'per_drone': 4.0, 'shared': 12.5})
-    assert fleet_cap(2) == 7                     # 2 / 0.271 = 7.4 and 8 did not hold: 7 either way
-    assert fleet_cap(2, 'shared') == 24          # 2 / 0.06 = 33, but 25 did not hold on 2 cores
-    assert fleet_cap(4, 'shared') == 49 and fleet_cap(1, 'shared') == 12 and fleet_cap(0.01, 'shared') == 1
-    assert fleet_size_problem(24, cores=2, layout='shared') is None
-    problem = fleet_size_problem(25, cores=2, layout='shared')
-    assert problem.startswith('25 drones is more than the fleet cap of 24 (2 cores / 0.060 core per drone, below '
-                              '25 drones (12.5 per core) measured not to hold (shared layout')
-    assert 'measured not to hold' not in fleet_size_problem(8, cores=2)
-
-
-def test_drones_above_the_cap_fail_the_launch_check():
+def test_the_fleet_cap_stays_below_the_smallest_fleet_measured_not_to_hold():
     from anafi_sim.launch_check import fleet_cap
-    [line] = check(parse(['drones=%d' % (fleet_cap() + 1), 'max_drones=0']))
-    assert line.startswith('launch argument drones:=') and 'fleet cap' in line
-    assert check(parse(['drones=%d' % (fleet_cap() + 1), 'max_drones=%d' % (fleet_cap() + 1)])) == []
+    f = figures({'per_drone': 0.271, 'shared': 0.06}, {'per_drone': 4.0, 'shared': 12.5})
+    assert fleet_cap(2, figures=f) == 7                     # 2 / 0.271 = 7.4 and 8 did not hold: 7 either way
+    assert fleet_cap(2, 'shared', f) == 24                  # 2 / 0.06 = 33, but 25 did not hold on 2 cores
+    assert fleet_cap(4, 'shared', f) == 49 and fleet_cap(1, 'shared', f) == 12 and fleet_cap(0.01, 'shared', f) == 1
+
+
+def _write_cache(path, model='Test CPU', cores=2, layouts=None, date='2026-01-02 03:04'):
+    from anafi_sim import run_files
+    layouts = layouts or {'shared': {'cpu_per_drone': 0.09, 'failing_per_core': 10.0, 'largest_holding': 16}}
+    data = launch_check.cap_cache_with(run_files.read_yaml(str(path)), model, cores, date, layouts, load=0.5)
+    run_files.write_yaml(str(path), data)
+    return data
+
+
+def test_the_machine_cap_is_its_own_measurement_from_the_cache(tmp_path):
+    path = tmp_path / 'fleet_cap.yaml'
+    _write_cache(path)
+    cap = launch_check.machine_cap('shared', cores=2, model='Test CPU', cache_path=str(path))
+    assert cap.measured and cap.drones == 19 and cap.figures.cpu_per_drone == {'shared': 0.09}
+    problem = launch_check.fleet_size_problem(20, cap=cap)
+    assert problem == ('20 drones is more than the fleet cap of 19 (measured here on Test CPU, 2 cores at '
+                       '2026-01-02 03:04: 2 cores / 0.090 core per drone, below 20 drones (10 per core) measured '
+                       'not to hold (%s): slower than real time beyond it; max_drones:=N to raise it)' % path)
+    # another CPU model, other cores, a layout not measured: the conservative default
+    for model, cores, layout in (('Other CPU', 2, 'shared'), ('Test CPU', 4, 'shared'), ('Test CPU', 2, 'per_drone')):
+        cap = launch_check.machine_cap(layout, cores=cores, model=model, cache_path=str(path))
+        assert not cap.measured and cap.drones == launch_check.default_cap(cores, layout), (model, cores, layout)
+    # a second machine and a second layout: merged, the first kept
+    _write_cache(path, model='Other CPU', cores=8)
+    _write_cache(path, layouts={'per_drone': {'cpu_per_drone': 0.3, 'failing_per_core': None}})
+    assert launch_check.machine_cap('per_drone', 2, 'Test CPU', str(path)).drones == 6
+    assert launch_check.machine_cap('shared', 2, 'Test CPU', str(path)).drones == 19
+    assert launch_check.machine_cap('shared', 8, 'Other CPU', str(path)).measured
+
+
+def test_without_a_measurement_the_cap_is_the_conservative_default_and_says_how_to_measure(tmp_path):
+    path = str(tmp_path / 'none' / 'fleet_cap.yaml')
+    cap = launch_check.machine_cap('shared', cores=2, model='Intel(R) Xeon(R) CPU', cache_path=path)
+    reference = launch_check.fleet_cap(2, 'shared')
+    assert not cap.measured and cap.drones == max(1, int(launch_check.DEFAULT_CAP_SCALE * reference))
+    assert cap.drones < reference
+    line = launch_check.fleet_size_problem(cap.drones + 1, cap=cap)
+    for words in ('fleet cap of %d (conservative default, not measured on this machine (Intel(R) Xeon(R) CPU, '
+                  '2 cores)' % cap.drones, 'the %d of the reference machine (AMD EPYC, 2 cores at' % reference,
+                  'benchmarks/results/fleet.md', launch_check.CALIBRATE_COMMAND, 'max_drones:=N'):
+        assert words in line, line
+    assert launch_check.default_cap(0.1, 'per_drone') == 1
+
+
+@pytest.mark.parametrize('text', ['', ':::', 'machines: 3', 'machines: {"Test CPU, 2 cores": {layouts: {shared: '
+                                  '{cpu_per_drone: -1}}}}', 'machines: {"Test CPU, 2 cores": {layouts: {pooled: '
+                                  '{cpu_per_drone: 0.1}}}}', 'machines: {"Test CPU, 2 cores": {layouts: {shared: '
+                                  '{cpu_per_drone: .nan}}}}', 'machines: {"Test CPU, 2 cores": {layouts: {shared: '
+                                  '{failing_per_core: 3}}}}'])
+def test_a_bad_cache_gives_the_default_never_an_error(tmp_path, text):
+    path = tmp_path / 'fleet_cap.yaml'
+    path.write_text(text)
+    assert launch_check.read_cap_cache(str(path), 'Test CPU', 2) is None
+    assert not launch_check.machine_cap('shared', 2, 'Test CPU', str(path)).measured
+
+
+def test_the_cache_key_names_the_cpu_model_the_benchmark_pages_name(tmp_path):
+    from anafi_sim import processes
+    assert launch_check.cpu_model() == processes.cpu_model()
+    info = tmp_path / 'cpuinfo'
+    info.write_text('processor\t: 0\nmodel name\t: Intel(R) Xeon(R) CPU @ 2.20GHz\nprocessor\t: 1\n')
+    assert launch_check.cpu_model(str(info)) == 'Intel(R) Xeon(R) CPU @ 2.20GHz'
+    assert launch_check.cpu_model(str(tmp_path / 'none'))                    # what platform knows, or 'unknown'
+    assert launch_check.machine_key('Intel(R) Xeon(R) CPU @ 2.20GHz', 2) == 'Intel(R) Xeon(R) CPU @ 2.20GHz, 2 cores'
+
+
+def test_the_cache_is_under_the_ros_home_and_refuses_bad_figures(tmp_path):
+    assert launch_check.cap_cache_path({'ROS_HOME': '/r'}) == '/r/anafi_sim/fleet_cap.yaml'
+    assert launch_check.cap_cache_path({}).endswith('/.ros/anafi_sim/fleet_cap.yaml')
+    with pytest.raises(ValueError):
+        launch_check.cap_cache_with(None, 'Test CPU', 2, 'now', {'shared': {'cpu_per_drone': 0.0}})
+    data = launch_check.cap_cache_with({'machines': 'garbage'}, 'Test CPU', 2, 'now',
+                                       {'shared': {'cpu_per_drone': 0.1}})
+    assert list(data['machines']) == ['Test CPU, 2 cores']
+
+
+def test_drones_above_the_cap_fail_the_launch_check(tmp_path):
+    cache = str(tmp_path / 'fleet_cap.yaml')
+    cap = launch_check.machine_cap(cache_path=cache).drones
+    [line] = check(parse(['drones=%d' % (cap + 1), 'max_drones=0']), cap_cache=cache)
+    assert line.startswith('launch argument drones:=') and 'fleet cap of %d' % cap in line
+    assert check(parse(['drones=%d' % (cap + 1), 'max_drones=%d' % (cap + 1)]), cap_cache=cache) == []
     assert check(parse(['drones=0'])) == []
 
 
-def test_the_fleet_size_is_checked_against_the_layout_given(monkeypatch):
-    monkeypatch.setattr(launch_check, 'CPU_PER_DRONE', {'per_drone': 0.2, 'shared': 0.1})
-    monkeypatch.setattr(launch_check, 'FAILING_PER_CORE', {'per_drone': None, 'shared': None})
+def test_the_fleet_size_is_checked_against_the_layout_given(tmp_path, monkeypatch):
     monkeypatch.setattr(launch_check, 'available_cores', lambda: 2)
-    assert launch_check.check([('drones', '15'), ('layout', 'shared')]) == []
-    [line] = launch_check.check([('drones', '15'), ('layout', '')])      # '' = per_drone here (its launcher rechecks)
+    path = tmp_path / 'fleet_cap.yaml'
+    _write_cache(path, model=launch_check.cpu_model(), layouts={'per_drone': {'cpu_per_drone': 0.2},
+                                                                 'shared': {'cpu_per_drone': 0.1}})
+    assert launch_check.check([('drones', '15'), ('layout', 'shared')], cap_cache=str(path)) == []
+    [line] = launch_check.check([('drones', '15'), ('layout', '')], cap_cache=str(path))   # '' = per_drone here
     assert 'fleet cap of 10' in line
     [line] = launch_check.check([('layout', 'pooled')])
     assert 'must be per_drone or shared' in line

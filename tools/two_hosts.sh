@@ -19,7 +19,7 @@
 # --netem is asked for and the kernel has no netem. Run inside env.bash (ROS on PATH). Namespaces, veth and
 # processes are named/owned per run (suffix = this script's PID) and removed on exit, so parallel runs and
 # the machine's own network are untouched; addresses (10.213.0.1/30 Sphinx, .2 Gazebo) exist only inside
-# the namespaces. Logs: LOG_DIR/{roscore,sphinx_host,gazebo_host}.log (default a fresh temporary directory, under $TMPDIR or /tmp).
+# the namespaces. Logs: LOG_DIR/{roscore,sphinx_host,gazebo_host}.log (default a fresh mktemp folder under TMPDIR).
 set -u
 
 CONTROLLER=mpc

@@ -11,8 +11,7 @@ child also gets SIGINT from the kernel if this node is killed, so no drone is le
 Exits with the child's code; a bad fleet file or parameter: logfatal, exit code 2.
 
 Parameters: ~fleet (name in anafi_sim/config/fleets or a path; three_circles), ~drones (0: the file's list;
-N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet; '': a fresh temporary folder, removed when the fleet stops,
-for tests and throwaway runs), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
+N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
 ~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false; true: rviz.launch
 per drone and rviz on the fleet's generated view ~out_dir/fleet.rviz, anafi_sim/mission/rviz_config.py),
 ~stop_timeout (30 s), ~max_drones (0: the fleet cap derived from the CPU cores and the measured CPU per drone,
@@ -31,11 +30,9 @@ e.g. ``roslaunch --nodes PATH``). A bad fleet file: one error line and exit code
 import argparse
 import ctypes
 import os
-import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 import yaml
@@ -146,34 +143,17 @@ class FleetLauncherNode(object):
         self.rospy = rospy
         p = private_params()
         self.stop_timeout = p.positive('stop_timeout', 30.0)
-        out_dir = p.string('out_dir', DEFAULT_OUT_DIR, allow_empty=True)
-        self.temp_dir = None
-        if not out_dir:         # a throwaway folder of this run's own (tests beside other runs)
-            self.temp_dir = out_dir = tempfile.mkdtemp(prefix='anafi_fleet_')
-            rospy.loginfo('fleet_launcher: out_dir %s (temporary, removed when the fleet stops)', out_dir)
+        self.path = generate(p.string('fleet', 'three_circles', allow_empty=False),
+                             p.integer('drones', 0, minimum=0), p.string('out_dir', DEFAULT_OUT_DIR, allow_empty=False),
+                             p.flag('evaluate', True), p.flag('mirror', True), p.positive('mirror_rate', 100.0),
+                             p.choice('output', 'log', OUTPUTS), p.flag('aggregator', False),
+                             log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False),
+                             conditions=p.string('conditions', '', allow_empty=True),
+                             max_drones=p.integer('max_drones', 0, minimum=0),
+                             layout=p.string('layout', ''),
+                             world=p.flag('kinematic_world', False))   # ValueError: fatal, exit 2
         self.child = None
         self.code = 0
-        try:
-            self.path = self._generate(p, out_dir)
-        except Exception:
-            self._remove_temp_dir()
-            raise
-
-    def _generate(self, p, out_dir):
-        rospy = self.rospy
-        return generate(p.string('fleet', 'three_circles', allow_empty=False),
-                        p.integer('drones', 0, minimum=0), out_dir,
-                        p.flag('evaluate', True), p.flag('mirror', True), p.positive('mirror_rate', 100.0),
-                        p.choice('output', 'log', OUTPUTS), p.flag('aggregator', False),
-                        log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False),
-                        conditions=p.string('conditions', '', allow_empty=True),
-                        max_drones=p.integer('max_drones', 0, minimum=0),
-                        layout=p.string('layout', ''),
-                        world=p.flag('kinematic_world', False))   # ValueError: fatal, exit 2
-
-    def _remove_temp_dir(self):
-        if self.temp_dir:
-            shutil.rmtree(self.temp_dir, ignore_errors=True)
 
     def spin(self):
         rospy = self.rospy
@@ -194,7 +174,6 @@ class FleetLauncherNode(object):
             left = stop(self.child, grace=self.stop_timeout)
             if left:
                 self.rospy.logwarn('fleet_launcher: processes still alive after stopping: %s', left)
-        self._remove_temp_dir()
 
     def run(self):
         from anafi_sim.ros.node import run_until_interrupted

@@ -21,7 +21,7 @@ Measured per mode:
 - CPU (user+sys, psutil) of the mirror process and of the world process, in % of one core.
 Prints a table and writes benchmarks/results/mirror.md.
 
-Needs the workspace environment (``source env.bash``, or /tmp/ws/devel/setup.bash + the venv on PATH).
+Needs the workspace environment (``source env.bash``, or .ws/devel/setup.bash + the venv on PATH).
 Run: .venv/bin/python benchmarks/bench_mirror.py [--duration 30] [--rounds 6] [--rate 100] [--no-write]
 (about 3 minutes with the defaults)
 """

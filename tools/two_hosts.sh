@@ -19,7 +19,7 @@
 # --netem is asked for and the kernel has no netem. Run inside env.bash (ROS on PATH). Namespaces, veth and
 # processes are named/owned per run (suffix = this script's PID) and removed on exit, so parallel runs and
 # the machine's own network are untouched; addresses (10.213.0.1/30 Sphinx, .2 Gazebo) exist only inside
-# the namespaces. Logs: LOG_DIR/{roscore,sphinx_host,gazebo_host}.log (default a fresh /tmp directory).
+# the namespaces. Logs: LOG_DIR/{roscore,sphinx_host,gazebo_host}.log (default a fresh mktemp folder under TMPDIR).
 set -u
 
 CONTROLLER=mpc
@@ -61,7 +61,7 @@ IP_S=10.213.0.1
 IP_G=10.213.0.2
 [ "$SINGLE" = 1 ] && { NS_G=$NS_S; IP_G=$IP_S; }
 MASTER=http://$IP_S:11311
-LOG_DIR=${LOG_DIR:-$(mktemp -d /tmp/two_hosts.XXXXXX)}
+LOG_DIR=${LOG_DIR:-$(mktemp -d -t two_hosts.XXXXXX)}
 mkdir -p "$LOG_DIR"
 PIDS=()
 

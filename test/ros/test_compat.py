@@ -13,8 +13,9 @@ connection that works here works with their packages. Checks, in order:
 2. their MPC (a P controller on state_enu and their waypoint, commanding drone/rpyt with header.stamp 0 at
    10 Hz wall, /use_sim_time false) flies the drone to the waypoint: the lockstep takes the unstamped
    commands at their arrival and says so on /diagnostics;
-3. their interface runs `tlm-data-logger -r 4 inet:127.0.0.1:9060` by name, with PATH extended as the
-   README says, and reads Sphinx's keys;
+3. their interface runs `tlm-data-logger -r 4 inet:127.0.0.1:PORT` by name, with PATH extended as the
+   README says, and reads Sphinx's keys (PORT: Sphinx's 9060 under compat.launch's default; compat.test runs it
+   with telemetry_port:=0, so the port the simulator announces on anafi_sim/telemetry_bound_port);
 4. their mirror's inputs: tf world -> anafi/body_fixed equals ground_truth/odom; camera/attitude has
    frame_id "/body";
 5. our mirror poses the camera model from camera/attitude: at the waypoint's 120 deg heading the camera
@@ -264,7 +265,10 @@ class TestCompat(unittest.TestCase):
                                           universal_newlines=True).strip()
         path = os.environ.get('PATH', '') + os.pathsep + libexec       # appended: a real Sphinx tool would win
         self.assertEqual(shutil.which('tlm-data-logger', path=path), os.path.join(libexec, 'tlm-data-logger'))
-        proc = subprocess.Popen(['tlm-data-logger', '-r', '4', 'inet:127.0.0.1:9060'], stdout=subprocess.PIPE,
+        self.wait(lambda: rospy.has_param(NS + 'anafi_sim/telemetry_bound_port'), 30.0,
+                  'the simulator to announce its telemetry port')
+        port = rospy.get_param(NS + 'anafi_sim/telemetry_bound_port')
+        proc = subprocess.Popen(['tlm-data-logger', '-r', '4', 'inet:127.0.0.1:%d' % port], stdout=subprocess.PIPE,
                                 env=dict(os.environ, PATH=path), universal_newlines=True)
         values = {}
         try:

@@ -1,6 +1,10 @@
 #!/usr/bin/env python3
 """rostest (fleet.test): three drones in one kinematic world, started by fleet.launch from fleet_three.yaml.
 
+The test starts ``roslaunch anafi_sim fleet.launch fleet:=~fleet [layout:=~layout] evaluate:=false`` on the
+test's master with out_dir in a tempfile folder of its own, and stops it (with every process it started) and
+removes the folder at the end. Checks:
+
 1. /gazebo/model_states holds the 3 x 2 models of the fleet (<name>, <name>_camera), and no other drone model;
 2. each drone reaches its own waypoint (the fleet file's, shifted by its offset: ground truth within 0.3 m
    and 10 deg, held for 2 s), and the world's model <name> is there too (the mirror of each drone moves its
@@ -15,6 +19,9 @@
    the host of its group, the world in the first (1. and 2. checked every drone's models in the one world).
 """
 import math
+import os
+import shutil
+import tempfile
 import threading
 import time
 import unittest
@@ -26,13 +33,17 @@ from nav_msgs.msg import Odometry
 
 from anafi_control.frames import yaw_from_quaternion
 from anafi_sim.mission.fleet import drone_scenario, load_fleet
-from anafi_sim.processes import wait_for
+from anafi_sim.processes import start, stop, wait_for
 from anafi_sim.ros import gazebo_types
 
 SHARED = ('/diagnostics', '/rosout', '/rosout_agg', '/tf', '/tf_static', '/clock')
 REACH_DISTANCE = 0.3   # m
 REACH_YAW = 10.0       # deg
 HOLD = 2.0             # s within reach
+#: [s wall] hang guards, not performance bounds: on a loaded machine the fleet's 20-odd processes take minutes
+#: to start (the .test files' time-limit stays above their sum)
+START_TIMEOUT = 240.0
+REACH_TIMEOUT = 120.0
 
 
 def namespace(name):
@@ -45,7 +56,13 @@ class FleetTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rospy.init_node('test_fleet')
-        cls.fleet = load_fleet(rospy.get_param('~fleet'))
+        fleet_file, layout = rospy.get_param('~fleet'), rospy.get_param('~layout', '')
+        cls.fleet = load_fleet(fleet_file)
+        cls.tmp = tempfile.mkdtemp(prefix='fleet_test_')
+        cls.log = os.path.join(cls.tmp, 'fleet.log')
+        cls.launch = start(['roslaunch', 'anafi_sim', 'fleet.launch', 'fleet:=' + fleet_file, 'evaluate:=false',
+                            'out_dir:=' + os.path.join(cls.tmp, 'fleet')] + (['layout:=' + layout] if layout else []),
+                           log=cls.log)
         cls.names = [d.name for d in cls.fleet.drones]
         cls.goals = {}
         for drone in cls.fleet.drones:
@@ -59,6 +76,19 @@ class FleetTest(unittest.TestCase):
             rospy.Subscriber('/%s/ground_truth/odom' % name, Odometry, cls.on_truth, callback_args=name,
                              queue_size=5)
         rospy.Subscriber('/gazebo/model_states', gazebo_types.model_states_class(), cls.on_models, queue_size=1)
+
+    @classmethod
+    def tearDownClass(cls):
+        left = stop(cls.launch, grace=30.0)
+        if left:
+            rospy.logwarn('test_fleet: processes still alive after stopping the fleet: %s', left)
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    def launch_log(self):
+        """The fleet launch's state and the end of its log, for failure messages."""
+        with open(self.log, errors='replace') as f:
+            return 'fleet launch %s; its log ends:\n%s' % (
+                'running' if self.launch.poll() is None else 'ended (%s)' % self.launch.returncode, f.read()[-3000:])
 
     @classmethod
     def on_truth(cls, msg, name):
@@ -83,10 +113,12 @@ class FleetTest(unittest.TestCase):
 
     def test_1_three_times_two_models_in_the_world(self):
         expected = set(self.names) | set(n + '_camera' for n in self.names)
-        ok = wait_for(lambda: self.models is not None and expected <= set(self.models), 90.0, 0.2)
+        ok = wait_for(lambda: self.models is not None and expected <= set(self.models), START_TIMEOUT,
+                      0.2)
         with self.lock:
             models = dict(self.models or {})
-        self.assertTrue(ok, 'models in /gazebo/model_states: %s, expected %s' % (sorted(models), sorted(expected)))
+        self.assertTrue(ok, 'models in /gazebo/model_states: %s, expected %s\n%s'
+                        % (sorted(models), sorted(expected), self.launch_log()))
         self.assertEqual(set(models) - expected, {'ground_plane'})
 
     def test_2_each_drone_reaches_its_own_waypoint(self):
@@ -95,10 +127,10 @@ class FleetTest(unittest.TestCase):
             with self.lock:
                 return all(now - self.reached.get(n, now) >= HOLD for n in self.names) and \
                     len(self.reached) == len(self.names)
-        ok = wait_for(all_held, 120.0, 0.2)
+        ok = wait_for(all_held, REACH_TIMEOUT, 0.2)
         with self.lock:
             truth, models = dict(self.truth), dict(self.models or {})
-        self.assertTrue(ok, 'drones at %s, waypoints %s' % (truth, self.goals))
+        self.assertTrue(ok, 'drones at %s, waypoints %s\n%s' % (truth, self.goals, self.launch_log()))
         for name in self.names:
             (gx, gy, gz), _ = self.goals[name]
             mx, my, mz = models[name]

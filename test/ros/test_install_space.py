@@ -328,7 +328,7 @@ class InstallSpaceTest(unittest.TestCase):
         procs = processes.Processes(self.logs)
         try:
             processes.start_master(procs, env)
-            procs.start('sim', ['roslaunch', PKG, 'sim.launch', 'telemetry_port:=%d' % processes.free_port()], env)
+            procs.start('sim', ['roslaunch', PKG, 'sim.launch', 'telemetry_port:=0'], env)
             procs.start('mpc', ['roslaunch', PKG, 'mpc.launch'], env)
             probe = os.path.join(self.tmp, 'probe.py')
             with open(probe, 'w') as f:

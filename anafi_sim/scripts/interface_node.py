@@ -34,7 +34,10 @@ stream with another id or none (another drone, a stale port) is refused: ERROR, 
 telemetry process restarted after ~restart_timeout (anafi_sim.interface.telemetry_source).
 
 The telemetry process is restarted when it exits, prints no byte or no complete sample
-for ~restart_timeout s; lines longer than MAX_LINE bytes are dropped and counted
+for ~restart_timeout s and is judged hung, not starved (anafi_sim.interface.supervisor.hang_verdict: the
+process's CPU time and state, the reader's own wake-up lag; a live but starved process is waited for, logged
+"late, not hung", counted in the diagnostics' "process starved"); the diagnostics give the reader's largest
+wake-up lag of each report period ("reader wake-up lag max [s]", read by the experiment monitor); lines longer than MAX_LINE bytes are dropped and counted
 (process oversize lines). Restart warnings are throttled (10 s) with running counts.
 
 Namespace /<drone> (default drone name: the namespace's last part; in the
@@ -71,6 +74,8 @@ from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, TelemetryParser
 
 DEFAULT_COMMAND = 'tlm-data-logger -r 0 inet:127.0.0.1:9060'
 STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
+#: diagnostics key: the largest lateness [s] of the telemetry reader's wake-ups since the previous report
+READER_LAG_KEY = 'reader wake-up lag max [s]'
 
 
 def read_params(ctx):
@@ -185,10 +190,15 @@ class InterfaceNode(object):
                                           (' (stderr: %s)' % info['stderr']) if info.get('stderr') else '',
                                           info.get('restart_in', 0.0), self.supervisor.exits))
         elif kind == 'hang':
-            self.ctx.logwarn_throttle(10.0, 'interface: telemetry process %s printed no sample for %.1f s: killed, '
-                                      'restarting in %.1f s (%d hangs so far)' % (
-                                          info.get('pid'), info.get('silent_for', float('nan')),
+            self.ctx.logwarn_throttle(10.0, 'interface: telemetry process %s hung (%s): killed, restarting in %.1f s '
+                                      '(%d hangs so far)' % (
+                                          info.get('pid'), info.get('reason', 'no sample for %.1f s'
+                                                                    % info.get('silent_for', float('nan'))),
                                           info.get('restart_in', 0.0), self.supervisor.hangs))
+        elif kind == 'starved':   # live but starved of CPU (or the reader was): waited for, not killed
+            self.ctx.logwarn_throttle(10.0, 'interface: telemetry process %s is late, not hung: %s; waiting (%d '
+                                      'such silences so far)' % (info.get('pid'), info.get('reason'),
+                                                                 self.supervisor.starved))
         elif kind == 'spawn_failed' and WAITING_FOR_SIMULATOR in str(info.get('message')):
             # the usual start-up order (the simulator binds its port after the interface starts): not an error
             # yet; the diagnostics say ERROR "no telemetry received yet" until samples flow
@@ -278,6 +288,7 @@ class InterfaceNode(object):
             self.ctx.loginfo('interface: ground truth flowing again')
         return [health_status(self.diag_name, health, self.p['drone_name'],
                               [('publish errors', str(self.publish_errors)),
+                               (READER_LAG_KEY, '%.3f' % self.supervisor.take_reader_lag()),
                                ('telemetry command', ' '.join(self.supervisor.argv))])]
 
 

@@ -51,6 +51,8 @@ import subprocess
 import threading
 import time
 
+#: diagnostics key of the interface: the largest lateness [s] of the reader's wake-ups since its previous report
+READER_LAG_KEY = 'reader wake-up lag max [s]'
 #: scheduler states of /proc/<pid>/stat: a process in these is waiting for a CPU or a disk (working)
 WORKING_STATES = ('R', 'D')
 #: ... stopped (SIGSTOP, traced) or gone: it will print nothing until something else acts

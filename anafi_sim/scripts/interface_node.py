@@ -57,7 +57,7 @@ from nav_msgs.msg import Odometry
 from tf2_msgs.msg import TFMessage
 
 from anafi_sim.interface import ground_truth as gt
-from anafi_sim.interface.supervisor import ProcessSupervisor
+from anafi_sim.interface.supervisor import READER_LAG_KEY, ProcessSupervisor
 from anafi_sim.interface.telemetry_source import WAITING_FOR_SIMULATOR, SimulatorSource, with_port
 from anafi_sim.interface.telemetry_command import allowed_argv
 
@@ -74,8 +74,6 @@ from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, TelemetryParser
 
 DEFAULT_COMMAND = 'tlm-data-logger -r 0 inet:127.0.0.1:9060'
 STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
-#: diagnostics key: the largest lateness [s] of the telemetry reader's wake-ups since the previous report
-READER_LAG_KEY = 'reader wake-up lag max [s]'
 
 
 def read_params(ctx):

@@ -123,6 +123,7 @@ class ExperimentMonitor(object):
         self.max_command_gap_limit = float(max_command_gap)
         self.max_reader_lag = float(max_reader_lag)
         self.reader_lag = None         # [s] the ground-truth reader's largest wake-up lag while the scenario ran
+        self.interface_counts = {}     # the interface's latest 'hangs' / 'starved' counters
 
     # ------------------------------------------------------------ inputs
     def on_drone_state(self, text):
@@ -183,7 +184,13 @@ class ExperimentMonitor(object):
 
     def on_interface_diagnostics(self, values):
         """{key: text} of the ground-truth interface's diagnostic status: its reader's wake-up lag is kept
-        (the largest while the scenario runs)."""
+        (the largest while the scenario runs), and its watchdog's counters of the whole run (telemetry process
+        killed as hung, silences waited for as starved)."""
+        for key, name in (('process hangs', 'hangs'), ('process starved', 'starved')):
+            try:
+                self.interface_counts[name] = int(values[key])
+            except (KeyError, TypeError, ValueError):
+                pass
         try:
             lag = float(values.get(READER_LAG_KEY))
         except (TypeError, ValueError):
@@ -422,6 +429,8 @@ class ExperimentMonitor(object):
             'hover_commands': self.hover_commands,
             'max_command_gap_s': r(self.max_command_gap, 3),
             'reader_lag_max_s': r(self.reader_lag, 3),
+            'interface_hangs': self.interface_counts.get('hangs'),
+            'interface_starved': self.interface_counts.get('starved'),
             'truth_missing': self.truth_missing(),
             'disturbed': self.disturbed(),
             'controller_cpu_s': r(cpu, 3),

@@ -187,11 +187,12 @@ def test_a_late_ground_truth_reader_while_the_scenario_runs_makes_it_disturbed_w
     m.on_interface_diagnostics({'other': 'x'})
     m.on_interface_diagnostics({em.READER_LAG_KEY: 'nan'})
     assert m.disturbed() == '' and m.reader_lag == pytest.approx(0.04)
-    m.on_interface_diagnostics({em.READER_LAG_KEY: '0.350'})
+    m.on_interface_diagnostics({em.READER_LAG_KEY: '0.350', 'process hangs': '0', 'process starved': '2'})
     m.on_interface_diagnostics({em.READER_LAG_KEY: '0.010'})
     assert m.disturbed() == 'ground-truth reader 0.35 s late (limit 0.10 s)'
     info = m.run_info()
     assert info['reader_lag_max_s'] == pytest.approx(0.35) and info['disturbed'] == m.disturbed()
+    assert (info['interface_hangs'], info['interface_starved']) == (0, 2)
     assert em.result_status(True, info) == 'disturbed: ground-truth reader 0.35 s late (limit 0.10 s)'
 
 

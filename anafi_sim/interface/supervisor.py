@@ -41,7 +41,11 @@ killed, so that a process starved of CPU on a loaded machine is not taken for a 
   loop), and any that stayed silent for ``patience`` x ``restart_timeout`` s of the reader's time whatever
   it did. Without ``/proc`` (another OS) the output timer alone decides, as a plain timeout.
 
-The sample timer (``sample_timeout``) discounts the reader's lateness the same way (the process prints, so it
+Until a run's first byte ``start_timeout`` (default: ``restart_timeout``) replaces ``restart_timeout``: a tool
+blocked on its source before that source streams (a simulator still starting on a loaded machine) is given
+longer; a stopped one is still hung at once.
+
+The sample timer (``sample_timeout``, only while the process prints without completing a sample) discounts the reader's lateness the same way (the process prints, so it
 is not starved; it prints no sample).
 """
 import os
@@ -146,7 +150,8 @@ class ProcessSupervisor(object):
 
     def __init__(self, command, on_line, restart_timeout=2.0, backoff_initial=0.2, backoff_max=5.0,
                  on_event=None, healthy_time=1.0, kill_grace=0.2, poll_period=0.05, env=None, max_line=4096,
-                 sample_timeout=None, prepare=None, spin_cpu=5.0, patience=15.0, progress=process_progress):
+                 sample_timeout=None, prepare=None, spin_cpu=5.0, patience=15.0, progress=process_progress,
+                 start_timeout=None):
         if isinstance(command, str):
             argv = shlex.split(command)
         else:
@@ -178,6 +183,9 @@ class ProcessSupervisor(object):
         self.max_line = max_line
         self.sample_timeout = None if sample_timeout is None else float(sample_timeout)
         self.spin_cpu = float(spin_cpu)
+        self.start_timeout = self.restart_timeout if start_timeout is None else float(start_timeout)
+        if not self.start_timeout > 0:
+            raise ValueError('start_timeout must be > 0 or None, got %r' % (start_timeout,))
         self.patience = float(patience)
         self.progress = progress   # pid -> (state, cpu seconds) or None (tests give their own)
         # counters / state (read from any thread; written by the supervisor threads)
@@ -460,9 +468,12 @@ class _Watch(object):
                 self.history.pop(0)
             cpu_recent = cpu - self.history[0][1]
         silent = now - sup._last_output
-        if silent > sup.restart_timeout:
-            verdict = hang_verdict(silent, sup.restart_timeout, self.late_output, state, cpu_recent,
-                                   None if cpu is None else cpu - self.cpu_at_output, sup.spin_cpu, sup.patience)
+        first = sup._first_output is None       # nothing printed yet: its source may still be starting
+        timeout = sup.start_timeout if first else sup.restart_timeout
+        if silent > timeout:
+            verdict = hang_verdict(silent, timeout, self.late_output, state, cpu_recent,
+                                   None if cpu is None else cpu - self.cpu_at_output, sup.spin_cpu,
+                                   sup.patience * sup.restart_timeout / timeout)
             if verdict.hung:
                 return verdict
             if verdict.kind != 'quiet' and self.reported != self.output_seen:
@@ -471,7 +482,7 @@ class _Watch(object):
                 sup.last_starved = verdict.reason
                 sup._event('starved', pid=self.pid, silent_for=silent, verdict=verdict.kind,
                            reason=verdict.reason)
-        if sup.sample_timeout is not None:
+        if sup.sample_timeout is not None and sup._last_output > sup._last_sample:   # it prints, but no sample
             silent = now - sup._last_sample
             if silent - self.late_sample > sup.sample_timeout:
                 return Verdict(True, 'no samples', 'output but no sample for %.2f s (%.2f s of the reader\'s time; '

@@ -74,6 +74,9 @@ from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, TelemetryParser
 
 DEFAULT_COMMAND = 'tlm-data-logger -r 0 inet:127.0.0.1:9060'
 STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
+#: x ~restart_timeout: the silence allowed before a telemetry process's first byte (its simulator may still be
+#: starting) when it is blocked; a stopped process is killed after ~restart_timeout all the same
+START_TIMEOUT_FACTOR = 5.0
 
 
 def read_params(ctx):
@@ -149,6 +152,7 @@ class InterfaceNode(object):
             params['telemetry_command'], self.on_line, restart_timeout=params['restart_timeout'],
             backoff_initial=params['backoff_initial'], backoff_max=params['backoff_max'],
             on_event=self.on_event, sample_timeout=params['restart_timeout'], max_line=MAX_LINE,
+            start_timeout=START_TIMEOUT_FACTOR * params['restart_timeout'],
             prepare=self._prepare if self.source is not None else None)
 
     def run(self):

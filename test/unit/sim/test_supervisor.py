@@ -357,3 +357,25 @@ def test_a_starved_reader_or_tool_as_measured_is_waited_for(rec):
     finally:
         sup.stop()
     assert sup.snapshot()['starved'] >= 1 and 'waiting for a CPU' in sup.last_starved
+
+
+def test_a_process_blocked_before_its_first_byte_is_given_the_start_timeout(rec):
+    sup = make(rec, ['sh', '-c', 'sleep 1.5; echo first; exec sleep 30'], restart_timeout=0.3, start_timeout=20.0,
+               backoff_initial=0.05)
+    try:
+        assert rec.wait_for(lambda: rec.lines, timeout=30.0)
+        assert rec.wait_for(lambda: rec.kinds('hang'), timeout=30.0)    # after it: restart_timeout again
+    finally:
+        sup.stop()
+    assert rec.lines[0][0] == 'first\n' and rec.kinds('hang')[0][1]['pid'] == rec.kinds('start')[0][1]['pid']
+
+
+def test_no_sample_timer_while_nothing_is_printed(rec):
+    # silent (no byte): the output timer and its verdict decide, not the sample timer
+    sup = make(rec, ['sleep', '30'], restart_timeout=0.3, sample_timeout=0.3, start_timeout=20.0,
+               backoff_initial=0.05)
+    try:
+        time.sleep(1.5)
+        assert not rec.kinds('hang') and sup.starts == 1
+    finally:
+        sup.stop()

@@ -168,8 +168,8 @@ def main(argv=None):
         lines += ['## %s' % title, '',
                   'Load average before %s, after %s.' % (' '.join('%.1f' % v for v in before),
                                                          ' '.join('%.1f' % v for v in after)), '',
-                  '| run | exit | RESULT | e_mu est | vs quiet | e_mu truth | vs quiet | reader lag [s] | hung / starved '
-                  '| rtf | check |', '|---|---|---|---|---|---|---|---|---|---|---|']
+                  '| run | exit | RESULT | e_mu est | vs quiet | e_mu truth | vs quiet | reader lag [s] '
+                  '| hung / starved | rtf | check |', '|---|---|---|---|---|---|---|---|---|---|---|']
         for i, row in enumerate(rows):
             problem = '' if n == 0 else verdict(row, quiet, n, args.tolerance)
             ok = ok and not problem

@@ -45,8 +45,9 @@ Until a run's first byte ``start_timeout`` (default: ``restart_timeout``) replac
 blocked on its source before that source streams (a simulator still starting on a loaded machine) is given
 longer; a stopped one is still hung at once.
 
-The sample timer (``sample_timeout``, only while the process prints without completing a sample) discounts the reader's lateness the same way (the process prints, so it
-is not starved; it prints no sample).
+The sample timer (``sample_timeout``) runs from the first byte after the last sample (or the start), so a
+silence before it (judged above) is not a silence without samples; it discounts the reader's lateness the same
+way (the process prints, so it is not starved; it prints no sample).
 """
 import os
 import shlex
@@ -247,7 +248,8 @@ class ProcessSupervisor(object):
                     spawn_failures=self.spawn_failures, callback_errors=self.callback_errors,
                     lines=self.lines, oversize_lines=self.oversize_lines, stderr_bytes=self.stderr_bytes,
                     stderr_oversize_lines=self.stderr_oversize_lines, starved=self.starved,
-                    reader_lag_max=self.reader_lag_max, last_exit_code=self.last_exit_code, last_stderr=self.last_stderr,
+                    reader_lag_max=self.reader_lag_max, last_exit_code=self.last_exit_code,
+                    last_stderr=self.last_stderr,
                     last_error=self.last_error, backoff=self.backoff)
 
     def take_reader_lag(self):
@@ -438,6 +440,7 @@ class _Watch(object):
         self.cpu_at_output = 0.0    # the process's CPU time at its last output (0 at its start)
         self.history = [(sup._last_output, 0.0)]   # (monotonic time, cpu seconds): the last restart_timeout s
         self.reported = None        # the silence last reported as starved (one event per silence)
+        self.printing_since = None  # when output came after the last sample (the sample timer runs from there)
 
     def woke(self, late):
         late = max(0.0, late)
@@ -461,6 +464,11 @@ class _Watch(object):
         if sup._last_sample != self.sample_seen:
             self.sample_seen = sup._last_sample
             self.late_sample = 0.0
+        if sup._last_output <= sup._last_sample:
+            self.printing_since = None
+        elif self.printing_since is None:    # output after the last sample (or the start): the sample timer runs
+            self.printing_since = sup._last_output
+            self.late_sample = 0.0
         cpu_recent = None
         if cpu is not None:
             self.history.append((now, cpu))
@@ -482,8 +490,8 @@ class _Watch(object):
                 sup.last_starved = verdict.reason
                 sup._event('starved', pid=self.pid, silent_for=silent, verdict=verdict.kind,
                            reason=verdict.reason)
-        if sup.sample_timeout is not None and sup._last_output > sup._last_sample:   # it prints, but no sample
-            silent = now - sup._last_sample
+        if sup.sample_timeout is not None and self.printing_since is not None:   # it prints, but no sample
+            silent = now - max(sup._last_sample, self.printing_since)
             if silent - self.late_sample > sup.sample_timeout:
                 return Verdict(True, 'no samples', 'output but no sample for %.2f s (%.2f s of the reader\'s time; '
                                'allowed %.2f s)' % (silent, silent - self.late_sample, sup.sample_timeout))

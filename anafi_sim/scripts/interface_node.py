@@ -37,8 +37,8 @@ The telemetry process is restarted when it exits, prints no byte or no complete 
 for ~restart_timeout s and is judged hung, not starved (anafi_sim.interface.supervisor.hang_verdict: the
 process's CPU time and state, the reader's own wake-up lag; a live but starved process is waited for, logged
 "late, not hung", counted in the diagnostics' "process starved"); the diagnostics give the reader's largest
-wake-up lag of each report period ("reader wake-up lag max [s]", read by the experiment monitor); lines longer than MAX_LINE bytes are dropped and counted
-(process oversize lines). Restart warnings are throttled (10 s) with running counts.
+wake-up lag of each report period ("reader wake-up lag max [s]", read by the experiment monitor); lines
+longer than MAX_LINE bytes are dropped and counted (process oversize lines). Restart warnings are throttled (10 s) with running counts.
 
 Namespace /<drone> (default drone name: the namespace's last part; in the
 root namespace the topics go under /<~drone_name>/). Parameters: see

@@ -322,7 +322,8 @@ def test_proc_stat_is_parsed_with_spaces_and_parentheses_in_the_name():
 
 def test_a_silent_process_using_cpu_is_not_killed(rec):
     # computes without printing for longer than the timeout (a start-up on a loaded machine), then prints
-    script = 'import time\nt = time.process_time()\nwhile time.process_time() - t < 1.0: pass\nprint("done", flush=True)\n' \
+    script = 'import time\nt = time.process_time()\nwhile time.process_time() - t < 1.0: pass\n' \
+             'print("done", flush=True)\n' \
              'time.sleep(30)\n'
     sup = make(rec, [PY, '-c', script], restart_timeout=0.3, spin_cpu=20.0, patience=1000.0,
                backoff_initial=0.05)
@@ -349,7 +350,7 @@ def test_a_stopped_process_is_killed_and_restarted(rec):
 
 def test_a_starved_reader_or_tool_as_measured_is_waited_for(rec):
     # the process's progress as /proc would show a starved one: runnable, waiting for a CPU
-    sup = make(rec, ['sleep', '30'], restart_timeout=0.2, backoff_initial=0.05,
+    sup = make(rec, ['sleep', '30'], restart_timeout=0.2, backoff_initial=0.05, patience=1e6,
                progress=lambda pid: ('R', 0.0))
     try:
         assert rec.wait_for(lambda: rec.kinds('starved'), timeout=10.0)
@@ -379,3 +380,23 @@ def test_no_sample_timer_while_nothing_is_printed(rec):
         assert not rec.kinds('hang') and sup.starts == 1
     finally:
         sup.stop()
+
+
+def test_the_sample_timer_runs_from_the_first_byte_after_a_silence(rec):
+    # silent (blocked, before its first byte) longer than the sample timeout, then samples: nothing killed
+    script = 'import time\ntime.sleep(1.5)\nwhile True:\n    print("k : 1", flush=True); time.sleep(0.05)\n'
+    seen = []
+
+    def on_line(line, wall_time):
+        rec.on_line(line, wall_time)
+        seen.append(line)
+        return len(seen) % 2 == 0     # every other line completes a sample
+
+    sup = ProcessSupervisor([PY, '-c', script], on_line, on_event=rec.on_event, restart_timeout=0.5,
+                            sample_timeout=0.5, start_timeout=20.0, backoff_initial=0.05)
+    sup.start()
+    try:
+        assert rec.wait_for(lambda: len(rec.lines) >= 10, timeout=30.0)
+    finally:
+        sup.stop()
+    assert not rec.kinds('hang') and sup.starts == 1

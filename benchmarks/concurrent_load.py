@@ -158,7 +158,7 @@ def main(argv=None):
              '`tools/demo.sh` (`make demo`: MPC on circle_r2_v1 in real time) on its own master, ports and folder. '
              'e_mu [m] against the drone\'s estimate (the paper\'s metric) / against ground truth, and its deviation '
              'from the quiet run; "reader lag": the ground-truth reader\'s largest wake-up lag while the scenario '
-             'ran (disturbed beyond 0.1 s); "hung / starved": telemetry processes the interface killed as hung / '
+             'ran (disturbed beyond 0.5 s); "hung / starved": telemetry processes the interface killed as hung / '
              'silences it waited for as starved (whole run); "rtf": the simulator\'s achieved real-time factor.'
              % (' '.join([''] + (argv if argv is not None else sys.argv[1:])), time.strftime('%Y-%m-%d %H:%M UTC',
                                                                                         time.gmtime()),

@@ -23,8 +23,9 @@ generator status, evaluator summaries, the simulator's diagnostics) and decides,
 A run that measured may still have been disturbed by the machine's load; ``disturbed`` says so from
 measured facts, each with its figure: the controller fell back to hovering (> ``max_hover_commands``
 all-zero commands) or stopped (a gap > ``max_command_gap`` s of ROS time between commands), the ground-truth
-reader woke up more than ``max_reader_lag`` s late (READER_LAG_LIMIT, 0.1 s: its samples are stamped when
-read, so at the paper's 1 m/s a 0.1 s late sample puts the ground truth 0.1 m off), or the evaluator found
+reader woke up more than ``max_reader_lag`` s late (READER_LAG_LIMIT: the evaluator's interpolation gap,
+0.5 s: a reader that late can leave the evaluator without ground truth and the interface's subscribers with
+a stale one; below it the figure is still printed: ``reader_line``), or the evaluator found
 no ground truth within its interpolation gap at some samples (its summary's ``truth_missing``).
 
 ``progress_line`` gives the one-line live status (phase, current e against the estimate, the
@@ -35,6 +36,7 @@ controller CPU time) for the batch report.
 import math
 
 from anafi_sim.interface.supervisor import READER_LAG_KEY
+from anafi_sim.mission.evaluation import DEFAULT_MAX_TRUTH_GAP
 from anafi_sim.numeric import fmt, summary_stats
 
 WAITING, STARTED, MEASURING, MEASURED, FINAL, FAILED = (
@@ -49,7 +51,7 @@ SIM_REANCHOR_PREFIX = 'schedule re-anchors'
 #: the interface's diagnostic status: its name ends so (interface_node.py); READER_LAG_KEY in its values
 INTERFACE_STATUS_SUFFIX = ': ground truth interface'
 #: [s] the ground-truth reader's wake-up lag beyond which a run is disturbed (see the module doc)
-READER_LAG_LIMIT = 0.1
+READER_LAG_LIMIT = DEFAULT_MAX_TRUTH_GAP
 
 
 def _stats(values):
@@ -448,6 +450,16 @@ def result_status(ok, info):
     if not ok:
         return 'FAILED: ' + str(info.get('reason') or 'unknown')
     return 'disturbed: ' + info['disturbed'] if info.get('disturbed') else 'ok'
+
+
+def reader_line(info):
+    """The RESULT block's line on the ground-truth reader (its largest wake-up lag while the scenario ran, the
+    telemetry processes killed as hung / waited for as starved), None when the run info has none of it."""
+    if info.get('reader_lag_max_s') is None and info.get('interface_hangs') is None:
+        return None
+    return '  ground-truth reader: wake-up lag max %s s (disturbed beyond %.2f s), telemetry process hung %s, ' \
+        'starved %s' % (fmt(info.get('reader_lag_max_s'), 3), READER_LAG_LIMIT,
+                        fmt(info.get('interface_hangs'), 0), fmt(info.get('interface_starved'), 0))
 
 
 def summary_lines(summary, label=''):

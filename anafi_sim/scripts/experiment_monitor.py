@@ -28,7 +28,8 @@ durations, achieved real-time factor, simulator overruns, MPC solve times, contr
 nodes matching ~controller_nodes, fnmatch patterns of absolute node names), prints the summary and
 shuts down: the RESULT line says "ok", "disturbed: <what, with the measured figure>" (a run that measured
 while the machine's load disturbed it: the controller starved, the ground-truth reader late by more than
-0.1 s - the interface's diagnostics -, ground truth missing; anafi_sim.mission.monitor) or "FAILED: <reason>"
+0.5 s - the interface's diagnostics; its lag is printed in any case -, ground truth missing;
+anafi_sim.mission.monitor) or "FAILED: <reason>"
 (exit 0; also when disturbed; 1 on failure: not ready within ~ready_timeout s wall (90), the scenario not ending
 within its duration + ~end_margin s (30) of ROS time, no final summary ~final_timeout s (30) wall after
 the end); with ~end_launch (false; experiment.launch: true) a run that ended well first ends the
@@ -52,8 +53,8 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
 from anafi_sim import processes, run_files
-from anafi_sim.mission.monitor import (FAILED, FINAL, INTERFACE_STATUS_SUFFIX, ExperimentMonitor, result_status,
-                                       summary_lines)
+from anafi_sim.mission.monitor import (FAILED, FINAL, INTERFACE_STATUS_SUFFIX, ExperimentMonitor, reader_line,
+                                       result_status, summary_lines)
 from anafi_sim.mission.trajectory import SCENARIO_DIR, load_scenario
 from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim import names
@@ -331,6 +332,8 @@ class ExperimentMonitorNode(object):
             lines.append('  simulation: %.1f s in %.1f s wall (real-time factor %.2f), simulator overruns %s, '
                          're-anchors %s' % (info['scenario_sim_s'], info['scenario_wall_s'], info['achieved_rtf'],
                                             info['sim_overruns'], info['sim_reanchors']))
+        if reader_line(info):
+            lines.append(reader_line(info))
         if info.get('mpc_solve_time_mean_ms') is not None:
             lines.append('  MPC solve time: mean %.2f ms, max %.2f ms' % (info['mpc_solve_time_mean_ms'],
                                                                           info['mpc_solve_time_max_ms']))

@@ -188,12 +188,17 @@ def test_a_late_ground_truth_reader_while_the_scenario_runs_makes_it_disturbed_w
     m.on_interface_diagnostics({em.READER_LAG_KEY: 'nan'})
     assert m.disturbed() == '' and m.reader_lag == pytest.approx(0.04)
     m.on_interface_diagnostics({em.READER_LAG_KEY: '0.350', 'process hangs': '0', 'process starved': '2'})
+    assert m.disturbed() == ''                                   # within the limit: printed, not disturbed
+    m.on_interface_diagnostics({em.READER_LAG_KEY: '0.750'})
     m.on_interface_diagnostics({em.READER_LAG_KEY: '0.010'})
-    assert m.disturbed() == 'ground-truth reader 0.35 s late (limit 0.10 s)'
+    assert m.disturbed() == 'ground-truth reader 0.75 s late (limit 0.50 s)'
     info = m.run_info()
-    assert info['reader_lag_max_s'] == pytest.approx(0.35) and info['disturbed'] == m.disturbed()
+    assert info['reader_lag_max_s'] == pytest.approx(0.75) and info['disturbed'] == m.disturbed()
     assert (info['interface_hangs'], info['interface_starved']) == (0, 2)
-    assert em.result_status(True, info) == 'disturbed: ground-truth reader 0.35 s late (limit 0.10 s)'
+    assert em.result_status(True, info) == 'disturbed: ground-truth reader 0.75 s late (limit 0.50 s)'
+    assert em.reader_line(info) == '  ground-truth reader: wake-up lag max 0.750 s (disturbed beyond 0.50 s), ' \
+        'telemetry process hung 0, starved 2'
+    assert em.reader_line({}) is None
 
 
 def test_ground_truth_missing_in_the_summary_makes_a_run_disturbed():

@@ -303,7 +303,7 @@ class GroundTruthInterface(object):
         for name in ('lines', 'blank', 'malformed', 'nonfinite', 'unknown_key', 'partial_samples'):
             if name in parser_counters:
                 values.append(('parse ' + name.replace('_', ' '), str(parser_counters[name])))
-        for name in ('running', 'pid', 'starts', 'restarts', 'exits', 'hangs', 'spawn_failures',
+        for name in ('running', 'pid', 'starts', 'restarts', 'exits', 'hangs', 'starved', 'spawn_failures',
                      'oversize_lines', 'stderr_bytes', 'stderr_oversize_lines', 'last_exit_code', 'last_stderr'):
             if name in process:
                 values.append(('process ' + name.replace('_', ' '), str(process[name])))

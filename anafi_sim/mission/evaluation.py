@@ -279,7 +279,8 @@ class Evaluation(object):
     windowed ``ReferenceLog``; ``full_log``: the whole log (e.g. for CSV export).
     """
 
-    def __init__(self, name, log, full_log, window, estimate, truth, garbage, warnings, dropped_before_waypoint=0):
+    def __init__(self, name, log, full_log, window, estimate, truth, garbage, warnings, dropped_before_waypoint=0,
+                 truth_missing=0):
         self.name = name
         self.log = log
         self.full_log = full_log
@@ -289,6 +290,7 @@ class Evaluation(object):
         self.garbage = garbage
         self.warnings = list(warnings)
         self.dropped_before_waypoint = dropped_before_waypoint
+        self.truth_missing = int(truth_missing)     # samples without ground truth (interpolation gap)
 
     @property
     def n_samples(self):
@@ -300,7 +302,8 @@ class Evaluation(object):
 
     def as_dict(self):
         """Plain dict (insertion-ordered, YAML/JSON ready): name, samples, window, duration, estimate,
-        truth (None when absent), garbage (lines), warnings."""
+        truth (None when absent), garbage (lines), garbage_samples (samples with garbage in some column),
+        truth_missing (samples without ground truth), warnings."""
         return dict([
             ('name', self.name),
             ('samples', self.n_samples),
@@ -309,6 +312,8 @@ class Evaluation(object):
             ('estimate', self.estimate.as_dict()),
             ('truth', self.truth.as_dict() if self.truth is not None else None),
             ('garbage', self.garbage.summary()),
+            ('garbage_samples', self.garbage.n_bad),
+            ('truth_missing', self.truth_missing),
             ('warnings', list(self.warnings)),
         ])
 
@@ -414,6 +419,15 @@ def evaluate_log(log, window=None, relative=True, min_altitude=DEFAULT_MIN_ALTIT
     if truth_absent:
         absent |= set(TRUTH_COLUMNS)
     garbage = _filter_report(detect_garbage(sub), absent)
+    truth_missing = 0
+    if not truth_absent and len(sub):
+        # a sample without any ground truth (no truth sample within the interpolation gap) is missing, counted
+        # once in the warning below, not garbage in each of the truth columns
+        present = [c for c in TRUTH_COLUMNS if c in sub.columns]
+        missing = np.all(np.column_stack([np.isnan(np.asarray(sub.columns[c], dtype=np.float64))
+                                          for c in present]), axis=1)
+        truth_missing = int(missing.sum())
+        garbage = garbage.without(missing, set(present))
     estimate = _source_result(sub, 'anafi', min_altitude, 'estimate')
     truth = None if truth_absent else _source_result(sub, 'sphinx', min_altitude, 'truth')
     for res, label in ((estimate, 'estimate'), (truth, 'ground truth')):
@@ -422,11 +436,11 @@ def evaluate_log(log, window=None, relative=True, min_altitude=DEFAULT_MIN_ALTIT
                             % (label, min_altitude, res.excluded['below ground']))
         if res is not None and len(sub) and res.stats.n_valid == 0:
             warnings.append('no valid 3-D %s samples; horizontal e_mu = %s m' % (label, _fmt(res.stats_h.mean).strip()))
-    if truth is not None:
-        missing = int(np.isnan(sub.columns['x_sphinx']).sum())
-        if missing:
-            warnings.append('ground truth missing (no sample within the interpolation gap) at %d samples' % missing)
-    return Evaluation(name, sub, log, w, estimate, truth, garbage, warnings, dropped_before_waypoint)
+    if truth is not None and truth_missing:
+        warnings.append('ground truth missing (no sample within the interpolation gap) at %d samples'
+                        % truth_missing)
+    return Evaluation(name, sub, log, w, estimate, truth, garbage, warnings, dropped_before_waypoint,
+                      truth_missing=truth_missing)
 
 
 def evaluate_csv(path, window=None, min_altitude=DEFAULT_MIN_ALTITUDE):

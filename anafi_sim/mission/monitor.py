@@ -20,6 +20,14 @@ generator status, evaluator summaries, the simulator's diagnostics) and decides,
 - the end: the evaluator's summary with state 'final' ('done' action); ``result_problem`` then says
   whether that summary is a measurement at all (ground truth present, the drone flew the scenario).
 
+A run that measured may still have been disturbed by the machine's load; ``disturbed`` says so from
+measured facts, each with its figure: the controller fell back to hovering (> ``max_hover_commands``
+all-zero commands) or stopped (a gap > ``max_command_gap`` s of ROS time between commands), the ground-truth
+reader woke up more than ``max_reader_lag`` s late (READER_LAG_LIMIT: the evaluator's interpolation gap,
+0.5 s: a reader that late can leave the evaluator without ground truth and the interface's subscribers with
+a stale one; below it the figure is still printed: ``reader_line``), or the evaluator found
+no ground truth within its interpolation gap at some samples (its summary's ``truth_missing``).
+
 ``progress_line`` gives the one-line live status (phase, current e against the estimate, the
 evaluator's statistics so far, the simulator's achieved real-time factor); ``run_info`` the figures
 of the run (wall / sim durations, achieved real-time factor, simulator overruns, MPC solve times,
@@ -27,6 +35,8 @@ controller CPU time) for the batch report.
 """
 import math
 
+from anafi_sim.interface.supervisor import READER_LAG_KEY
+from anafi_sim.mission.evaluation import DEFAULT_MAX_TRUTH_GAP
 from anafi_sim.numeric import fmt, summary_stats
 
 WAITING, STARTED, MEASURING, MEASURED, FINAL, FAILED = (
@@ -38,6 +48,10 @@ SIM_RATE_KEY = 'physics rate achieved [Hz wall]'
 SIM_WANTED_KEY = 'physics rate wanted [Hz wall]'
 SIM_OVERRUNS_KEY = 'overruns (steps late by > 1 period)'
 SIM_REANCHOR_PREFIX = 'schedule re-anchors'
+#: the interface's diagnostic status: its name ends so (interface_node.py); READER_LAG_KEY in its values
+INTERFACE_STATUS_SUFFIX = ': ground truth interface'
+#: [s] the ground-truth reader's wake-up lag beyond which a run is disturbed (see the module doc)
+READER_LAG_LIMIT = DEFAULT_MAX_TRUTH_GAP
 
 
 def _stats(values):
@@ -59,11 +73,12 @@ class ExperimentMonitor(object):
     ``min_commands``: controller commands to see before starting; ``ready_timeout``: wall s to become
     ready; ``end_margin``: ROS s after the scenario's nominal end before declaring it stuck;
     ``final_timeout``: wall s between the measured segment's end and the evaluator's final summary;
-    ``max_hover_commands``, ``max_command_gap`` [s]: limits of ``disturbed``.
+    ``max_hover_commands``, ``max_command_gap`` [s], ``max_reader_lag`` [s]: limits of ``disturbed``.
     """
 
     def __init__(self, scenario_duration, min_commands=5, ready_timeout=90.0, end_margin=30.0,
-                 final_timeout=30.0, max_samples=100000, max_hover_commands=2, max_command_gap=0.5):
+                 final_timeout=30.0, max_samples=100000, max_hover_commands=2, max_command_gap=0.5,
+                 max_reader_lag=READER_LAG_LIMIT):
         for name, value in (('scenario_duration', scenario_duration), ('ready_timeout', ready_timeout),
                             ('end_margin', end_margin), ('final_timeout', final_timeout)):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
@@ -108,6 +123,9 @@ class ExperimentMonitor(object):
         self.target_travel = 0.0       # m the waypoint moved meanwhile
         self.max_hover_commands = int(max_hover_commands)
         self.max_command_gap_limit = float(max_command_gap)
+        self.max_reader_lag = float(max_reader_lag)
+        self.reader_lag = None         # [s] the ground-truth reader's largest wake-up lag while the scenario ran
+        self.interface_counts = {}     # the interface's latest 'hangs' / 'starved' counters
 
     # ------------------------------------------------------------ inputs
     def on_drone_state(self, text):
@@ -151,7 +169,36 @@ class ExperimentMonitor(object):
             reasons.append('%d hover commands' % self.hover_commands)
         if self.max_command_gap > self.max_command_gap_limit:
             reasons.append('commands stopped for %.2f s' % self.max_command_gap)
+        if self.reader_lag is not None and self.reader_lag > self.max_reader_lag:
+            reasons.append('ground-truth reader %.2f s late (limit %.2f s)' % (self.reader_lag, self.max_reader_lag))
+        missing = self.truth_missing()
+        if missing:
+            reasons.append('ground truth missing at %d samples' % missing)
         return ', '.join(reasons)
+
+    def truth_missing(self):
+        """Samples of the measured segment without ground truth (the evaluator's summary; 0 when unknown)."""
+        summary = self.summary if isinstance(self.summary, dict) else {}
+        try:
+            return max(0, int(summary.get('truth_missing') or 0))
+        except (TypeError, ValueError):
+            return 0
+
+    def on_interface_diagnostics(self, values):
+        """{key: text} of the ground-truth interface's diagnostic status: its reader's wake-up lag is kept
+        (the largest while the scenario runs), and its watchdog's counters of the whole run (telemetry process
+        killed as hung, silences waited for as starved)."""
+        for key, name in (('process hangs', 'hangs'), ('process starved', 'starved')):
+            try:
+                self.interface_counts[name] = int(values[key])
+            except (KeyError, TypeError, ValueError):
+                pass
+        try:
+            lag = float(values.get(READER_LAG_KEY))
+        except (TypeError, ValueError):
+            return
+        if math.isfinite(lag) and self.state in (STARTED, MEASURING):
+            self.reader_lag = lag if self.reader_lag is None else max(self.reader_lag, lag)
 
     @property
     def holding(self):
@@ -383,6 +430,10 @@ class ExperimentMonitor(object):
             'scenario_commands': self.scenario_commands,
             'hover_commands': self.hover_commands,
             'max_command_gap_s': r(self.max_command_gap, 3),
+            'reader_lag_max_s': r(self.reader_lag, 3),
+            'interface_hangs': self.interface_counts.get('hangs'),
+            'interface_starved': self.interface_counts.get('starved'),
+            'truth_missing': self.truth_missing(),
             'disturbed': self.disturbed(),
             'controller_cpu_s': r(cpu, 3),
             'controller_cpu_per_sim_s': r(cpu / sim_s, 4) if cpu is not None and sim_s else None,
@@ -390,6 +441,25 @@ class ExperimentMonitor(object):
             'target_travel_m': r(self.target_travel, 3),
         }
         return info
+
+
+def result_status(ok, info):
+    """The RESULT line's verdict: 'ok' (measured, undisturbed), 'disturbed: <what, with its figure>' (measured
+    while the machine's load disturbed the run: anafi_sim.mission.monitor.ExperimentMonitor.disturbed) or
+    'FAILED: <reason>' (could not measure)."""
+    if not ok:
+        return 'FAILED: ' + str(info.get('reason') or 'unknown')
+    return 'disturbed: ' + info['disturbed'] if info.get('disturbed') else 'ok'
+
+
+def reader_line(info):
+    """The RESULT block's line on the ground-truth reader (its largest wake-up lag while the scenario ran, the
+    telemetry processes killed as hung / waited for as starved), None when the run info has none of it."""
+    if info.get('reader_lag_max_s') is None and info.get('interface_hangs') is None:
+        return None
+    return '  ground-truth reader: wake-up lag max %s s (disturbed beyond %.2f s), telemetry process hung %s, ' \
+        'starved %s' % (fmt(info.get('reader_lag_max_s'), 3), READER_LAG_LIMIT,
+                        fmt(info.get('interface_hangs'), 0), fmt(info.get('interface_starved'), 0))
 
 
 def summary_lines(summary, label=''):
@@ -405,8 +475,10 @@ def summary_lines(summary, label=''):
             continue
         lines.append('  %-26s e_max %s  e_mu %s  e_sigma %s m' % (
             text, fmt(res.get('e_max'), 3), fmt(res.get('e_mu'), 3), fmt(res.get('e_sigma'), 3)))
-    for g in summary.get('garbage') or []:
-        lines.append('  GARBAGE (excluded): %s' % g)
-    for w in summary.get('warnings') or []:
-        lines.append('  warning: %s' % w)
+    garbage, warnings = summary.get('garbage') or [], summary.get('warnings') or []
+    if garbage or warnings:     # the evaluator logs them, once: counted here, not repeated
+        bad = summary.get('garbage_samples')
+        lines.append('  %s%d warning(s) (named in the evaluator\'s log)' % (
+            'GARBAGE excluded: %s samples, ' % (bad if bad is not None else '%d line(s) of' % len(garbage))
+            if garbage else '', len(warnings)))
     return lines

@@ -279,14 +279,47 @@ class GarbageReport(object):
                 out |= self.columns[name].mask
         return out
 
+    @property
+    def n_bad(self):
+        """Samples with garbage in any column."""
+        return int(self.mask().sum())
+
     def summary(self):
-        """Human-readable lines, one per column with garbage (empty list when clean)."""
-        lines = []
+        """Human-readable lines (empty list when clean): one per set of bad samples, the columns that are bad at
+        exactly those samples for the same reasons named together (one NaN sample is one line, not one per
+        column)."""
+        groups = collections.OrderedDict()
         for name, info in self.columns.items():
+            key = (np.asarray(info.mask, dtype=bool).tobytes(), tuple(info.reasons.items()))
+            groups.setdefault(key, []).append(name)
+        lines = []
+        for names in groups.values():
+            info = self.columns[names[0]]
             why = ', '.join('%s: %d' % (r, c) for r, c in info.reasons.items())
-            lines.append('%s%s: %d of %d samples (%s)' % ((self.name + ' ') if self.name else '', name,
+            lines.append('%s%s: %d of %d samples (%s)' % ((self.name + ' ') if self.name else '', ', '.join(names),
                                                          info.count, self.n_samples, why))
         return lines
+
+    def without(self, rows, columns):
+        """This report with the samples where ``rows`` (boolean mask) is True no longer garbage in ``columns``
+        (they are reported elsewhere, e.g. ground truth missing); a column left without garbage is dropped.
+        Only non-finite values are taken out (the reason of a missing value)."""
+        rows = np.asarray(rows, dtype=bool)
+        out = collections.OrderedDict()
+        for name, info in self.columns.items():
+            if name in columns and rows.any():
+                mask = np.asarray(info.mask, dtype=bool) & ~rows
+                removed = info.count - int(mask.sum())
+                reasons = collections.OrderedDict(info.reasons)
+                if removed:
+                    reasons['non-finite'] = reasons.get('non-finite', 0) - removed
+                    if reasons['non-finite'] <= 0:
+                        del reasons['non-finite']
+                if not mask.any():
+                    continue
+                info = ColumnGarbage(name, int(mask.sum()), reasons, mask)
+            out[name] = info
+        return GarbageReport(self.n_samples, out, name=self.name)
 
 
 def detect_garbage(log):

@@ -26,7 +26,11 @@ evaluator's summary is final, the node waits (<= ~evaluator_exit_timeout s wall,
 (anafi_sim.mission.plots; '' = no plot), writes ~info_file (YAML: anafi_sim.mission.monitor run_info:
 durations, achieved real-time factor, simulator overruns, MPC solve times, controller CPU time of the
 nodes matching ~controller_nodes, fnmatch patterns of absolute node names), prints the summary and
-shuts down (exit 0; 1 on failure: not ready within ~ready_timeout s wall (90), the scenario not ending
+shuts down: the RESULT line says "ok", "disturbed: <what, with the measured figure>" (a run that measured
+while the machine's load disturbed it: the controller starved, the ground-truth reader late by more than
+0.5 s - the interface's diagnostics; its lag is printed in any case -, ground truth missing;
+anafi_sim.mission.monitor) or "FAILED: <reason>"
+(exit 0; also when disturbed; 1 on failure: not ready within ~ready_timeout s wall (90), the scenario not ending
 within its duration + ~end_margin s (30) of ROS time, no final summary ~final_timeout s (30) wall after
 the end); with ~end_launch (false; experiment.launch: true) a run that ended well first ends the
 roslaunch that started the node as Ctrl-C does (its exit status 0, no red "REQUIRED process has died";
@@ -49,7 +53,8 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
 from anafi_sim import processes, run_files
-from anafi_sim.mission.monitor import FAILED, FINAL, ExperimentMonitor, summary_lines
+from anafi_sim.mission.monitor import (FAILED, FINAL, INTERFACE_STATUS_SUFFIX, ExperimentMonitor, reader_line,
+                                       result_status, summary_lines)
 from anafi_sim.mission.trajectory import SCENARIO_DIR, load_scenario
 from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim import names
@@ -137,6 +142,7 @@ class ExperimentMonitorNode(object):
         self.tuning = {}     # node -> its live tuning changes (ros/reconfigure.py), kept in the run info
         rospy.Subscriber(names.TUNING_CHANGES, String, self._on_tuning, queue_size=50)
         self.sim_status_prefix = 'anafi_sim: simulated Anafi'
+        self.drone = rospy.get_namespace().strip('/').split('/')[-1]     # the interface's hardware id ('' = any)
         self._say('%s: scenario %s (%.1f s of simulation time); waiting for the drone, the controller and %s'
                   % (self.label, self.scenario.name, self.scenario.duration,
                      ', '.join(self.wait_subscribers) or 'nothing else'))
@@ -194,6 +200,9 @@ class ExperimentMonitorNode(object):
             if status.name.startswith(self.sim_status_prefix):
                 with self.lock:
                     self.core.on_sim_diagnostics(dict((kv.key, kv.value) for kv in status.values))
+            elif status.name.endswith(INTERFACE_STATUS_SUFFIX) and (not self.drone or status.hardware_id == self.drone):
+                with self.lock:
+                    self.core.on_interface_diagnostics(dict((kv.key, kv.value) for kv in status.values))
 
     # ------------------------------------------------------------ helpers
     def _say(self, text):
@@ -317,12 +326,14 @@ class ExperimentMonitorNode(object):
                     failed = run_files.failed_name(self.files[key])
                     if failed in marked or key == 'bag':
                         self.files[key] = failed
-        lines = ['', '=' * 78, 'RESULT %s  (%s)' % (self.label, 'ok' if ok else 'FAILED: ' + info['reason'])]
+        lines = ['', '=' * 78, 'RESULT %s  (%s)' % (self.label, result_status(ok, info))]
         lines += summary_lines(summary, self.label)[1:] if summary else ['  no evaluator summary']
         if info.get('achieved_rtf') is not None:
             lines.append('  simulation: %.1f s in %.1f s wall (real-time factor %.2f), simulator overruns %s, '
                          're-anchors %s' % (info['scenario_sim_s'], info['scenario_wall_s'], info['achieved_rtf'],
                                             info['sim_overruns'], info['sim_reanchors']))
+        if reader_line(info):
+            lines.append(reader_line(info))
         if info.get('mpc_solve_time_mean_ms') is not None:
             lines.append('  MPC solve time: mean %.2f ms, max %.2f ms' % (info['mpc_solve_time_mean_ms'],
                                                                           info['mpc_solve_time_max_ms']))

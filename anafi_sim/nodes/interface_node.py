@@ -34,8 +34,11 @@ stream with another id or none (another drone, a stale port) is refused: ERROR, 
 telemetry process restarted after ~restart_timeout (anafi_sim.interface.telemetry_source).
 
 The telemetry process is restarted when it exits, prints no byte or no complete sample
-for ~restart_timeout s; lines longer than MAX_LINE bytes are dropped and counted
-(process oversize lines). Restart warnings are throttled (10 s) with running counts.
+for ~restart_timeout s and is judged hung, not starved (anafi_sim.interface.supervisor.hang_verdict: the
+process's CPU time and state, the reader's own wake-up lag; a live but starved process is waited for, logged
+"late, not hung", counted in the diagnostics' "process starved"); the diagnostics give the reader's largest
+wake-up lag of each report period ("reader wake-up lag max [s]", read by the experiment monitor); lines
+longer than MAX_LINE bytes are dropped and counted (process oversize lines). Restart warnings are throttled (10 s) with running counts.
 
 Namespace /<drone> (default drone name: the namespace's last part; in the
 root namespace the topics go under /<~drone_name>/). Parameters: see
@@ -54,7 +57,7 @@ from nav_msgs.msg import Odometry
 from tf2_msgs.msg import TFMessage
 
 from anafi_sim.interface import ground_truth as gt
-from anafi_sim.interface.supervisor import ProcessSupervisor
+from anafi_sim.interface.supervisor import READER_LAG_KEY, ProcessSupervisor
 from anafi_sim.interface.telemetry_source import WAITING_FOR_SIMULATOR, SimulatorSource, with_port
 from anafi_sim.interface.telemetry_command import allowed_argv
 
@@ -71,6 +74,9 @@ from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, TelemetryParser
 
 DEFAULT_COMMAND = 'tlm-data-logger -r 0 inet:127.0.0.1:9060'
 STALE_LOG_PERIOD = 10.0  # s between repeated "stale" log lines
+#: x ~restart_timeout: the silence allowed before a telemetry process's first byte (its simulator may still be
+#: starting) when it is blocked; a stopped process is killed after ~restart_timeout all the same
+START_TIMEOUT_FACTOR = 5.0
 
 
 def read_params(ctx):
@@ -146,6 +152,7 @@ class InterfaceNode(object):
             params['telemetry_command'], self.on_line, restart_timeout=params['restart_timeout'],
             backoff_initial=params['backoff_initial'], backoff_max=params['backoff_max'],
             on_event=self.on_event, sample_timeout=params['restart_timeout'], max_line=MAX_LINE,
+            start_timeout=START_TIMEOUT_FACTOR * params['restart_timeout'],
             prepare=self._prepare if self.source is not None else None)
 
     def run(self):
@@ -185,10 +192,15 @@ class InterfaceNode(object):
                                           (' (stderr: %s)' % info['stderr']) if info.get('stderr') else '',
                                           info.get('restart_in', 0.0), self.supervisor.exits))
         elif kind == 'hang':
-            self.ctx.logwarn_throttle(10.0, 'interface: telemetry process %s printed no sample for %.1f s: killed, '
-                                      'restarting in %.1f s (%d hangs so far)' % (
-                                          info.get('pid'), info.get('silent_for', float('nan')),
+            self.ctx.logwarn_throttle(10.0, 'interface: telemetry process %s hung (%s): killed, restarting in %.1f s '
+                                      '(%d hangs so far)' % (
+                                          info.get('pid'), info.get('reason', 'no sample for %.1f s'
+                                                                    % info.get('silent_for', float('nan'))),
                                           info.get('restart_in', 0.0), self.supervisor.hangs))
+        elif kind == 'starved':   # live but starved of CPU (or the reader was): waited for, not killed
+            self.ctx.logwarn_throttle(10.0, 'interface: telemetry process %s is late, not hung: %s; waiting (%d '
+                                      'such silences so far)' % (info.get('pid'), info.get('reason'),
+                                                                 self.supervisor.starved))
         elif kind == 'spawn_failed' and WAITING_FOR_SIMULATOR in str(info.get('message')):
             # the usual start-up order (the simulator binds its port after the interface starts): not an error
             # yet; the diagnostics say ERROR "no telemetry received yet" until samples flow
@@ -278,6 +290,7 @@ class InterfaceNode(object):
             self.ctx.loginfo('interface: ground truth flowing again')
         return [health_status(self.diag_name, health, self.p['drone_name'],
                               [('publish errors', str(self.publish_errors)),
+                               (READER_LAG_KEY, '%.3f' % self.supervisor.take_reader_lag()),
                                ('telemetry command', ' '.join(self.supervisor.argv))])]
 
 

@@ -376,3 +376,35 @@ def test_command_line_on_csv_and_bag(tmp_path):
     assert code == 3
     code, text = _run_cli(str(tmp_path / 'missing.csv'))
     assert code == 1 and 'ERROR' in text
+
+
+def test_one_bad_truth_sample_is_one_garbage_line_not_one_per_column():
+    n = 20
+    t = np.arange(n) * 0.05
+    wp = np.tile([3.0, 2.0, 5.0], (n, 1))
+    truth = wp - [0.0, 0.0, 0.5]
+    truth[7] = float('nan')                            # one sample: x, y and z of the ground truth
+    r = ev.evaluate_arrays(t, wp, wp - [0.0, 0.0, 1.0], truth=truth, name='nan')
+    assert set(r.garbage.columns) == {'x_sphinx', 'y_sphinx', 'z_sphinx'}
+    lines = r.garbage.summary()
+    bad = r.garbage.columns['x_sphinx'].count          # the interpolation may carry it to a neighbour
+    assert 1 <= bad <= 2
+    assert lines == ['x_sphinx, y_sphinx, z_sphinx: %d of 20 samples (non-finite: %d)' % (bad, bad)]
+    assert sum('GARBAGE' in line for line in r.lines()) == 1
+    assert r.as_dict()['garbage_samples'] == bad and r.truth.stats.n_excluded == bad
+
+
+def test_samples_without_ground_truth_are_counted_once_as_missing_not_as_garbage():
+    t_est = np.arange(40) * 0.05                       # 0 .. 1.95 s
+    t_truth = np.concatenate([np.arange(0.0, 0.5, 0.01), np.arange(1.5, 2.0, 0.01)])   # a 1 s gap
+    est = np.tile([1.0, 2.0, 5.0, 0, 0, 0, 0, 0, 0], (len(t_est), 1))
+    truth = np.tile([1.0, 2.0, 4.9, 0, 0, 0, 0, 0, 0], (len(t_truth), 1))
+    wp = np.array([[1.0, 2.0, 5.0, 0.0, 0.0, 0.0, 0.0]])
+    log, info = ev.build_log(np.round(t_est * 1e9).astype(np.int64), est, np.array([0], dtype=np.int64), wp,
+                             np.round(t_truth * 1e9).astype(np.int64), truth, name='gap')
+    r = ev.evaluate_log(log, absent=info['absent'])
+    assert 10 <= r.truth_missing <= 22
+    assert not r.has_garbage and r.garbage.summary() == []
+    assert [w for w in r.warnings if 'ground truth missing' in w] == [
+        'ground truth missing (no sample within the interpolation gap) at %d samples' % r.truth_missing]
+    assert r.as_dict()['truth_missing'] == r.truth_missing and r.truth.stats.n_valid == 40 - r.truth_missing

@@ -177,3 +177,46 @@ def test_the_controller_says_what_a_hover_command_is_when_it_can():
         t += 0.1
         m.on_command(values, t, hover=hover)
     assert m.scenario_commands == 4 and m.hover_commands == 3
+
+
+def test_a_late_ground_truth_reader_while_the_scenario_runs_makes_it_disturbed_with_the_figure():
+    m = ready_monitor()
+    m.on_interface_diagnostics({em.READER_LAG_KEY: '0.900'})    # before the start: not counted
+    m.tick(1.0, 0.0)
+    m.on_interface_diagnostics({em.READER_LAG_KEY: '0.040'})
+    m.on_interface_diagnostics({'other': 'x'})
+    m.on_interface_diagnostics({em.READER_LAG_KEY: 'nan'})
+    assert m.disturbed() == '' and m.reader_lag == pytest.approx(0.04)
+    m.on_interface_diagnostics({em.READER_LAG_KEY: '0.350', 'process hangs': '0', 'process starved': '2'})
+    assert m.disturbed() == ''                                   # within the limit: printed, not disturbed
+    m.on_interface_diagnostics({em.READER_LAG_KEY: '0.750'})
+    m.on_interface_diagnostics({em.READER_LAG_KEY: '0.010'})
+    assert m.disturbed() == 'ground-truth reader 0.75 s late (limit 0.50 s)'
+    info = m.run_info()
+    assert info['reader_lag_max_s'] == pytest.approx(0.75) and info['disturbed'] == m.disturbed()
+    assert (info['interface_hangs'], info['interface_starved']) == (0, 2)
+    assert em.result_status(True, info) == 'disturbed: ground-truth reader 0.75 s late (limit 0.50 s)'
+    assert em.reader_line(info) == '  ground-truth reader: wake-up lag max 0.750 s (disturbed beyond 0.50 s), ' \
+        'telemetry process hung 0, starved 2'
+    assert em.reader_line({}) is None
+
+
+def test_ground_truth_missing_in_the_summary_makes_a_run_disturbed():
+    m = ready_monitor()
+    m.tick(1.0, 0.0)
+    m.on_summary({'state': 'final', 'samples': 100, 'truth_missing': 3}, 2.0)
+    assert m.disturbed() == 'ground truth missing at 3 samples' and m.run_info()['truth_missing'] == 3
+
+
+def test_the_result_status_is_ok_disturbed_or_failed():
+    assert em.result_status(True, {'disturbed': ''}) == 'ok'
+    assert em.result_status(True, {'disturbed': '3 hover commands'}) == 'disturbed: 3 hover commands'
+    assert em.result_status(False, {'disturbed': 'x', 'reason': 'no ground truth'}) == 'FAILED: no ground truth'
+
+
+def test_garbage_and_warnings_are_counted_in_the_summary_lines_not_repeated():
+    lines = em.summary_lines({'name': 'x', 'samples': 10, 'state': 'final', 'estimate': None, 'truth': None,
+                              'garbage': ['x_sphinx, y_sphinx: 1 of 10 samples (non-finite: 1)'],
+                              'garbage_samples': 1, 'warnings': ['w1', 'w2']})
+    text = '\n'.join(lines)
+    assert 'GARBAGE excluded: 1 samples, 2 warning(s)' in text and 'x_sphinx' not in text and 'w1' not in text

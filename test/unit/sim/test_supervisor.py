@@ -252,3 +252,151 @@ def test_a_clean_exit_restarts_without_growing_back_off(rec):
 def test_bad_line_cap_or_sample_timeout_raise(kw):
     with pytest.raises(ValueError):
         ProcessSupervisor(['true'], lambda line, t: None, **kw)
+
+
+# -- hung or starved: the pure verdict ------------------------------------------------------------------
+
+from anafi_sim.interface.supervisor import hang_verdict, parse_proc_stat   # noqa: E402
+
+
+def test_a_silence_within_the_timeout_is_quiet():
+    v = hang_verdict(1.0, 2.0, state='S', cpu_recent=0.0, cpu_silent=0.0)
+    assert not v.hung and v.kind == 'quiet'
+
+
+def test_a_late_reader_does_not_count_its_own_absence_as_the_tools_silence():
+    # starved reader: 5 s silent, but the reader itself woke up 3.5 s late in that time
+    v = hang_verdict(5.0, 2.0, reader_late=3.5, state='S', cpu_recent=0.0, cpu_silent=0.0)
+    assert not v.hung and v.kind == 'reader late' and '3.50 s late' in v.reason
+
+
+def test_a_tool_that_made_cpu_progress_is_starved_not_hung():
+    v = hang_verdict(3.0, 2.0, reader_late=0.01, state='S', cpu_recent=0.02, cpu_silent=0.3)
+    assert not v.hung and v.kind == 'working' and '0.020 s of CPU' in v.reason
+
+
+@pytest.mark.parametrize('state', ['R', 'D'])
+def test_a_tool_waiting_for_a_cpu_or_a_disk_is_starved_not_hung(state):
+    v = hang_verdict(3.0, 2.0, state=state, cpu_recent=0.0, cpu_silent=0.0)
+    assert not v.hung and v.kind == 'working'
+
+
+def test_a_blocked_tool_without_progress_while_the_reader_is_on_time_is_hung():
+    v = hang_verdict(2.5, 2.0, reader_late=0.05, state='S', cpu_recent=0.0, cpu_silent=0.0)
+    assert v.hung and v.kind == 'blocked' and 'on time' in v.reason
+
+
+@pytest.mark.parametrize('state', ['T', 't', 'Z'])
+def test_a_stopped_tool_is_hung_even_with_cpu_progress(state):
+    v = hang_verdict(2.5, 2.0, state=state, cpu_recent=0.5, cpu_silent=0.5)
+    assert v.hung and v.kind == 'stopped'
+
+
+def test_a_busy_loop_without_output_is_hung():
+    v = hang_verdict(6.0, 2.0, state='R', cpu_recent=1.9, cpu_silent=5.5, spin_cpu=5.0)
+    assert v.hung and v.kind == 'spinning'
+
+
+def test_patience_ends_at_a_multiple_of_the_timeout_of_the_readers_own_time():
+    assert not hang_verdict(19.0, 2.0, state='R', cpu_recent=0.1, cpu_silent=1.0, patience=10).hung
+    v = hang_verdict(21.0, 2.0, state='R', cpu_recent=0.1, cpu_silent=1.0, patience=10)
+    assert v.hung and v.kind == 'silent'
+    # ... and the reader's own lateness still does not count
+    assert not hang_verdict(30.0, 2.0, reader_late=12.0, state='R', cpu_recent=0.1, cpu_silent=1.0).hung
+
+
+def test_without_progress_figures_the_timeout_alone_decides():
+    assert hang_verdict(2.5, 2.0).hung
+    assert not hang_verdict(1.5, 2.0).hung
+
+
+def test_proc_stat_is_parsed_with_spaces_and_parentheses_in_the_name():
+    fields = ['S'] + ['0'] * 10 + ['250', '50'] + ['0'] * 30
+    text = '1234 (tlm (data) logger) ' + ' '.join(fields) + '\n'
+    assert parse_proc_stat(text, 100) == ('S', pytest.approx(3.0))
+    assert parse_proc_stat('garbage', 100) is None
+    assert parse_proc_stat('1 (x) S 1 2', 100) is None
+
+
+# -- hung or starved: the supervisor ----------------------------------------------------------------------
+
+def test_a_silent_process_using_cpu_is_not_killed(rec):
+    # computes without printing for longer than the timeout (a start-up on a loaded machine), then prints
+    script = 'import time\nt = time.process_time()\nwhile time.process_time() - t < 1.0: pass\n' \
+             'print("done", flush=True)\n' \
+             'time.sleep(30)\n'
+    sup = make(rec, [PY, '-c', script], restart_timeout=0.3, spin_cpu=20.0, patience=1000.0,
+               backoff_initial=0.05)
+    try:
+        assert rec.wait_for(lambda: rec.lines, timeout=60.0)
+    finally:
+        sup.stop()
+    assert rec.lines[0][0] == 'done\n' and sup.starts == 1
+    assert sup.hangs == 0
+    assert sup.starved >= 1 and rec.kinds('starved')[0][1]['verdict'] == 'working'
+
+
+def test_a_stopped_process_is_killed_and_restarted(rec):
+    sup = make(rec, ['sh', '-c', 'echo hello; kill -STOP $$; echo never'], restart_timeout=0.3,
+               backoff_initial=0.05)
+    try:
+        assert rec.wait_for(lambda: rec.kinds('hang'), timeout=30.0)
+    finally:
+        sup.stop()
+    hang = rec.kinds('hang')[0][1]
+    assert hang['verdict'] == 'stopped' and 'state T' in hang['reason']
+    assert 'never\n' not in [l for l, _ in rec.lines]
+
+
+def test_a_starved_reader_or_tool_as_measured_is_waited_for(rec):
+    # the process's progress as /proc would show a starved one: runnable, waiting for a CPU
+    sup = make(rec, ['sleep', '30'], restart_timeout=0.2, backoff_initial=0.05, patience=1e6,
+               progress=lambda pid: ('R', 0.0))
+    try:
+        assert rec.wait_for(lambda: rec.kinds('starved'), timeout=10.0)
+        assert sup.hangs == 0
+    finally:
+        sup.stop()
+    assert sup.snapshot()['starved'] >= 1 and 'waiting for a CPU' in sup.last_starved
+
+
+def test_a_process_blocked_before_its_first_byte_is_given_the_start_timeout(rec):
+    sup = make(rec, ['sh', '-c', 'sleep 1.5; echo first; exec sleep 30'], restart_timeout=0.3, start_timeout=20.0,
+               backoff_initial=0.05)
+    try:
+        assert rec.wait_for(lambda: rec.lines, timeout=30.0)
+        assert rec.wait_for(lambda: rec.kinds('hang'), timeout=30.0)    # after it: restart_timeout again
+    finally:
+        sup.stop()
+    assert rec.lines[0][0] == 'first\n' and rec.kinds('hang')[0][1]['pid'] == rec.kinds('start')[0][1]['pid']
+
+
+def test_no_sample_timer_while_nothing_is_printed(rec):
+    # silent (no byte): the output timer and its verdict decide, not the sample timer
+    sup = make(rec, ['sleep', '30'], restart_timeout=0.3, sample_timeout=0.3, start_timeout=20.0,
+               backoff_initial=0.05)
+    try:
+        time.sleep(1.5)
+        assert not rec.kinds('hang') and sup.starts == 1
+    finally:
+        sup.stop()
+
+
+def test_the_sample_timer_runs_from_the_first_byte_after_a_silence(rec):
+    # silent (blocked, before its first byte) longer than the sample timeout, then samples: nothing killed
+    script = 'import time\ntime.sleep(1.5)\nwhile True:\n    print("k : 1", flush=True); time.sleep(0.05)\n'
+    seen = []
+
+    def on_line(line, wall_time):
+        rec.on_line(line, wall_time)
+        seen.append(line)
+        return len(seen) % 2 == 0     # every other line completes a sample
+
+    sup = ProcessSupervisor([PY, '-c', script], on_line, on_event=rec.on_event, restart_timeout=0.5,
+                            sample_timeout=0.5, start_timeout=20.0, backoff_initial=0.05)
+    sup.start()
+    try:
+        assert rec.wait_for(lambda: len(rec.lines) >= 10, timeout=30.0)
+    finally:
+        sup.stop()
+    assert not rec.kinds('hang') and sup.starts == 1

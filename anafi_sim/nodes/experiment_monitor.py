@@ -420,5 +420,5 @@ class ExperimentMonitorNode(object):
         return ok
 
 
-if __name__ == '__main__':
+def main():
     run_node('experiment_monitor', ExperimentMonitorNode)

@@ -27,8 +27,7 @@ Publishes /diagnostics: '<host>: fleet host' (instances running / failed, bus de
 deliveries waiting for the bus's delivery thread) and, for an instance that failed, '<instance>: hosted instance'
 ERROR.
 """
-import os
-import runpy
+import importlib
 import threading
 import time
 import traceback
@@ -39,14 +38,6 @@ from anafi_sim.mission.fleet_layout import HOSTABLE, read_instances
 from anafi_sim.ros.context import LocalBus, NodeContext
 from anafi_sim.ros.node import (ERROR, OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 run_until_interrupted, start_diagnostics_thread)
-
-
-
-def _script_namespace(script, cache={}):
-    """The module namespace of a sibling node script (loaded once, not as __main__)."""
-    if script not in cache:
-        cache[script] = runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)), script))
-    return cache[script]
 
 
 class Instance(object):
@@ -77,9 +68,9 @@ class FleetHost(object):
                       ', '.join(running))
 
     def _build(self, inst):
-        script, cls, args = HOSTABLE[inst.kind]
+        module, cls, args = HOSTABLE[inst.kind]
         try:
-            node_class = _script_namespace(script)[cls]
+            node_class = getattr(importlib.import_module(module), cls)
             inst.ctx = NodeContext(inst.name, self.bus)
             inst.node = node_class(*(args + (inst.ctx,)))
         except Exception as error:   # bad parameters (ValueError) or anything else: this instance only
@@ -169,5 +160,5 @@ class FleetHost(object):
         run_until_interrupted(self.spin, self.shutdown, 'fleet host stopped')
 
 
-if __name__ == '__main__':
+def main():
     run_node('fleet_host', FleetHost, fatal_exit_code=2, disable_signals=True)

@@ -207,6 +207,16 @@ def test_scripts_are_thin(path):
                 and os.path.basename(path) not in THIN_TOOLS], 'a class or function in %s' % path
 
 
+NODE_MODULES = sorted(glob.glob(os.path.join(ROOT, 'anafi_sim', 'nodes', '*.py')))
+
+
+@pytest.mark.parametrize('path', NODE_MODULES, ids=[os.path.relpath(p, ROOT) for p in NODE_MODULES])
+def test_node_modules_are_not_executable(path):
+    """rosrun and roslaunch look for an executable of the type's name anywhere in the package: only the script
+    may be one (an executable module of the same name makes rosrun ask which one to run)."""
+    assert not os.access(path, os.X_OK), '%s is executable (chmod -x: its script runs it)' % path
+
+
 def test_no_module_is_loaded_from_a_file_path():
     """Modules are imported by name (no run_path of a script, no sys.path edit to reach scripts/)."""
     word = 'run' + 'py'

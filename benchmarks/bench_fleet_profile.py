@@ -36,7 +36,7 @@ python benchmarks/bench_fleet_profile.py
 """
 import argparse
 import datetime
-import importlib.util
+import importlib
 import io
 import json
 import math
@@ -54,7 +54,6 @@ from anafi_sim import processes
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, 'benchmarks', 'results', 'fleet_profile.md')
 RESULTS_JSON = os.path.join(ROOT, 'benchmarks', 'results', 'fleet_profile.json')
-SCRIPTS = os.path.join(ROOT, 'anafi_sim', 'scripts')
 MASTER_PORTS = (12600, 12900)
 LIVE_DRONES = 2
 PROJECT_N = 20
@@ -62,14 +61,8 @@ PROJECT_N = 20
 
 # ============================================================================ messages as the nodes build them
 def _script(name):
-    """A node script of anafi_sim/scripts as a module (its main does not run)."""
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, os.path.join(SCRIPTS, name + '.py'))
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    """The module of a node (anafi_sim.nodes.<name>)."""
+    return importlib.import_module('anafi_sim.nodes.' + name)
 
 
 def _sample():

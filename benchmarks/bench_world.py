@@ -49,8 +49,12 @@ CORE_IMPORT = 'from anafi_sim.gazebo.kinematic_world import'
 def reference_node(rev, directory):
     """Path of revision ``rev``'s world node, its core imported from a copy next to it (git show)."""
     def show(path):
-        return subprocess.check_output(['git', '-C', ROOT, 'show', '%s:%s' % (rev, path)]).decode('utf-8')
-    node = show('anafi_sim/scripts/kinematic_world_node.py')
+        return subprocess.check_output(['git', '-C', ROOT, 'show', '%s:%s' % (rev, path)],
+                                       stderr=subprocess.DEVNULL).decode('utf-8')
+    try:       # the node's module (anafi_sim/nodes, run through its main) or, in older revisions, its script
+        node = show('anafi_sim/nodes/kinematic_world_node.py') + "\n\nif __name__ == '__main__':\n    main()\n"
+    except subprocess.CalledProcessError:
+        node = show('anafi_sim/scripts/kinematic_world_node.py')
     if CORE_IMPORT not in node:
         raise RuntimeError('%s: the world node does not import its core as %r' % (rev, CORE_IMPORT))
     with open(os.path.join(directory, 'kinematic_world_reference.py'), 'w') as f:

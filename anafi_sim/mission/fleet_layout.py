@@ -4,7 +4,7 @@ Stage: experiments (beside mission/fleet.py, which writes the per-drone launch).
 
 - ``per_drone`` (the paper's, and the default): every node of every drone is a process of its own.
 - ``shared``: the nodes of the types in ``HOSTS`` run as instances inside a few host processes
-  (scripts/fleet_host.py): ``fleet_drones`` hosts every drone's simulator, controller and trajectory generator
+  (anafi_sim/nodes/fleet_host.py): ``fleet_drones`` hosts every drone's simulator, controller and trajectory generator
   (their estimate, command and waypoint messages stay in the process), ``fleet_ground_truth`` every drone's
   interface and mirror, and the kinematic world when the fleet runs ours (the 100 Hz ground truth reaches the
   mirror, and the mirror's model states the world, in the process); both split by ten drones (DRONES_PER_HOST:
@@ -32,15 +32,16 @@ HOSTS = collections.OrderedDict([
     ('fleet_ground_truth', ('interface_node.py', 'gazebo_mirror_node.py', 'kinematic_world_node.py')),
 ])
 
-#: node type -> (the script that defines its node class, the class, its arguments before the NodeContext):
-#: what scripts/fleet_host.py builds for an instance of that type
+#: node type (the script's file name) -> (the module of its node class, the class, its arguments before the
+#: NodeContext): what the fleet host (anafi_sim/nodes/fleet_host.py) imports and builds for an instance of that
+#: type. Names only: this core imports no node.
 HOSTABLE = {
-    'anafi_sim_node.py': ('anafi_sim_node.py', 'AnafiSimNode', ()),
-    'interface_node.py': ('interface_node.py', 'InterfaceNode', ()),
-    'gazebo_mirror_node.py': ('gazebo_mirror_node.py', 'GazeboMirrorNode', ()),
-    'kinematic_world_node.py': ('kinematic_world_node.py', 'KinematicWorldNode', ()),
-    'controller_node.py': ('controller_node.py', 'ControllerNode', (None,)),
-    'trajectory_generator.py': ('trajectory_generator.py', 'TrajectoryGeneratorNode', ()),
+    'anafi_sim_node.py': ('anafi_sim.nodes.anafi_sim_node', 'AnafiSimNode', ()),
+    'interface_node.py': ('anafi_sim.nodes.interface_node', 'InterfaceNode', ()),
+    'gazebo_mirror_node.py': ('anafi_sim.nodes.gazebo_mirror_node', 'GazeboMirrorNode', ()),
+    'kinematic_world_node.py': ('anafi_sim.nodes.kinematic_world_node', 'KinematicWorldNode', ()),
+    'controller_node.py': ('anafi_sim.nodes.controller_node', 'ControllerNode', (None,)),
+    'trajectory_generator.py': ('anafi_sim.nodes.trajectory_generator', 'TrajectoryGeneratorNode', ()),
 }
 
 DRONES_PER_HOST = {'fleet_drones': 10, 'fleet_ground_truth': 10}

@@ -1,7 +1,7 @@
 """Experiment monitor core (pure Python, no ROS): start gate, live progress and end of one experiment run.
 
 Stage: experiment orchestration, beside trajectory -> waypoint -> controller -> drone -> evaluator.
-Used by anafi_sim/scripts/experiment_monitor.py (experiment.launch, demo.launch). Units: positions [m]
+Used by anafi_sim/nodes/experiment_monitor.py (experiment.launch, demo.launch). Units: positions [m]
 in the ENU world frame, ROS time [s] (simulation time under /use_sim_time), wall time [s] (monotonic).
 
 ``ExperimentMonitor`` is fed by the node (drone state, controller commands, waypoints, estimates,

@@ -134,5 +134,5 @@ class AirshipNode(object):
         run_until_interrupted(self.spin, lambda: log_lines(self.spawner.delete_all(timeout=2.0)), 'airship stopped')
 
 
-if __name__ == '__main__':
+def main():
     run_node('airship', AirshipNode, fatal_exit_code=2, disable_signals=True)

@@ -363,5 +363,5 @@ class AnafiSimNode(object):
         self.server.stop()
 
 
-if __name__ == '__main__':
+def main():
     run_node('anafi_sim', AnafiSimNode, respawned=True)

@@ -466,7 +466,3 @@ class ControllerNode(object):
 def main(controller=None, name='controller'):
     """Run the node (``controller``: the default of ~controller; ``name``: the default node name)."""
     run_node(name, lambda: ControllerNode(controller), respawned=True)
-
-
-if __name__ == '__main__':
-    main()

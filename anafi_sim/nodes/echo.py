@@ -57,7 +57,3 @@ def main(argv):
         pass
     rospy.signal_shutdown('done')
     return 1 if state['failed'] else 0
-
-
-if __name__ == '__main__':
-    sys.exit(main(sys.argv))

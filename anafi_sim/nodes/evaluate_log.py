@@ -22,7 +22,6 @@ evaluated; 3 with --fail-on-garbage when some file has garbage.
 import argparse
 import math
 import os
-import sys
 
 import yaml
 
@@ -93,7 +92,3 @@ def main(argv=None):
     if garbage and args.fail_on_garbage:
         return 3
     return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -206,5 +206,5 @@ class EvaluatorNode(object):
 
 
 
-if __name__ == '__main__':
+def main():
     run_node('evaluator', EvaluatorNode)

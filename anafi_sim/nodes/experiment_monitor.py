@@ -2,7 +2,8 @@
 """Experiment monitor node: starts the scenario when everything is up, prints live progress, ends the run.
 
 Stage: experiment orchestration (experiment.launch, demo.launch). Thin node over
-anafi_sim.mission.monitor.ExperimentMonitor. Topics relative to the node's namespace (/<drone>/):
+anafi_sim.mission.monitor.ExperimentMonitor and anafi_sim.mission.run_end (the run's files at its end). Topics
+relative to the node's namespace (/<drone>/):
 
 - in drone/state (std_msgs/String), drone/rpyt (olympe_bridge/PilotingCommand: non-zero commands
   counted, the controller is up and engaged; while the scenario runs, hover (all-zero) commands and
@@ -53,8 +54,8 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
 from anafi_sim import processes, run_files
-from anafi_sim.mission.monitor import (FAILED, FINAL, INTERFACE_STATUS_SUFFIX, ExperimentMonitor, reader_line,
-                                       result_status, summary_lines)
+from anafi_sim.mission.monitor import FAILED, FINAL, INTERFACE_STATUS_SUFFIX, ExperimentMonitor
+from anafi_sim.mission.run_end import finish_run, result_lines
 from anafi_sim.mission.trajectory import SCENARIO_DIR, load_scenario
 from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim import names
@@ -274,96 +275,28 @@ class ExperimentMonitorNode(object):
         with self.lock:
             info['tuning'] = sorted((c for changes in self.tuning.values() for c in changes),
                                     key=lambda c: c.get('wall', 0.0))      # [] = no live tuning
-        exited = True
-        problems = []
+        problem = None
         if ok:
-            exited = self._wait_for_evaluator_exit()
-            if not exited:
+            if not self._wait_for_evaluator_exit():
                 rospy.logwarn('%s did not exit within %.0f s: reading its files anyway', self.evaluator_node,
                               self.evaluator_exit_timeout)
             with self.lock:
                 problem = self.core.result_problem(self.require_truth)
-            if problem:
-                problems.append(problem)
-            problems += self._missing_files()
-        if self.files['plot'] and self.files['csv'] and os.path.isfile(self.files['csv']):
-            try:
-                from anafi_sim.mission.plots import plot_run
-                with run_files.atomic_path(self.files['plot'], '.png') as tmp:
-                    plot_run(self.files['csv'], tmp, summary=summary, title=self.label, wind=self.wind)
-                info['plot'] = self.files['plot']
-            except Exception as e:    # a plot that cannot be written: the run's files are not complete
-                problems.append('plot %s not written: %s' % (self.files['plot'], e))
-        elif ok and self.files['plot']:
-            problems.append('no CSV %s: no plot' % self.files['csv'])
-        if ok and problems:
-            ok = False
+
+        def plot(csv, out):
+            from anafi_sim.mission.plots import plot_run
+            plot_run(csv, out, summary=summary, title=self.label, wind=self.wind)
+
+        finished = finish_run(ok, info, self.files, plot, problem)
+        if ok and finished.problems:
             with self.lock:
                 self.core.state = FAILED
-                self.core.reason = '; '.join(problems)
-            info['state'], info['reason'] = FAILED, self.core.reason
-        if self.files['info']:
-            try:
-                run_files.write_yaml(self.files['info'], info)
-            except (IOError, OSError) as e:
-                ok = False
-                info['state'] = FAILED
-                info['reason'] = '; '.join(r for r in (info.get('reason'), 'cannot write %s: %s'
-                                                       % (self.files['info'], e)) if r)
-        if ok and self.files['info']:
-            try:
-                os.remove(run_files.failed_name(self.files['info']))    # the "running" marker
-            except OSError:
-                pass
-        if not ok:      # every file this run leaves says so in its name (the recorder renames the bag)
-            try:
-                marked = run_files.mark_failed([self.files[k] for k in ('summary', 'csv', 'plot', 'info')])
-            except OSError as e:
-                marked = []
-                rospy.logerr('cannot mark the files of the failed run: %s', e)
-            for key in ('summary', 'csv', 'plot', 'info', 'bag'):
-                if self.files[key]:
-                    failed = run_files.failed_name(self.files[key])
-                    if failed in marked or key == 'bag':
-                        self.files[key] = failed
-        lines = ['', '=' * 78, 'RESULT %s  (%s)' % (self.label, result_status(ok, info))]
-        lines += summary_lines(summary, self.label)[1:] if summary else ['  no evaluator summary']
-        if info.get('achieved_rtf') is not None:
-            lines.append('  simulation: %.1f s in %.1f s wall (real-time factor %.2f), simulator overruns %s, '
-                         're-anchors %s' % (info['scenario_sim_s'], info['scenario_wall_s'], info['achieved_rtf'],
-                                            info['sim_overruns'], info['sim_reanchors']))
-        if reader_line(info):
-            lines.append(reader_line(info))
-        if info.get('mpc_solve_time_mean_ms') is not None:
-            lines.append('  MPC solve time: mean %.2f ms, max %.2f ms' % (info['mpc_solve_time_mean_ms'],
-                                                                          info['mpc_solve_time_max_ms']))
-        if self.run_dir:
-            lines.append('  %-8s %s' % ('folder:', self.run_dir))
-        for key in ('bag', 'csv', 'summary', 'plot', 'info'):
-            path = self.files[key]
-            if path and (key in ('info', 'bag') or os.path.exists(path)):
-                lines.append('  %-8s %s' % (key + ':', path))
-        lines.append('=' * 78)
-        self._say('\n'.join(lines))
-        return ok
-
-    def _missing_files(self):
-        """Problems with the evaluator's files (not written, e.g. a full disk, or not final)."""
-        out = []
-        path = self.files['summary']
-        if path:
-            data = run_files.read_yaml(path, tolerant=True)
-            if not isinstance(data, dict) or data.get('state') != 'final':
-                out.append('summary %s %s' % (path, 'not written' if not os.path.exists(path)
-                                              else 'unreadable or not final'))
-        if self.files['csv'] and not os.path.isfile(self.files['csv']):
-            out.append('CSV %s not written' % self.files['csv'])
-        bag = self.files['bag']
-        if bag and not os.path.exists(bag + '.active') and not os.path.exists(bag):
-            out.append('bag %s not being recorded (rosbag stopped)' % bag)
-        if out:
-            out[-1] += ' (a full disk? see the nodes\' logs)'
-        return out
+                self.core.reason = '; '.join(finished.problems)
+        for error in finished.errors:
+            rospy.logerr(error)
+        self.files = finished.files
+        self._say('\n'.join(result_lines(finished, summary, self.label, self.run_dir)))
+        return finished.ok
 
     def _publish_hold(self):
         """The scenario's start as the waypoint (zero velocity), every 0.1 s of ROS time."""
@@ -431,5 +364,5 @@ class ExperimentMonitorNode(object):
         return ok
 
 
-if __name__ == '__main__':
+def main():
     run_node('experiment_monitor', ExperimentMonitorNode)

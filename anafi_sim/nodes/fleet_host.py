@@ -29,8 +29,7 @@ deliveries waiting for the bus's delivery thread), '<host>: real time' (WARN "be
 ground-truth rate over the last 5 s falls under anafi_sim.mission.fleet_realtime's thresholds, else OK with the
 minima) and, for an instance that failed, '<instance>: hosted instance' ERROR.
 """
-import os
-import runpy
+import importlib
 import threading
 import time
 import traceback
@@ -42,14 +41,6 @@ from anafi_sim.mission.fleet_realtime import RateWindow, real_time_status
 from anafi_sim.ros.context import LocalBus, NodeContext
 from anafi_sim.ros.node import (ERROR, OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 run_until_interrupted, start_diagnostics_thread)
-
-
-
-def _script_namespace(script, cache={}):
-    """The module namespace of a sibling node script (loaded once, not as __main__)."""
-    if script not in cache:
-        cache[script] = runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)), script))
-    return cache[script]
 
 
 class Instance(object):
@@ -81,9 +72,9 @@ class FleetHost(object):
                       ', '.join(running))
 
     def _build(self, inst):
-        script, cls, args = HOSTABLE[inst.kind]
+        module, cls, args = HOSTABLE[inst.kind]
         try:
-            node_class = _script_namespace(script)[cls]
+            node_class = getattr(importlib.import_module(module), cls)
             inst.ctx = NodeContext(inst.name, self.bus)
             inst.node = node_class(*(args + (inst.ctx,)))
         except Exception as error:   # bad parameters (ValueError) or anything else: this instance only
@@ -199,5 +190,5 @@ class FleetHost(object):
         run_until_interrupted(self.spin, self.shutdown, 'fleet host stopped')
 
 
-if __name__ == '__main__':
+def main():
     run_node('fleet_host', FleetHost, fatal_exit_code=2, disable_signals=True)

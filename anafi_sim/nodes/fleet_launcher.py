@@ -229,7 +229,7 @@ def tool(argv):
     return 0
 
 
-if __name__ == '__main__':
+def main():
     argv = [a for a in sys.argv[1:] if not a.startswith('__')]   # roslaunch's __name:= / __log:=
     if argv:
         sys.exit(tool(argv))

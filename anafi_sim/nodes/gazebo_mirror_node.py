@@ -270,6 +270,6 @@ class GazeboMirrorNode(object):
             log_lines(self.spawner.delete_all(timeout=2.0), self.ctx)
 
 
-if __name__ == '__main__':
+def main():
     # Own signal handling (run()) so the models can still be deleted through ROS before rospy shuts down.
     run_node('gazebo_mirror', GazeboMirrorNode, fatal_exit_code=2, disable_signals=True, respawned=True)

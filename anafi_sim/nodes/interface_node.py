@@ -294,5 +294,5 @@ class InterfaceNode(object):
                                ('telemetry command', ' '.join(self.supervisor.argv))])]
 
 
-if __name__ == '__main__':
+def main():
     run_node('interface', InterfaceNode, fatal_exit_code=2, respawned=True)

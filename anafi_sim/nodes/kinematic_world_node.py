@@ -239,5 +239,5 @@ class KinematicWorldNode(object):
                 time.sleep(delay)
 
 
-if __name__ == '__main__':
+def main():
     run_node('gazebo', KinematicWorldNode, fatal_exit_code=2, respawned=True)

@@ -119,5 +119,5 @@ class ModelFollowerNode(object):
                 break
 
 
-if __name__ == '__main__':
+def main():
     run_node('model_follower', ModelFollowerNode)

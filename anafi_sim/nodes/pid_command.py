@@ -112,5 +112,5 @@ class PidCommandNode(object):
         rospy.spin()
 
 
-if __name__ == '__main__':
+def main():
     run_node('pid_command', PidCommandNode, respawned=True)

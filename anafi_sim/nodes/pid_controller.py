@@ -203,5 +203,5 @@ class PidControllerNode(object):
                                   hardware_id=self.name)]
 
 
-if __name__ == '__main__':
+def main():
     run_node('controller', PidControllerNode, respawned=True)

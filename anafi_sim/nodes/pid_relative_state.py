@@ -112,5 +112,5 @@ class RelativeStateNode(object):
         rospy.spin()
 
 
-if __name__ == '__main__':
+def main():
     run_node('pid_relative_state', RelativeStateNode, respawned=True)

@@ -105,7 +105,3 @@ def main(argv):
         return supervise(command, path, info)
     os.execv(command[0], command) if os.path.isabs(command[0]) else os.execvp(command[0], command)
     return 1    # not reached
-
-
-if __name__ == '__main__':
-    sys.exit(main(sys.argv[1:]))

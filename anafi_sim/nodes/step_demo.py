@@ -107,5 +107,5 @@ class StepDemo(object):
         return True
 
 
-if __name__ == '__main__':
+def main():
     run_node('step_demo', StepDemo)

@@ -286,5 +286,5 @@ class TrajectoryGeneratorNode(object):
         self.stopped = True
 
 
-if __name__ == '__main__':
+def main():
     run_node('trajectory_generator', TrajectoryGeneratorNode)

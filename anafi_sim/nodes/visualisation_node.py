@@ -150,5 +150,5 @@ class VisualisationNode(object):
                 break
 
 
-if __name__ == '__main__':
+def main():
     run_node('visualisation', VisualisationNode)

@@ -8,7 +8,7 @@ publishers, subscribers and services. Two kinds:
   one node per process as in the paper). Names resolve through rospy, remappings included; publishers and
   subscribers are plain rospy ones.
 - ``NodeContext(name, bus)``: one of the instances a host process runs (the shared layout of a fleet:
-  ``scripts/fleet_host.py``). Its names resolve against ``name`` (e.g. /anafi1/interface), so every drone
+  ``anafi_sim/nodes/fleet_host.py``). Its names resolve against ``name`` (e.g. /anafi1/interface), so every drone
   keeps its own topics, parameters and services. Messages between instances of one host go through the
   host's ``LocalBus``: handed over in the process (no serialisation, no socket, no thread woken): the
   publishing thread calls the local subscribers' callbacks, in publication order, each guarded (a failing

@@ -335,8 +335,7 @@ class TestFaultMatrix(unittest.TestCase):
         os.chmod(os.path.join(fake_bin, 'tlm-data-logger'), 0o755)
         text = launch_text(port, garbage_port, fake_bin)
         if SHARED_LAYOUT:   # the same launch expanded by roslaunch and hosted as a fleet's (fleet.params.yaml)
-            sys.path.insert(0, os.path.join(paths.package_dir(), 'anafi_sim', 'scripts'))
-            from fleet_launcher import shared_launch
+            from anafi_sim.nodes.fleet_launcher import shared_launch
             text = shared_launch(text, cls.workdir, 'log', 'fault matrix')
         with open(launch, 'w') as f:
             f.write(text)

@@ -12,7 +12,7 @@ sourced:
    the devel space or of the checkout; rospack, ``import anafi_sim`` / ``anafi_control``, the generated
    messages and dynamic_reconfigure modules and anafi_sim.paths (the data files) all point into the
    install space;
-2. contents: every Python package of the checkout (anafi_sim.*, anafi_control) and every script of
+2. contents: every Python package of the checkout (anafi_sim.*, with the nodes, anafi_control) and every script of
    anafi_sim/scripts is installed; the scripts run on PYTHON_EXECUTABLE (which imports osqp);
 3. every launch file loads there as roslaunch loads it (includes, $(find) paths, rosparam files) and
    every node's pkg/type is found in the install space's lib/anafi_sim; sim.launch's telemetry command
@@ -276,6 +276,8 @@ class InstallSpaceTest(unittest.TestCase):
     def test_1_packages_and_scripts_installed(self):
         packages = sorted(find_packages(ROOT, include=[p for r in PY_ROOTS for p in (r, r + '.*')]))
         self.assertIn('anafi_sim.sim', packages)
+        self.assertIn('anafi_sim.nodes', packages)     # the nodes' classes, which the scripts' mains import
+        node_modules = sorted(n for n in os.listdir(os.path.join(ROOT, PKG, 'nodes')) if n.endswith('.py'))
         scripts = sorted(n for n in os.listdir(os.path.join(ROOT, PKG, 'scripts')) if n.endswith('.py'))
         scripts.append('tlm-data-logger')      # the telemetry stand-in under Sphinx's name (compat.launch)
         r = subprocess.run([PYTHON, '-c', 'import osqp'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
@@ -286,6 +288,8 @@ class InstallSpaceTest(unittest.TestCase):
             missing = [p for p in packages
                        if not os.path.isfile(os.path.join(site, *p.split('.') + ['__init__.py']))]
             self.assertEqual(missing, [], '%s: Python packages not installed' % space)
+            missing = [n for n in node_modules if not os.path.isfile(os.path.join(site, PKG, 'nodes', n))]
+            self.assertEqual(missing, [], '%s: node modules not installed' % space)
             bin_dir = os.path.join(prefix, 'lib', PKG)
             for name in scripts:
                 path = os.path.join(bin_dir, name)

@@ -21,9 +21,11 @@ def test_hosts_run_hostable_types_each_once_and_their_classes_exist():
     types = [t for ts in fl.HOSTS.values() for t in ts]
     assert len(types) == len(set(types))
     assert set(types) == set(fl.HOSTABLE)
-    for script, cls, _ in fl.HOSTABLE.values():
-        with open(repo_path('anafi_sim', 'scripts', script)) as f:
-            assert 'class %s(' % cls in f.read(), (script, cls)
+    for script, (module, cls, _) in fl.HOSTABLE.items():
+        with open(repo_path(*module.split('.')) + '.py') as f:
+            assert 'class %s(' % cls in f.read(), (module, cls)
+        with open(repo_path('anafi_sim', 'scripts', script)) as f:     # the type is the script of that node
+            assert 'from %s import main' % module in f.read(), (script, module)
 
 
 def test_host_of_keeps_nodes_with_their_own_settings_apart():

@@ -10,7 +10,6 @@ equal the per-drone node's private parameters exactly (values and types), every 
 shared launch must start nothing else and set no other parameter.
 """
 import copy
-import importlib.util
 import itertools
 import os
 
@@ -18,7 +17,6 @@ import pytest
 import yaml
 
 from anafi_sim.mission import fleet_layout
-from conftest import repo_path
 
 roslaunch_config = pytest.importorskip('roslaunch.config', reason='roslaunch not importable (source env.bash)')
 
@@ -27,11 +25,8 @@ ROSLAUNCH_PARAMS = ('/rosdistro', '/rosversion')
 
 
 def _launcher():
-    spec = importlib.util.spec_from_file_location('fleet_launcher_same',
-                                                  repo_path('anafi_sim', 'scripts', 'fleet_launcher.py'))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    from anafi_sim.nodes import fleet_launcher
+    return fleet_launcher
 
 
 def _strict(value):

@@ -20,7 +20,7 @@ FLEET_MD = os.path.join(ROOT, 'benchmarks', 'results', 'fleet.md')
 DOCS = os.path.join(ROOT, 'docs', 'fleet.md')
 #: where the fleet cap or the benchmark's figures are quoted
 QUOTE_FILES = ['README.md', 'anafi_sim/launch/fleet.launch', 'anafi_sim/launch_check.py',
-               'anafi_sim/scripts/fleet_launcher.py', 'test/ros/test_fault_matrix.py'] + \
+               'anafi_sim/nodes/fleet_launcher.py', 'test/ros/test_fault_matrix.py'] + \
     sorted(os.path.relpath(os.path.join(ROOT, 'docs', f), ROOT) for f in os.listdir(os.path.join(ROOT, 'docs'))
            if f.endswith('.md'))
 

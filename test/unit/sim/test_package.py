@@ -1,4 +1,4 @@
-"""Package-level checks: catkin_lint, pure cores, node scripts, Python 3.8 syntax."""
+"""Package-level checks: catkin_lint, pure cores, nodes and their thin scripts, Python 3.8 syntax."""
 import ast
 import glob
 import os
@@ -22,13 +22,17 @@ def _py_files(*folders):
     return sorted(p for folder in folders for p in glob.glob(os.path.join(ROOT, folder, '**', '*.py'), recursive=True))
 
 
-#: pure cores: every module of anafi_sim (recursively) but the nodes (scripts/) and the ROS glue (ros/),
-#: the control library and the lab
-CORE_MODULES = [p for p in _py_files('anafi_sim', 'anafi_control', 'anafi_lab')
-                if _stage(p) not in ('anafi_sim.scripts', 'anafi_sim.ros')]
+#: the stages that may use rospy: the ROS glue (ros/), the nodes (nodes/: each node's class and main()) and the
+#: scripts that run them (scripts/)
+ROS_STAGES = ('anafi_sim.ros', 'anafi_sim.nodes', 'anafi_sim.scripts')
+#: pure cores: every module of anafi_sim (recursively) but ROS_STAGES, the control library and the lab
+CORE_MODULES = [p for p in _py_files('anafi_sim', 'anafi_control', 'anafi_lab') if _stage(p) not in ROS_STAGES]
 FLIGHT_MODULES = _py_files('anafi_sim', 'anafi_control')
 LAB_MODULES = _py_files('anafi_lab')
 SCRIPTS = sorted(glob.glob(os.path.join(ROOT, 'anafi_sim', 'scripts', '*.py')))
+#: scripts that keep a small main of their own over a core (no node class): the launch-argument check and the
+#: telemetry CLI stand-in
+THIN_TOOLS = ('check_launch_args.py', 'tlm_data_logger.py')
 LAB_TOOLS = sorted(p for p in glob.glob(os.path.join(ROOT, 'anafi_lab', 'cli', '*.py')) if not p.endswith('__init__.py'))
 ALL_PY = sorted(set(CORE_MODULES + SCRIPTS + glob.glob(os.path.join(ROOT, '**', '*.py'), recursive=True)))
 ALL_PY = [p for p in ALL_PY if '/.venv/' not in p and '/.ws/' not in p]
@@ -40,7 +44,7 @@ _SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN, _LAB = (
 _FLIGHT_CORES = {_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN, 'anafi_sim.launch_check'}
 #: the one direction of the data flow: what each stage may import (besides itself). Simulated drone ->
 #: telemetry -> interface -> gazebo mirror | controllers; the mission (scenarios, evaluation) on top;
-#: ros/ (node glue) and scripts/ (nodes) above all cores; anafi_control stands alone; the lab (anafi_lab)
+#: ros/ (node glue) above all cores, nodes/ (the nodes) above ros/, scripts/ (their mains) on top; anafi_control stands alone; the lab (anafi_lab)
 #: beside it all, on top of every core, and nothing of the flight stack imports it.
 ALLOWED_IMPORTS = {
     'anafi_sim': set(),
@@ -168,10 +172,58 @@ def test_core_imports_point_one_way(path):
         ', '.join(sorted(ALLOWED_IMPORTS[_stage(path)])) or 'nothing of anafi_sim')
 
 
-def test_nothing_imports_the_nodes():
+#: where the nodes (anafi_sim.nodes) may be imported: their scripts, the nodes themselves (the fleet host names
+#: its hosted classes by module), tests and benchmarks
+NODE_IMPORTERS = ('anafi_sim/scripts/', 'anafi_sim/nodes/', 'test/', 'benchmarks/')
+#: most lines of a script of anafi_sim/scripts: a docstring and a main
+SCRIPT_LINES = 40
+
+
+def _imports_nodes(path):
+    return any(m == 'anafi_sim.nodes' or m.startswith('anafi_sim.nodes.') for m in _imports(path, full=True))
+
+
+def test_nothing_imports_the_scripts():
     offenders = [os.path.relpath(p, ROOT) for p in ALL_PY
                  if any(m.startswith('anafi_sim.scripts') for m in _imports(p, full=True))]
     assert not offenders
+
+
+def test_only_scripts_nodes_and_tests_import_the_nodes():
+    """The cores, the ROS glue and the lab never import a node (the glue is below the nodes)."""
+    offenders = [os.path.relpath(p, ROOT) for p in ALL_PY
+                 if not os.path.relpath(p, ROOT).startswith(NODE_IMPORTERS) and _imports_nodes(p)]
+    assert not offenders
+
+
+@pytest.mark.parametrize('path', SCRIPTS, ids=[os.path.relpath(p, ROOT) for p in SCRIPTS])
+def test_scripts_are_thin(path):
+    """A script is a main of a few lines; its node's class and logic live in anafi_sim.nodes (or a core)."""
+    with open(path) as f:
+        lines = f.read().splitlines()
+    assert len(lines) <= SCRIPT_LINES, '%s has %d lines (at most %d: move its logic to anafi_sim/nodes)' % (
+        os.path.relpath(path, ROOT), len(lines), SCRIPT_LINES)
+    assert not [c for c in ast.parse('\n'.join(lines)).body if isinstance(c, (ast.ClassDef, ast.FunctionDef))
+                and os.path.basename(path) not in THIN_TOOLS], 'a class or function in %s' % path
+
+
+NODE_MODULES = sorted(glob.glob(os.path.join(ROOT, 'anafi_sim', 'nodes', '*.py')))
+
+
+@pytest.mark.parametrize('path', NODE_MODULES, ids=[os.path.relpath(p, ROOT) for p in NODE_MODULES])
+def test_node_modules_are_not_executable(path):
+    """rosrun and roslaunch look for an executable of the type's name anywhere in the package: only the script
+    may be one (an executable module of the same name makes rosrun ask which one to run)."""
+    assert not os.access(path, os.X_OK), '%s is executable (chmod -x: its script runs it)' % path
+
+
+def test_no_module_is_loaded_from_a_file_path():
+    """Modules are imported by name (no run_path of a script, no sys.path edit to reach scripts/)."""
+    word = 'run' + 'py'
+    offenders = [os.path.relpath(p, ROOT) for p in _py_files('anafi_sim', 'anafi_control', 'anafi_lab', 'test',
+                                                             'benchmarks', 'tools')
+                 if word in open(p).read()]
+    assert not offenders, 'files that use %s: %s' % (word, offenders)
 
 
 def test_the_flight_stack_never_imports_the_lab():
@@ -203,6 +255,9 @@ def test_the_stage_rule_can_fail(tmp_path):
     assert 'rospy' in _imports(str(lab))
     assert _cycles({'a': {'b'}, 'b': {'c'}, 'c': {'a'}, 'd': {'a'}}) == [['a', 'b', 'c']]
     assert _cycles({'a': {'b'}, 'b': set()}) == []
+    glue = tmp_path / 'glue.py'
+    glue.write_text('from anafi_sim.nodes.interface_node import InterfaceNode\n')
+    assert _imports_nodes(str(glue)) and not _imports_nodes(str(lab))
 
 
 @pytest.mark.parametrize('path', LAB_TOOLS, ids=[os.path.relpath(p, ROOT) for p in LAB_TOOLS])

@@ -1,13 +1,13 @@
 """The docs stay true to the code: README.md and the pages of docs/ written by hand.
 
 - every node script in anafi_sim/scripts has a section in docs/nodes.md (a heading naming it), and every
-  private parameter it reads (through ``anafi_sim.ros.params.ParamReader`` or ``rospy.get_param('~...')``,
+  private parameter its node (the module of anafi_sim/nodes it runs) reads (through ``anafi_sim.ros.params.ParamReader`` or ``rospy.get_param('~...')``,
   found statically, loops and helper functions resolved) appears as `name` in that section; every node is
   named in the README's node table and every command-line tool (anafi_sim/scripts, anafi_lab/cli) has a
   usage line there;
 - every launch file is in the launch table of docs/launch.md, and the table names no other;
 - the module tree of docs/architecture.md names every module of anafi_sim/, anafi_control/ and anafi_lab/ (but
-  __init__.py and scripts/) with its job, and nothing that does not exist;
+  __init__.py and the thin scripts/) with its job, and nothing that does not exist;
 - every repository path named in README.md and the hand-written docs (`anafi_sim/...`, `benchmarks/...`, ...)
   exists, and every link to a section leads to a heading;
 - the README's architecture diagram names the stage folders, and only real ones.
@@ -81,8 +81,8 @@ class ParamExtractor(object):
     evaluating the loops that bind it in the script's namespace (the script is loaded as a module, its
     ``__main__`` block does not run); a helper function's argument through the helper's call sites. What
     cannot be resolved raises ``Unresolved``: then extend this class rather than let a parameter go
-    unchecked. A script that runs another one (``runpy.run_path(... 'other.py')``) reads that one's
-    parameters too.
+    unchecked. A script reads the parameters of the nodes it imports its main from (``from
+    anafi_sim.nodes.X import main``: anafi_sim/nodes/X.py).
     """
 
     def __init__(self, path):
@@ -99,8 +99,8 @@ class ParamExtractor(object):
         found = set()
         for call in self._param_calls():
             found.update(self._resolve(call.args[0], call, depth=0))
-        for other in self._run_path_targets():
-            found.update(ParamExtractor(os.path.join(os.path.dirname(self.path), other)).names())
+        for other in node_modules(self.tree):
+            found.update(ParamExtractor(other).names())
         return found
 
     # -- calls
@@ -144,13 +144,6 @@ class ParamExtractor(object):
         if isinstance(expr, ast.BinOp) and isinstance(expr.op, ast.Add):
             return ParamExtractor._is_private(expr.left)
         return False
-
-    def _run_path_targets(self):
-        for node in ast.walk(self.tree):
-            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == 'run_path':
-                for sub in ast.walk(node):
-                    if isinstance(sub, ast.Constant) and isinstance(sub.value, str) and sub.value.endswith('.py'):
-                        yield sub.value
 
     # -- resolution
     def module(self):
@@ -299,6 +292,12 @@ class ParamExtractor(object):
             raise Unresolved('%s: cannot evaluate %s: %s' % (self._where(at), ast.dump(expr), error))
 
 
+def node_modules(tree):
+    """The files of the anafi_sim.nodes modules the module ``tree`` imports from."""
+    return sorted(set(os.path.join(ROOT, *node.module.split('.')) + '.py' for node in ast.walk(tree)
+                      if isinstance(node, ast.ImportFrom) and (node.module or '').startswith('anafi_sim.nodes.')))
+
+
 def _is_context(expr):
     """``expr`` is a NodeContext: the name ``ctx`` or an attribute ``....ctx``."""
     return (isinstance(expr, ast.Name) and expr.id == 'ctx') or (isinstance(expr, ast.Attribute) and expr.attr == 'ctx')
@@ -363,7 +362,7 @@ def test_the_extractor_finds_literal_looped_and_helper_parameters():
     assert {'waypoint_topic', 'truth_topic', 'begin_topic'} <= evaluator         # '%s_topic' % k in a loop
     assert {'summary_file', 'csv_file', 'plot_file', 'info_file'} <= param_names('experiment_monitor.py')
     assert {'Kp', 'angle_wrap', 'setpoint_topic'} <= param_names('pid_controller.py')   # module-level tables
-    assert param_names('mpc_controller.py') == controller                       # runpy.run_path wrapper
+    assert param_names('mpc_controller.py') == controller                       # main of another node
     assert param_names('tlm_data_logger.py') == set()
     assert '/use_sim_time' not in param_names('anafi_sim_node.py') and 'use_sim_time' not in sim
 
@@ -389,9 +388,9 @@ def test_tools_and_nodes_cover_every_script():
     lab = set(os.path.basename(p) for p in glob.glob(os.path.join(LAB_CLI_DIR, '*.py'))) - {'__init__.py'}
     assert set(LAB_TOOLS) == lab, 'a lab tool was added, renamed or removed: update LAB_TOOLS and the README'
     for name in node_scripts():
-        source = _read(_script(name))
-        assert 'run_node(' in source or 'run_path(' in source, \
-            '%s is neither a node (run_node) nor a wrapper of one: add it to TOOLS or make it a node' % name
+        modules = node_modules(ast.parse(_read(_script(name))))
+        assert modules and all('run_node(' in _read(m) for m in modules), \
+            '%s does not run a node of anafi_sim/nodes (run_node): add it to TOOLS or make it a node' % name
 
 
 @pytest.mark.parametrize('script', node_scripts())
@@ -511,7 +510,7 @@ def test_readme_architecture_diagram_names_real_folders():
     assert diagram, 'the Architecture section has no diagram'
     folders = set(re.findall(r'\b((?:anafi_sim/\w+|anafi_control|anafi_lab))\b', diagram.group(1)))
     expected = {'anafi_sim/sim', 'anafi_sim/telemetry', 'anafi_sim/interface', 'anafi_sim/gazebo', 'anafi_control',
-                'anafi_sim/mission', 'anafi_lab', 'anafi_sim/ros', 'anafi_sim/scripts'}
+                'anafi_sim/mission', 'anafi_lab', 'anafi_sim/ros', 'anafi_sim/nodes', 'anafi_sim/scripts'}
     assert expected <= folders, 'diagram lacks %s' % sorted(expected - folders)
     absent = sorted(f for f in folders if not os.path.isdir(os.path.join(ROOT, f)))
     assert not absent, 'diagram names folders that do not exist: %s' % absent

@@ -1,15 +1,9 @@
-"""anafi_sim/scripts/record_bag.py: the bag path it creates the directory for, and its refusal without -O."""
-import importlib.util
-import os
-from conftest import ROOT
+"""anafi_sim/nodes/record_bag.py (rosrun anafi_sim record_bag.py): the bag path it creates the directory for, and its refusal without -O."""
+from anafi_sim.nodes import record_bag
 
 
 def load():
-    spec = importlib.util.spec_from_file_location('record_bag', os.path.join(ROOT, 'anafi_sim', 'scripts',
-                                                                             'record_bag.py'))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return record_bag
 
 
 def test_output_path_forms():

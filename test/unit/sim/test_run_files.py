@@ -2,7 +2,6 @@
 file), FAILED names, a rerun removing the previous run's files; the monitor's "not a measurement" check;
 the recorder's bag renamed when the run did not end final."""
 import errno
-import importlib.util
 import os
 import sys
 
@@ -11,9 +10,6 @@ import yaml
 
 from anafi_sim import run_files
 from anafi_sim.mission import monitor as em
-from conftest import ROOT
-
-REPO = ROOT
 
 
 def test_every_run_gets_a_new_folder_and_latest_follows(tmp_path):
@@ -106,11 +102,8 @@ def test_a_final_summary_is_a_measurement_only_with_ground_truth_and_a_drone_tha
 
 
 def _record_bag():
-    spec = importlib.util.spec_from_file_location('record_bag', os.path.join(REPO, 'anafi_sim', 'scripts',
-                                                                             'record_bag.py'))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    from anafi_sim.nodes import record_bag
+    return record_bag
 
 
 @pytest.mark.parametrize('state,kept', [('final', True), ('failed', False), (None, False)])

@@ -54,7 +54,7 @@ DEFAULTS = {
     'twist_in_child_frame': True,  # nav_msgs/Odometry: twist in child_frame_id (body)
     'cum_reset_distance': 1.0,    # [m] waypoint jump that resets carried cumulative errors
 }
-DEFAULTS.update(LIMIT_DEFAULTS)   # geofence_radius, min/max_altitude, max_waypoint_jump [m] (contract.WaypointLimits)
+DEFAULTS.update(LIMIT_DEFAULTS)   # the flight envelope (anafi_control.envelope: geofence, reach, speeds, tilt)
 
 DroneState = collections.namedtuple('DroneState', ['t', 'position', 'velocity', 'yaw'])
 DroneState.__doc__ = 'Drone state at receipt time t [s]: position [m], velocity [m/s] world ENU, heading [rad].'

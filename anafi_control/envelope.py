@@ -18,13 +18,13 @@ the in-process engine fly the same envelope. Defaults (``ENVELOPE_DEFAULTS``) = 
   30.65 deg: the firmware setting of the paper, 30.64 deg = asin(5 / 9.81) = 30.643 deg (the MPC's a_max),
   rounded up (the bridge maps both to 100 %; it clips gaz to the firmware's max vertical speed itself).
 - The geofence: a vertical cylinder of ``geofence_radius`` [m] around the horizontal position of the first
-  state the gate receives (the take-off point), cut by [``min_altitude``, ``max_altitude``] [m] (world z). A
-  target outside is moved onto the fence (the nearest point of it), and the target's velocity pointing out of
-  the fence is reduced to the speed from which braking at half ``max_reference_acceleration`` (``BRAKING``;
-  the other half is the controller's margin to follow) stops ``geofence_margin`` [m] inside the fence
-  horizontally, on it vertically (sqrt(2 a d), d = the distance left): zero there. So the target, moving at
-  its reference velocity and braking within the envelope, stays inside, and the drone, lagging behind it,
-  too.
+  state the gate receives (the take-off point), cut by [``min_altitude``, ``max_altitude``] [m] (world z).
+  The target's fence is that cylinder less ``geofence_margin`` [m] horizontally (``target_radius``; the
+  margin is the drone's room to lag behind and overshoot its target). A target outside it is moved onto it
+  (the nearest point), and the target's velocity pointing out of it is reduced to the speed from which
+  braking at half ``max_reference_acceleration`` (``BRAKING``; the other half is the controller's margin to
+  follow) stops on it (sqrt(2 a d), d = the distance left): zero there. So the target, moving at its
+  reference velocity and braking within the envelope, stays inside, and the drone, lagging behind it, too.
 - ``max_waypoint_jump`` [m] (the reach): a target farther than this from the drone is replaced by the point
   at this distance on the way to it, with zero velocity: the drone approaches a far waypoint at the speed
   the controllers allow and tracks it again once it is within reach (no lock-out).
@@ -41,7 +41,7 @@ ENVELOPE_DEFAULTS = collections.OrderedDict([
     ('geofence_radius', 250.0),               # [m] horizontal radius of the fence around the take-off point
     ('min_altitude', 0.5),                    # [m] floor of the fence (world z)
     ('max_altitude', 50.0),                   # [m] ceiling of the fence
-    ('geofence_margin', 2.0),                 # [m] the target's velocity brakes to stop this far inside
+    ('geofence_margin', 2.0),                 # [m] the target stays this far inside (the drone's room)
     ('max_waypoint_jump', 50.0),              # [m] reach: farthest target from the drone (airship: <= 38 m)
     ('max_reference_speed', 10.0),            # [m/s] reference horizontal speed (Table 1 v_max)
     ('max_reference_vertical_speed', 2.0),    # [m/s] reference vertical speed (firmware setting)
@@ -92,7 +92,10 @@ class Envelope(object):
                 raise ValueError('%s must be > 0, got %r' % (name, value))
             setattr(self, name, value)
         if not 0.0 <= self.geofence_margin < self.geofence_radius:
-            raise ValueError('geofence_margin must be >= 0 and below geofence_radius, got %r' % (self.geofence_margin,))
+            raise ValueError('geofence_margin must be >= 0 and below geofence_radius, got %r'
+                             % (self.geofence_margin,))
+        #: [m] horizontal radius of the target's fence: the geofence less the drone's margin
+        self.target_radius = self.geofence_radius - self.geofence_margin
         if self.max_command_tilt_deg >= 90.0:
             raise ValueError('max_command_tilt_deg must be < 90 deg, got %r' % (self.max_command_tilt_deg,))
         if not self.min_altitude < self.max_altitude:
@@ -103,13 +106,15 @@ class Envelope(object):
         return collections.OrderedDict((k, getattr(self, k)) for k in ENVELOPE_DEFAULTS)
 
     # -- the fence -------------------------------------------------------------------------------
-    def inside(self, position, centre, tolerance=1e-6):
+    def inside(self, position, centre, tolerance=1e-6, margin=0.0):
         """True when ``position`` (x, y, z) lies in the fence around ``centre`` (x, y) (None: only the altitude
-        band), up to ``tolerance`` [m]."""
+        band) shrunk horizontally by ``margin`` [m] (``geofence_margin``: the target's fence), up to
+        ``tolerance`` [m]."""
         x, y, z = position[:3]
         if not self.min_altitude - tolerance <= z <= self.max_altitude + tolerance:
             return False
-        return centre is None or _norm2(x - centre[0], y - centre[1]) <= self.geofence_radius + tolerance
+        return centre is None or \
+            _norm2(x - centre[0], y - centre[1]) <= self.geofence_radius - margin + tolerance
 
     def _fence(self, x, y, z, centre, notes):
         """(x, y, z) moved onto the fence when outside (a 'geofence' note)."""
@@ -119,14 +124,14 @@ class Envelope(object):
         if centre is not None:
             dx, dy = x - centre[0], y - centre[1]
             r = math.hypot(dx, dy)
-            if r > self.geofence_radius:
-                k = self.geofence_radius / r
+            if r > self.target_radius:
+                k = self.target_radius / r
                 x, y = centre[0] + dx * k, centre[1] + dy * k
                 moved = True
         if moved:
-            notes.append(('geofence', 'target moved onto the geofence (%.0f m around the take-off point, '
-                                      'altitude %.1f-%.1f m)' % (self.geofence_radius, self.min_altitude,
-                                                                 self.max_altitude)))
+            notes.append(('geofence', 'target moved into the geofence (%.0f m around the take-off point less '
+                                      '%.1f m, altitude %.1f-%.1f m)' % (self.geofence_radius, self.geofence_margin,
+                                                                        self.min_altitude, self.max_altitude)))
         return x, y, zc
 
     def _brake(self, x, y, z, vx, vy, vz, centre, notes):
@@ -138,7 +143,7 @@ class Envelope(object):
             r = math.hypot(dx, dy)
             if r > 0.0:
                 out = (vx * dx + vy * dy) / r
-                allowed = math.sqrt(2.0 * a * max(0.0, self.geofence_radius - self.geofence_margin - r))
+                allowed = math.sqrt(2.0 * a * max(0.0, self.target_radius - r))
                 if out > allowed:
                     vx -= (out - allowed) * dx / r
                     vy -= (out - allowed) * dy / r

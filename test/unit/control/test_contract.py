@@ -462,3 +462,13 @@ def test_every_controller_has_the_contract_timeouts_and_rule():
                       lambda: PreviewMpc(_prediction_model(), bad)):
             with pytest.raises(ValueError, match='timeout'):
                 build()
+
+
+def test_stalled_when_the_cycles_stop():
+    h = health('ok', 'ok', [('cycles', 3)])
+    assert contract.stalled(h, None) is h and contract.stalled(h, contract.STALL_TIMEOUT) is h
+    s = contract.stalled(h, 12.34)
+    assert s.level == contract.LEVEL_WARN and s.values == h.values
+    assert s.message == 'stalled: no controller cycle for 12.3 s of wall time (ROS time stopped?); last: tracking'
+    err = health('solver_failed', 'solver')
+    assert contract.stalled(err, 5.0, timeout=1.0).level == contract.LEVEL_ERROR

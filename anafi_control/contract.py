@@ -16,15 +16,17 @@ come) is a ``Controller``:
   ``key`` (one of ``HOVER_KEYS``) / ``reason`` (``MESSAGES[key]`` plus details) say why, and the command is
   the failsafe of that key (``failsafe(key)``, docs/reliability.md):
 
-  - ``HOLD`` (the waypoint is bad, missing after tracking, stale, outside the geofence or jumped too far;
-    the state is good): the controller holds the position where the hold began with its own loop (the
-    held waypoint is replaced by that point with zero velocity and the heading of that moment), i.e. it
-    brakes actively and stays there;
+  - ``HOLD`` (the waypoint is bad, missing after tracking or stale; the state is good): the controller
+    holds the position where the hold began with its own loop (the held waypoint is replaced by that point
+    with zero velocity and the heading of that moment, moved into the geofence), i.e. it brakes actively
+    and stays there;
   - ``SILENT`` (no / bad / stale state, a clock jump, no waypoint yet, the controller itself failed):
     ``command`` is None and the node publishes nothing, so the firmware's own hover brake stops the drone
     and holds it (the real firmware does so when no PCMD arrives; an all-zero PCMD would only level the
     drone and let it coast).
 
+  ``ok`` True with ``key`` 'limiting' (``LIMITING``): the cycle tracked, but a limit of the flight envelope
+  acted (``reason`` says which); the health is WARN 'limiting: <reason>', never 'tracking'.
   ``result`` is the implementation's detail (MpcResult, RelativeState) or None. A cycle never raises.
   ``ok`` True may still carry None while an implementation warms up (a PID loop's first computation).
   ``COMMAND_RATE`` (None = every cycle) is the rate at which the node sends ``last.command`` (not None).
@@ -35,13 +37,17 @@ come) is a ``Controller``:
 Input gate (``InputGate``, the one rule set, also used by the distributed PID relative-state node): the
 latest state and waypoint with their receipt times; a cycle hovers with the first key that applies, in
 this order: bad_state (the last state sample refused, or a non-finite cycle time), no_state (none yet),
-stale_state (older than ``state_timeout`` [s]), bad_waypoint (non-finite or malformed), geofence (outside the
-cylinder of ``WaypointLimits.geofence_radius`` around the first state received, or outside the altitude band),
-waypoint_jump (farther than ``WaypointLimits.max_waypoint_jump`` from the drone), no_waypoint, stale_waypoint
+stale_state (older than ``state_timeout`` [s]), bad_waypoint (non-finite or malformed), no_waypoint, stale_waypoint
 (older than ``waypoint_timeout`` [s]; 0 = a waypoint never goes stale); clock_jump: a time (sample or cycle) more than
 ``state_timeout`` before the newest time seen (a simulation restart) drops both held inputs (counted), and
 the cycles say clock_jump until each input has arrived again. A time slightly before the newest one (a
 callback that won the lock after the cycle read the clock) is normal. Counters: ``COUNTER_NAMES``.
+
+Flight envelope (``anafi_control.envelope``, the gate's ``envelope``, built from the ``LIMIT_DEFAULTS`` keys):
+every cycle the gate limits the held waypoint as the target (into the geofence around the first state
+received, within reach of the drone, the reference speeds, outward velocity braked before the fence); the
+hold point is moved into the fence; ``Controller.cycle`` clips the command's tilt and gaz; the preview MPC
+limits its preview. Any limit acting makes the cycle 'limiting'.
 
 Every silent cycle and every change of mode from tracking or holding resets the implementation's internal
 state (``_hover``; nothing latches): the next good cycle computes a command again. The name "hover" stays
@@ -50,6 +56,7 @@ in the counters (``hover`` = cycles that did not track) for compatibility.
 import collections
 import math
 
+from anafi_control.envelope import ENVELOPE_DEFAULTS, LIMITS, Envelope, reason as envelope_reason
 from anafi_control.frames import TWIST_FRAMES, is_finite, odometry_to_world
 
 #: the all-zero command the paper's code published as "hover" (NOT a stop: the drone levels and coasts).
@@ -62,7 +69,11 @@ BAD_STATE, BAD_WAYPOINT = 'bad_state', 'bad_waypoint'
 STALE_STATE, STALE_WAYPOINT = 'stale_state', 'stale_waypoint'
 CLOCK_JUMP = 'clock_jump'
 SOLVER_FAILED, BAD_OUTPUT = 'solver_failed', 'bad_output'
-GEOFENCE, WAYPOINT_JUMP = 'geofence', 'waypoint_jump'
+#: a tracking cycle in which a limit of the flight envelope acted (anafi_control.envelope): the command is
+#: computed for the limited target and sent (ok True); health WARN 'limiting: <what acted>'
+LIMITING = 'limiting'
+#: the keys of a tracking cycle
+TRACKING = (OK, LIMITING)
 
 #: reason key -> message (the diagnostics' words; details may follow in parentheses or after a colon)
 MESSAGES = collections.OrderedDict([
@@ -70,8 +81,6 @@ MESSAGES = collections.OrderedDict([
     (NO_WAYPOINT, 'no waypoint received yet'),
     (BAD_STATE, 'non-finite state'),
     (BAD_WAYPOINT, 'non-finite waypoint'),
-    (GEOFENCE, 'waypoint outside the geofence'),
-    (WAYPOINT_JUMP, 'waypoint too far from the drone'),
     (STALE_STATE, 'stale state'),
     (STALE_WAYPOINT, 'stale waypoint'),
     (CLOCK_JUMP, 'clock jumped back, inputs dropped'),
@@ -87,19 +96,21 @@ WAITING = (NO_STATE, NO_WAYPOINT)
 #: firmware's hover brake stops and holds the drone)
 HOLD, SILENT = 'hold', 'silent'
 #: keys whose failsafe is HOLD (the state is good, the waypoint is not usable); every other key is SILENT
-HOLD_KEYS = (BAD_WAYPOINT, GEOFENCE, WAYPOINT_JUMP, STALE_WAYPOINT)
+HOLD_KEYS = (BAD_WAYPOINT, STALE_WAYPOINT)
 
 
 def failsafe(key):
-    """HOLD or SILENT for a hover key (None for 'ok')."""
-    if key == OK:
+    """HOLD or SILENT for a hover key (None for a tracking key: 'ok', 'limiting')."""
+    if key in TRACKING:
         return None
     return HOLD if key in HOLD_KEYS else SILENT
 
 #: counters of the gate (samples) and of the cycles (totals and one per hover key)
-COUNTER_NAMES = ('cycles', OK, 'hover', HOLD, SILENT) + HOVER_KEYS + (
-    'states', 'waypoints', 'rejected_states', 'rejected_waypoints', 'rejected_geofence', 'rejected_jumps',
-    'clock_jumps', 'holds')
+#: (``ok`` counts every tracking cycle, ``limiting`` those in which a limit acted, ``limited_<limit>`` the
+#: cycles in which that limit of ``envelope.LIMITS`` acted)
+COUNTER_NAMES = ('cycles', OK, LIMITING, 'hover', HOLD, SILENT) + HOVER_KEYS + (
+    'states', 'waypoints', 'rejected_states', 'rejected_waypoints', 'clock_jumps', 'holds') + tuple(
+    'limited_%s' % name for name in LIMITS)
 
 CycleOutput = collections.namedtuple('CycleOutput', ['command', 'ok', 'reason', 'key', 'result'])
 CycleOutput.__doc__ = ('One cycle: command (roll deg, pitch deg, yaw rate deg/s, gaz m/s) or None (send nothing); '
@@ -131,11 +142,13 @@ Health.__doc__ = 'Health of a controller: level (LEVEL_*), message, values [(key
 
 def health(key, reason, values=()):
     """Health of a controller whose last cycle had ``key``/``reason``: OK tracking or waiting for the first
-    waypoint, WARN holding / silent for missing or bad input, ERROR the controller itself failed. The message
-    names the failsafe: 'holding position: <reason>' (HOLD) or 'no command, firmware hover brake: <reason>'
-    (SILENT)."""
+    waypoint, WARN limiting (a limit of the flight envelope acted), holding or silent for missing or bad
+    input, ERROR the controller itself failed. The message names the failsafe: 'holding position: <reason>'
+    (HOLD) or 'no command, firmware hover brake: <reason>' (SILENT); 'limiting: <reason>' while limited."""
     if key == OK:
         return Health(LEVEL_OK, 'tracking', list(values))
+    if key == LIMITING:
+        return Health(LEVEL_WARN, 'limiting: %s' % reason, list(values))
     if failsafe(key) == HOLD:
         message = 'holding position: %s' % reason
     else:
@@ -162,58 +175,22 @@ def check_timeout(name, value, allow_zero=False):
 #: state_timeout -> SILENT (> 0), waypoint older than waypoint_timeout -> HOLD (>= 0; 0 = never stale)
 TIMEOUT_DEFAULTS = collections.OrderedDict([('state_timeout', 0.5), ('waypoint_timeout', 1.0)])
 
-#: defaults of the waypoint limits (= the controller YAMLs anafi_sim/config/mpc.yaml and pid.yaml)
-LIMIT_DEFAULTS = collections.OrderedDict([
-    ('geofence_radius', 250.0),     # [m] horizontal distance of a waypoint from the first state received
-    ('min_altitude', 0.5),          # [m] lowest waypoint z (world ENU)
-    ('max_altitude', 50.0),         # [m] highest waypoint z
-    ('max_waypoint_jump', 50.0),    # [m] largest distance of a waypoint from the drone's current position (the
-                                    # airship scene needs ~38 m when the drone engages from the origin)
-])
+#: defaults of the flight envelope (= the controller YAMLs' section "flight envelope"; anafi_control.envelope)
+LIMIT_DEFAULTS = ENVELOPE_DEFAULTS
 
 
-class WaypointLimits(object):
-    """The geofence and the maximum waypoint jump (``LIMIT_DEFAULTS``; ValueError on bad values).
+STALL_TIMEOUT = 3.0
+"""Default [s of wall time] after which a node whose cycles stopped (e.g. /clock stopped) reports ``stalled``."""
 
-    The geofence is a vertical cylinder of ``geofence_radius`` [m] around the horizontal position of the first
-    state the gate receives (the start), cut by the altitude band [``min_altitude``, ``max_altitude``] [m];
-    ``max_waypoint_jump`` [m] bounds the distance of a waypoint from the drone's latest position."""
 
-    def __init__(self, geofence_radius=LIMIT_DEFAULTS['geofence_radius'], min_altitude=LIMIT_DEFAULTS['min_altitude'],
-                 max_altitude=LIMIT_DEFAULTS['max_altitude'], max_waypoint_jump=LIMIT_DEFAULTS['max_waypoint_jump']):
-        values = dict(geofence_radius=geofence_radius, min_altitude=min_altitude, max_altitude=max_altitude,
-                      max_waypoint_jump=max_waypoint_jump)
-        for name, value in values.items():
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ValueError('%s must be a finite number [m], got %r' % (name, value))
-        for name in ('geofence_radius', 'max_waypoint_jump'):
-            if values[name] <= 0.0:
-                raise ValueError('%s must be > 0 [m], got %r' % (name, values[name]))
-        if not min_altitude < max_altitude:
-            raise ValueError('min_altitude (%r) must be below max_altitude (%r)' % (min_altitude, max_altitude))
-        self.geofence_radius = float(geofence_radius)
-        self.min_altitude = float(min_altitude)
-        self.max_altitude = float(max_altitude)
-        self.max_waypoint_jump = float(max_waypoint_jump)
-
-    def as_dict(self):
-        return collections.OrderedDict((k, getattr(self, k)) for k in LIMIT_DEFAULTS)
-
-    def check(self, waypoint, centre, drone):
-        """None when ``waypoint`` (x, y, z, ...) is within the limits, else (key, detail). ``centre``: (x, y) of
-        the geofence or None (not known yet: only the altitude band applies); ``drone``: its (x, y, z) or None."""
-        x, y, z = waypoint[:3]
-        if not self.min_altitude <= z <= self.max_altitude:
-            return GEOFENCE, ' (z %.1f m outside [%.1f, %.1f] m)' % (z, self.min_altitude, self.max_altitude)
-        if centre is not None:
-            r = math.hypot(x - centre[0], y - centre[1])
-            if r > self.geofence_radius:
-                return GEOFENCE, ' (%.1f m from the start > %.1f m)' % (r, self.geofence_radius)
-        if drone is not None:
-            d = math.hypot(x - drone[0], math.hypot(y - drone[1], z - drone[2]))   # no overflow for huge values
-            if d > self.max_waypoint_jump:
-                return WAYPOINT_JUMP, ' (%.1f m > %.1f m)' % (d, self.max_waypoint_jump)
-        return None
+def stalled(health_, idle, timeout=STALL_TIMEOUT):
+    """``health_`` of a controller whose last cycle ran ``idle`` s of wall time ago: WARN 'stalled: no cycle for
+    <idle> s (ROS time stopped?); last: <message>' beyond ``timeout`` [s], else unchanged."""
+    if idle is None or not idle > timeout:
+        return health_
+    return health_._replace(level=max(health_.level, LEVEL_WARN),
+                            message='stalled: no controller cycle for %.1f s of wall time (ROS time stopped?); '
+                                    'last: %s' % (idle, health_.message))
 
 
 class _Held(object):
@@ -242,11 +219,12 @@ class InputGate(object):
     ``state_timeout`` [s] > 0 (also the clock-jump tolerance); ``waypoint_timeout`` [s] >= 0, 0 = a
     waypoint never goes stale; ``twist_frame`` of the odometry twist ('child' or 'world');
     ``extra_counters``: more counter names for the owner; ``on_clock_jump()`` is called after a jump;
-    ``limits``: the ``WaypointLimits`` (None: the defaults).
+    ``limits``: the flight envelope (``envelope.Envelope``; None: the defaults), kept as ``envelope``.
 
-    ``check(t)`` returns the inputs of a cycle: the held ones when tracking, the hold point (``hold``:
-    position and heading of the drone at the first cycle of a hold, zero velocity) in place of the waypoint
-    for a HOLD key, None for a SILENT key.
+    ``check(t)`` returns the inputs of a cycle: the held ones when tracking, with the waypoint limited by the
+    envelope (key 'limiting' when a limit acted: ``acting`` holds the notes of the cycle), the hold point
+    (``hold``: position and heading of the drone at the first cycle of a hold, zero velocity, moved into the
+    fence) in place of the waypoint for a HOLD key, None for a SILENT key.
     """
 
     def __init__(self, state_timeout=TIMEOUT_DEFAULTS['state_timeout'],
@@ -265,9 +243,10 @@ class InputGate(object):
         self.waypoint.missing = NO_WAYPOINT
         self.newest = None           # newest time seen [s]
         self.jump = 0.0              # [s] size of the last clock jump
-        self.limits = WaypointLimits() if limits is None else limits
-        if not isinstance(self.limits, WaypointLimits):
-            raise ValueError('limits must be a WaypointLimits, got %r' % (limits,))
+        self.envelope = Envelope() if limits is None else limits
+        if not isinstance(self.envelope, Envelope):
+            raise ValueError('limits must be an envelope.Envelope, got %r' % (limits,))
+        self.acting = []             # notes [(limit, text)] of the limits that acted in this cycle
         self.centre = None           # (x, y) [m] of the geofence: the first good state's position
         self.hold = None             # hold waypoint (x, y, z, 0, 0, 0, yaw_deg) while holding, else None
 
@@ -294,17 +273,9 @@ class InputGate(object):
         except (TypeError, ValueError):
             wp = ()
         value = wp if len(wp) == 7 and is_finite(*wp) and self._clock(t) else None
-        key, detail = BAD_WAYPOINT, None
-        if value is not None:
-            drone = self.state.value[0] if self.state.missing is None else None
-            beyond = self.limits.check(value, self.centre, drone)
-            if beyond is not None:
-                key, detail = beyond
-                value = None
-                self.counters['rejected_geofence' if key == GEOFENCE else 'rejected_jumps'] += 1
         if value is None:
             self.counters['rejected_waypoints'] += 1
-        return self.waypoint.set(t, value, key, detail)
+        return self.waypoint.set(t, value, BAD_WAYPOINT)
 
     def _clock(self, t):
         """False for a non-finite time; drops the held inputs when ``t`` jumped back (see the module doc)."""
@@ -333,10 +304,15 @@ class InputGate(object):
     def check(self, t):
         """(Inputs, 'ok', 'ok') when a cycle may track at time ``t``; (Inputs with the hold point as waypoint,
         key, reason) for a HOLD key; (None, key, reason) for a SILENT key (see the class doc)."""
+        self.acting = []
         key, detail = self._reason(t)
         if key is None:
             self.hold = None
             (pos, vel, yaw), wp = self.state.value, self.waypoint.value
+            target, notes = self.envelope.limit_waypoint(wp, self.centre, pos)
+            self.note(notes)
+            if notes:
+                return Inputs(pos, vel, yaw, target), LIMITING, envelope_reason(notes)
             return Inputs(pos, vel, yaw, wp), OK, OK
         reason = hover_output(key, detail).reason
         if failsafe(key) != HOLD:
@@ -344,9 +320,18 @@ class InputGate(object):
             return None, key, reason
         pos, vel, yaw = self.state.value
         if self.hold is None:
-            self.hold = (pos[0], pos[1], pos[2], 0.0, 0.0, 0.0, math.degrees(yaw))
+            here = (pos[0], pos[1], pos[2], 0.0, 0.0, 0.0, math.degrees(yaw))
+            self.hold, notes = self.envelope.limit_waypoint(here, self.centre, None)
+            self.note(notes)
             self.counters['holds'] += 1
         return Inputs(pos, vel, yaw, self.hold), key, reason
+
+    def note(self, notes):
+        """Record the notes [(limit, text)] of envelope limits that acted in this cycle (counted)."""
+        for name, _ in notes:
+            if not any(name == n for n, _ in self.acting):
+                self.counters['limited_%s' % name] += 1
+        self.acting.extend(notes)
 
     def _reason(self, t):
         if not self._clock(t):
@@ -369,8 +354,9 @@ class InputGate(object):
     def count_cycle(self, key):
         """Count one cycle that ended with ``key`` ('ok' or a hover key; 'hover' and its failsafe too)."""
         self.counters['cycles'] += 1
-        if key == OK:
+        if key in TRACKING:
             self.counters[OK] += 1
+            self.counters[LIMITING] += key == LIMITING
         else:
             self.counters['hover'] += 1
             self.counters[key] += 1
@@ -421,7 +407,7 @@ class Controller(object):
     def cycle(self, t):
         """One cycle at time ``t`` [s]: CycleOutput (never raises on bad input); see the module doc."""
         inputs, key, reason = self.gate.check(t)
-        mode = OK if key == OK else failsafe(key)
+        mode = OK if key in TRACKING else failsafe(key)
         if mode == SILENT or (mode != self.mode and self.mode != SILENT):
             self._hover(None)        # a new mode starts from a clean state (a silent cycle already reset it)
         self.mode = mode
@@ -431,8 +417,15 @@ class Controller(object):
             out = self._compute(float(t), inputs)
             if out.ok and out.command is not None and not is_finite(*out.command):
                 out = hover_output(BAD_OUTPUT, result=out.result)
-            if out.ok and key != OK:     # holding: the command of the hold point, under the hold's key
-                out = CycleOutput(out.command, False, reason, key, out.result)
+            if out.ok:
+                command, notes = self.gate.envelope.limit_command(out.command)
+                self.gate.note(notes)
+                if mode == OK:       # tracking: 'limiting' when a limit acted (target, preview or command)
+                    acting = self.gate.acting
+                    key, reason = (LIMITING, envelope_reason(acting)) if acting else (OK, OK)
+                    out = CycleOutput(command, True, reason, key, out.result)
+                else:                # holding: the command of the hold point, under the hold's key
+                    out = CycleOutput(command, False, reason, key, out.result)
         if out.key != key:               # the controller failed (tracking or holding): silent
             self.mode = SILENT
             self._hover(out)

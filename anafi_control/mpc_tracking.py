@@ -54,7 +54,7 @@ DEFAULTS = {
     'twist_in_child_frame': True,  # nav_msgs/Odometry: twist in child_frame_id (body)
     'cum_reset_distance': 1.0,    # [m] waypoint jump that resets carried cumulative errors
 }
-DEFAULTS.update(LIMIT_DEFAULTS)   # geofence_radius, min/max_altitude, max_waypoint_jump [m] (contract.WaypointLimits)
+DEFAULTS.update(LIMIT_DEFAULTS)   # the flight envelope (anafi_control.envelope: geofence, reach, speeds, tilt)
 
 DroneState = collections.namedtuple('DroneState', ['t', 'position', 'velocity', 'yaw'])
 DroneState.__doc__ = 'Drone state at receipt time t [s]: position [m], velocity [m/s] world ENU, heading [rad].'
@@ -137,9 +137,11 @@ class MpcTracking(Controller):
         if previous is not None and self.gate.waypoint.missing is None:
             t0, w0 = previous
             new = np.asarray(self.gate.waypoint.value[:3], dtype=float)
-            expected = np.asarray(w0[:3], dtype=float) + np.asarray(w0[3:6], dtype=float) * max(
-                0.0, float(t) - t0)
-            if float(np.linalg.norm(new - expected)) > self.cum_reset_distance:
+            with np.errstate(over='ignore', invalid='ignore'):    # huge finite waypoints: inf / nan, a jump
+                expected = np.asarray(w0[:3], dtype=float) + np.asarray(w0[3:6], dtype=float) * max(
+                    0.0, float(t) - t0)
+                distance = float(np.linalg.norm(new - expected))
+            if not distance <= self.cum_reset_distance:
                 self.counters['waypoint_jumps'] += 1
                 self.mpc.reset_cumulative_errors()
         return True

@@ -318,8 +318,8 @@ def check_params(params):
 
 class PreviewMpc(Controller):
     """The preview MPC (see the module doc). ``model``: a ``PredictionModel``; ``params``: DEFAULTS keys
-    (flat, as anafi_sim/config/preview_mpc.yaml); ``limits``: contract.WaypointLimits. ValueError on bad
-    parameters."""
+    (flat, as anafi_sim/config/preview_mpc.yaml); ``limits``: the flight envelope (envelope.Envelope).
+    ValueError on bad parameters."""
     NAME = 'preview_mpc'
     RATE = DEFAULTS['rate']
     COUNTERS = EXTRA_COUNTERS
@@ -487,9 +487,27 @@ class PreviewMpc(Controller):
         pv = self.preview
         if pv is not None and self.params['use_preview'] and t - pv[0] <= self.params['preview_timeout'] \
                 and pv[1][0] <= times[0] + 1e-6 and pv[1][-1] >= times[-1] - 1e-6:
-            return _interpolate(pv, times) + ('preview',)
+            P, V, A, yaw = _interpolate(pv, times)
+            return self._enveloped(P, V, A) + (yaw, 'preview')
         P, V, A = self.estimator.predict(times)
-        return P, V, A, np.full(n, wp[6]), 'estimator'
+        return self._enveloped(P, V, A) + (np.full(n, wp[6]), 'estimator')
+
+    def _enveloped(self, P, V, A):
+        """(P, V, A) of the reference with every sample limited by the flight envelope (the gate's: fence,
+        reach, speeds, acceleration; noted for the cycle's 'limiting'); the arrays untouched when none acts."""
+        gate = self.gate
+        env, drone, notes = gate.envelope, gate.state.value[0], []
+        out = None
+        for i in range(len(P)):
+            p, v, n = env.limit_target(tuple(P[i]), tuple(V[i]), gate.centre, drone)
+            a, m = env.limit_acceleration(tuple(A[i]))
+            if n or m:
+                if out is None:
+                    out = [np.array(P, dtype=float), np.array(V, dtype=float), np.array(A, dtype=float)]
+                out[0][i], out[1][i], out[2][i] = p, v, a
+                notes += n + m
+        gate.note(notes)
+        return (P, V, A) if out is None else tuple(out)
 
     # ----------------------------------------------------------------- prediction
     def _command_at(self, s):

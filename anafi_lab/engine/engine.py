@@ -106,10 +106,10 @@ from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_p
 from anafi_sim.sim.simulator import SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
 
-try:        # the waypoint limits of the controller contract (geofence, altitude band, jump), where it has them
-    from anafi_control.contract import LIMIT_DEFAULTS, WaypointLimits
-except ImportError:     # pragma: no cover - a contract without waypoint limits
-    LIMIT_DEFAULTS, WaypointLimits = {}, None
+try:        # the flight envelope of the controller contract (geofence, reach, speeds, tilt), where it has one
+    from anafi_control.contract import LIMIT_DEFAULTS, Envelope
+except ImportError:     # pragma: no cover - a contract without an envelope
+    LIMIT_DEFAULTS, Envelope = {}, None
 
 #: the schedule of the ROS graph (see the module doc for the source of every default)
 DEFAULT_SCHEDULE = collections.OrderedDict([
@@ -202,11 +202,12 @@ def simulator_config(settings=None):
 
 
 def waypoint_limits(config):
-    """{'limits': WaypointLimits} of a node's parameters (the keys of contract.LIMIT_DEFAULTS), as
-    anafi_sim.ros.conversions.waypoint_limits reads them; {} where the contract has no limits."""
-    if WaypointLimits is None:
+    """{'limits': the flight envelope (contract.Envelope)} of a node's parameters (the keys of
+    contract.LIMIT_DEFAULTS), as anafi_sim.ros.conversions.waypoint_limits reads them; {} where the contract
+    has no envelope."""
+    if Envelope is None:
         return {}
-    return {'limits': WaypointLimits(**dict((k, config.get(k, v)) for k, v in LIMIT_DEFAULTS.items()))}
+    return {'limits': Envelope(**dict((k, config.get(k, v)) for k, v in LIMIT_DEFAULTS.items()))}
 
 
 def mpc_config(overrides=None):

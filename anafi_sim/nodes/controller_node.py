@@ -19,12 +19,13 @@ Namespace /<drone> (default /anafi). Topics, relative to the namespace:
       ~waypoint_topic (default position_control/waypoint: ENU m, m/s, yaw deg; type ~waypoint_type: anafi_sim
       = anafi_sim/Waypoint (default), anafi_control = the reference implementation's anafi_control/Waypoint);
 - out ~command_topic (olympe_bridge/PilotingCommand, default drone/rpyt). Failsafes (docs/reliability.md,
-      anafi_control.contract): a bad / stale / out-of-limits waypoint -> the controller holds the position
+      anafi_control.contract): a bad / stale waypoint -> the controller holds the position
       where the hold began with its own loop (commands keep flowing); no / bad / stale state, a clock jump,
       no waypoint yet or a failed controller -> nothing is published, so the firmware's hover brake stops
       and holds the drone;
-      /diagnostics (1 Hz of wall time: OK tracking or waiting for the first waypoint, WARN holding or silent
-      for missing / stale / non-finite / out-of-limits input or a clock jump, ERROR the controller failed
+      /diagnostics (1 Hz of wall time: OK tracking or waiting for the first waypoint, WARN limiting (a limit
+      of the flight envelope acted), holding or silent for missing / stale / non-finite input or a clock
+      jump, stalled (no cycle for ~stall_timeout s of wall time: ROS time stopped), ERROR the controller failed
       or a second commander; with counters);
 - in  ~command_topic too: commands of another node there = a second commander of the drone
       (anafi_control.commanders): ERROR naming it and no command until it is gone (docs/reliability.md).
@@ -33,8 +34,10 @@ Namespace /<drone> (default /anafi). Topics, relative to the namespace:
       (anafi_sim/MpcStats), dynamic_reconfigure (cfg/Mpc.cfg: weights, limits, horizon,
       carry_cumulative_errors, applied live).
 Parameters: ~controller (mpc | pid), ~rate [Hz] (default the controller's RATE), ~command_rate [Hz] (pid),
-~state_timeout, ~waypoint_timeout [s], ~geofence_radius, ~min_altitude, ~max_altitude, ~max_waypoint_jump [m]
-(contract.WaypointLimits), ~state_topic, ~waypoint_topic, ~waypoint_type, ~command_topic; mpc: the keys of
+~state_timeout, ~waypoint_timeout [s], the flight envelope (anafi_control.envelope: ~geofence_radius,
+~min_altitude, ~max_altitude, ~max_waypoint_jump [m], ~max_reference_speed, ~max_reference_vertical_speed [m/s],
+~max_reference_acceleration [m/s^2], ~max_command_tilt_deg [deg]), ~stall_timeout [s of wall time without a
+cycle -> WARN 'stalled'], ~state_topic, ~waypoint_topic, ~waypoint_type, ~command_topic; mpc: the keys of
 anafi_sim/config/mpc.yaml; pid: ~<loop>/<pid param> of anafi_sim/config/pid.yaml. Bad parameters:
 logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 
@@ -57,7 +60,8 @@ from nav_msgs.msg import Path
 
 import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.commanders import DOWN, LISTEN, RESUMED
-from anafi_control.contract import LEVEL_ERROR, TIMEOUT_DEFAULTS, WAITING, health
+from anafi_control.contract import LEVEL_ERROR, LIMIT_DEFAULTS, OK, STALL_TIMEOUT, TIMEOUT_DEFAULTS, WAITING, health, \
+    stalled
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, RECONFIGURABLE, MpcTracking,
                                         predicted_positions, reference_positions)
@@ -283,7 +287,7 @@ class PreviewAdapter(MpcAdapter):
     def build(self, p):
         ctx = self.node.ctx
         params = dict((k, ctx.get_param(k)) for k in PREVIEW_DEFAULTS if ctx.has_param(k))
-        for k in ('geofence_radius', 'min_altitude', 'max_altitude', 'max_waypoint_jump'):
+        for k in LIMIT_DEFAULTS:    # the flight envelope: waypoint_limits(p) below
             params.pop(k, None)
         model = PredictionModel.from_params(load_model_params(p.string('model_file', '') or DEFAULT_MODEL_FILE),
                                             p.positive('max_tilt_deg', MAX_TILT_DEG),
@@ -357,6 +361,8 @@ class ControllerNode(object):
         self.command_rate = None if self.core.COMMAND_RATE is None else \
             p.positive('command_rate', self.core.COMMAND_RATE)
         self.timer_phase = p.number('timer_phase', TIMER_PHASES['controller'])
+        self.stall_timeout = p.positive('stall_timeout', STALL_TIMEOUT)
+        self.last_cycle_wall = None      # time.monotonic() of the last cycle timer (None: none yet)
         state_topic = p.ros_name('state_topic', names.ESTIMATE)
         waypoint_topic = p.ros_name('waypoint_topic', names.WAYPOINT)
         command_topic = p.ros_name('command_topic', names.COMMAND)
@@ -378,6 +384,7 @@ class ControllerNode(object):
 
     # -- cycle and command ----------------------------------------------------------------------
     def _on_cycle(self, _event=None):
+        self.last_cycle_wall = time.monotonic()
         commanders = self.commanders.check()
         if commanders in (DOWN, LISTEN):   # another node commands this drone, or listening first: no command
             return
@@ -390,7 +397,7 @@ class ControllerNode(object):
             out = self.core.cycle(stamp.to_sec())
             info = self.adapter.cycle_info()
         if out.key != self.last_key:
-            if out.ok:
+            if out.key == OK:
                 self.ctx.loginfo('%s: tracking the waypoint', self.ctx.name)
             elif out.key in WAITING:
                 self.ctx.loginfo('%s: %s', self.ctx.name, health(out.key, out.reason).message)
@@ -426,6 +433,8 @@ class ControllerNode(object):
     def diagnostic_statuses(self):
         with self.lock:
             health = amend_health(self.core.health(), self.admission)
+            if self.last_cycle_wall is not None:    # ROS time stopped (/clock): the cycles are frozen
+                health = stalled(health, time.monotonic() - self.last_cycle_wall, self.stall_timeout)
             extra = [('commands sent', self.commands), ('hover commands', self.hover_commands),
                      ('command periods without a command (silent)', self.silent_cycles),
                      ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic),

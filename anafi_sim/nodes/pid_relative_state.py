@@ -17,9 +17,11 @@ anafi_sim = anafi_sim/Waypoint, the default, or anafi_control = the reference
 implementation's anafi_control/Waypoint).
 
 Safety (the controllers' input gate and failsafes, anafi_control.contract,
-docs/reliability.md): a non-finite, stale (> ~waypoint_timeout s; 0 = never)
-or out-of-limits waypoint (geofence: ~geofence_radius around the first state,
-~min_altitude..~max_altitude; ~max_waypoint_jump from the drone) -> HOLD: the
+docs/reliability.md): the flight envelope (anafi_control.envelope, pid.yaml:
+~geofence_radius around the first state, ~min_altitude..~max_altitude, reach
+~max_waypoint_jump, reference speeds) limits the target the loops get (WARN
+'limiting'); a non-finite or stale (> ~waypoint_timeout s; 0 = never)
+waypoint -> HOLD: the
 loops get the hold point (the drone's position and heading when the hold
 began, zero velocity) instead of the waypoint, so the PID graph brakes and
 holds there; no waypoint yet, no / non-finite / stale state (> ~state_timeout
@@ -35,7 +37,7 @@ import rospy
 from std_msgs.msg import Bool, Float64
 
 import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
-from anafi_control.contract import MESSAGES, NO_STATE, NO_WAYPOINT, OK, InputGate, health
+from anafi_control.contract import MESSAGES, NO_STATE, NO_WAYPOINT, TRACKING, InputGate, health
 from anafi_control.pid_framework import DEFAULTS, relative_state
 from anafi_control.pid_wiring import input_topics, loop_inputs
 from anafi_sim import names
@@ -91,7 +93,7 @@ class RelativeStateNode(object):
                 rospy.logwarn_throttle(5.0, '%s: %s: pid disabled, no command (firmware hover brake)'
                                        % (rospy.get_name(), reason))
             return
-        if key != OK:       # HOLD: rel is relative to the hold point
+        if key not in TRACKING:       # HOLD: rel is relative to the hold point
             rospy.logwarn_throttle(5.0, '%s: %s: holding position' % (rospy.get_name(), reason))
         self._set_enabled(True)
         for topic, value in loop_inputs(rel):

@@ -6,7 +6,7 @@ from geometry_msgs.msg import Pose, Twist
 from nav_msgs.msg import Odometry
 
 from anafi_control import frames
-from anafi_control.contract import LEVEL_WARN, LIMIT_DEFAULTS, WaypointLimits
+from anafi_control.contract import LEVEL_WARN, LIMIT_DEFAULTS, Envelope
 from anafi_control.waypoint_admission import DEFAULTS as ADMISSION_DEFAULTS, WaypointAdmission
 from anafi_sim.ros import waypoints
 
@@ -115,14 +115,13 @@ def amend_health(health, admission):
 
 
 def waypoint_limits(p):
-    """The controllers' ``contract.WaypointLimits`` from the node's ParamReader ``p``: ~geofence_radius,
-    ~min_altitude, ~max_altitude, ~max_waypoint_jump [m] (defaults ``contract.LIMIT_DEFAULTS``); ValueError on
-    bad values (the node exits with a FATAL message)."""
-    d = LIMIT_DEFAULTS
-    return WaypointLimits(geofence_radius=p.positive('geofence_radius', d['geofence_radius']),
-                          min_altitude=p.number('min_altitude', d['min_altitude']),
-                          max_altitude=p.number('max_altitude', d['max_altitude']),
-                          max_waypoint_jump=p.positive('max_waypoint_jump', d['max_waypoint_jump']))
+    """The controllers' flight envelope (``anafi_control.envelope.Envelope``) from the node's ParamReader ``p``:
+    ~geofence_radius, ~min_altitude, ~max_altitude, ~max_waypoint_jump [m], ~max_reference_speed,
+    ~max_reference_vertical_speed [m/s], ~max_reference_acceleration [m/s^2], ~max_command_tilt_deg [deg]
+    (defaults ``contract.LIMIT_DEFAULTS``); ValueError on bad values (the node exits with a FATAL message)."""
+    signed = ('min_altitude', 'max_altitude')
+    return Envelope(**dict((k, p.number(k, v) if k in signed else p.number(k, v, minimum=0.0)
+                            if k == 'geofence_margin' else p.positive(k, v)) for k, v in LIMIT_DEFAULTS.items()))
 
 
 def drone_data(msg, s, stamp, frame_id):

@@ -79,8 +79,8 @@ FAULTS = (
      'tracking the real stream (no swing)'),
     ('out_of_order_waypoint', 'a second waypoint stream 7.5 m to the side, stamped 0.3 s behind the real one',
      'dropped (out of order), counted, WARN "dropped waypoints"; the drone keeps tracking the real stream'),
-    ('far_waypoint', 'a waypoint 1 km away', 'HOLD: WARN "holding position: waypoint outside the geofence", '
-     'rejected_geofence grows, the drone stops'),
+    ('far_waypoint', 'a waypoint 1 km away', 'limited by the flight envelope: WARN "limiting: target moved into '
+     'the geofence ...", limited_geofence grows, commands keep flowing (toward the fence, at most 10 m/s)'),
     ('foreign_frame_waypoint', 'the waypoints arrive in anafi/base_link (20 m to the side of the drone)',
      'refused (foreign frame), counted; no usable waypoint: HOLD after waypoint_timeout (WARN "holding '
      'position: stale waypoint ...; dropped waypoints: N foreign frame"), the drone stops'),
@@ -482,6 +482,25 @@ class TestFaultMatrix(unittest.TestCase):
             counter_key, before, counter(e, counter_key)) if counter_key else 'stopped',
             g.command_rate()), '%.1f m from %.1f m/s in %.1f s (bound %.1f m)' % (dist, v, secs, bound), rec)
 
+    def limit_case(self, name, mode, message, counter_key, seconds):
+        """The fault for ``seconds``: the controller keeps commanding, WARN 'limiting: <message>' (never
+        'tracking'), ``counter_key`` grows; then the legitimate stream again: tracking."""
+        g = self.g
+        v = self.fly()
+        before = counter(self.controller(0.0), counter_key)
+        t0 = time.time()
+        g.wp_mode = mode
+        e = self.wait_controller(t0, lambda e: message in e[2], 5.0, message)
+        self.assertEqual(e[1], 1, e)                                   # WARN
+        self.assertTrue(e[2].startswith('limiting: '), e)
+        self.assertGreater(g.command_rate(), 5.0, 'limiting keeps commanding')
+        self.assertGreater(counter(e, counter_key), before, e)
+        time.sleep(max(0.0, t0 + seconds - time.time()))
+        rec = self.recover(time.time())
+        self.record(name, 'WARN "%s"; %s %d -> %d; commands %.0f Hz' % (e[2], counter_key, before,
+                                                                       counter(e, counter_key), g.command_rate()),
+                    'flies on from %.1f m/s, limited' % v, rec)
+
     def silent_case(self, name, mode, message, counter_key, delay):
         g = self.g
         v = self.fly()
@@ -587,7 +606,7 @@ class TestFaultMatrix(unittest.TestCase):
         self.second_stream_case('out_of_order_waypoint', 'behind', 'out of order')
 
     def test_04_far_waypoint(self):
-        self.hold_case('far_waypoint', 'far', 'waypoint outside the geofence', 'rejected_geofence', 0.2)
+        self.limit_case('far_waypoint', 'far', 'target moved into the geofence', 'limited_geofence', 2.0)
 
     def test_04b_foreign_frame_waypoint(self):
         # nothing usable arrives: the stale-waypoint HOLD waypoint_timeout (1 s) after the last world waypoint

@@ -9,7 +9,9 @@ process), both drones at the same time. Wall clock. Checked per phase:
 * no waypoint yet -> no command at all (the firmware's hover brake holds the drone), diagnostic says so;
 * a target ahead, to the left, above and counter-clockwise -> pitch > 0, roll < 0, gaz > 0, yaw rate > 0;
 * yaw target 179 deg with the drone at -179 deg -> a small negative yaw rate (the error wraps);
-* non-finite, stale or out-of-geofence waypoint -> the controller holds the position (commands keep
+* a waypoint 1 km away -> the flight envelope moves the target into the geofence and within reach: commands
+  keep flowing toward it, WARN 'limiting: ...geofence...';
+* non-finite or stale waypoint -> the controller holds the position (commands keep
   flowing, finite) and a WARN diagnostic says 'holding position' and the cause; stale or non-finite
   state -> no command at all (the firmware brakes; an all-zero command would let the drone coast) and a
   WARN diagnostic naming the cause; good input again -> commands again (docs/reliability.md).
@@ -197,7 +199,11 @@ class PidSafety(unittest.TestCase):
         self.assert_flying(fake, 'recovered from a stale waypoint')
 
         fake.set(waypoint=(1000.0, 0.0, 5.0, 0.0, 0.0, 0.0, 0.0))     # far outside the geofence (250 m)
-        self.assert_hold(fake, 'waypoint 1 km away', 'outside the geofence')
+        t0 = time.time()
+        self.assert_flying(fake, 'waypoint 1 km away: the target limited by the flight envelope',
+                           lambda c: self.assertGreater(c[1], 0.0))     # toward +x, within the fence
+        self.assert_diag(fake, 'waypoint 1 km away', t0, 'limiting: ')
+        self.assert_diag(fake, 'waypoint 1 km away', t0, 'geofence')
         fake.set(waypoint=good_wp)
         self.assert_flying(fake, 'recovered from a waypoint outside the geofence')
 

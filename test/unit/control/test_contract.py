@@ -6,8 +6,8 @@ import math
 import pytest
 
 from anafi_control import contract
-from anafi_control.contract import (HOLD, HOLD_KEYS, HOVER, HOVER_KEYS, MESSAGES, SILENT, Controller, InputGate,
-                                    WaypointLimits, failsafe, health)
+from anafi_control.contract import (HOLD, HOLD_KEYS, HOVER, HOVER_KEYS, MESSAGES, SILENT, Controller, Envelope,
+                                    InputGate, failsafe, health)
 from anafi_control.frames import euler_to_quaternion
 from anafi_control.mpc_tracking import MpcTracking
 from anafi_control.pid_framework import PidTracking
@@ -174,7 +174,11 @@ def test_commands_are_finite_along_a_moving_target(ctl):
         ctl.on_state(t, (0.1 * t, 0.0, 1.0), euler_to_quaternion(0.05, -0.02, yaw), (0.3, 0.1, 0.0))
         ctl.on_waypoint(t, (3.0 + t, 2.0, 5.0, 1.0, 0.0, 0.0, -175.0))
         out = ctl.cycle(t)
-        assert_runs(out, warming=(k == 0))
+        # (the MPC's world-axis acceleration limit may ask more than the tilt limit on a body axis: 'limiting')
+        assert out.ok and out.key in contract.TRACKING, out
+        if out.command is not None:
+            assert_finite_command(out.command)
+            assert max(abs(out.command[0]), abs(out.command[1])) <= ctl.gate.envelope.max_command_tilt_deg
         assert ctl.last is out
     assert ctl.last.command is not None
 
@@ -184,11 +188,11 @@ def test_health_levels():
     assert health('ok', 'ok') == (contract.LEVEL_OK, 'tracking', [])
     assert health('no_waypoint', MESSAGES['no_waypoint'])[:2] == (
         contract.LEVEL_OK, 'no command, firmware hover brake: no waypoint received yet')
-    for key in ('no_state', 'bad_state', 'bad_waypoint', 'stale_state', 'stale_waypoint', 'clock_jump',
-                'geofence', 'waypoint_jump'):
+    for key in ('no_state', 'bad_state', 'bad_waypoint', 'stale_state', 'stale_waypoint', 'clock_jump'):
         assert health(key, MESSAGES[key]).level == contract.LEVEL_WARN
     assert health('bad_waypoint', 'x').message == 'holding position: x'
     assert health('stale_state', 'y').message == 'no command, firmware hover brake: y'
+    assert health('limiting', 'z')[:2] == (contract.LEVEL_WARN, 'limiting: z')
     for key in ('solver_failed', 'bad_output'):
         assert health(key, MESSAGES[key]).level == contract.LEVEL_ERROR
     assert set(HOVER_KEYS) <= set(contract.COUNTER_NAMES)
@@ -294,8 +298,8 @@ def test_waypoint_timeout_zero_allowed_only_where_it_means_never():
 
 # -- failsafes: hold the position (waypoint faults), silent (state faults) ------------------------
 def test_failsafe_of_every_key():
-    assert failsafe('ok') is None
-    assert set(HOLD_KEYS) == {'bad_waypoint', 'stale_waypoint', 'geofence', 'waypoint_jump'}
+    assert failsafe('ok') is None and failsafe('limiting') is None
+    assert set(HOLD_KEYS) == {'bad_waypoint', 'stale_waypoint'}
     for key in HOVER_KEYS:
         assert failsafe(key) == (HOLD if key in HOLD_KEYS else SILENT)
     assert failsafe('no_waypoint') == SILENT          # not engaged yet: the firmware hovers by itself
@@ -355,49 +359,78 @@ def test_hold_recaptures_after_tracking_again(ctl):
     assert ctl.gate.hold[:3] == (1.0, 1.0, 2.0) and ctl.counters['holds'] == 2
 
 
-# -- geofence and maximum waypoint jump --------------------------------------------------------
-@pytest.mark.parametrize('wp, key, counter', [
-    ((300.0, 0.0, 5.0, 0, 0, 0, 0), 'geofence', 'rejected_geofence'),      # 300 m from the start
-    ((3.0, 2.0, 60.0, 0, 0, 0, 0), 'geofence', 'rejected_geofence'),       # above the altitude band
-    ((3.0, 2.0, 0.1, 0, 0, 0, 0), 'geofence', 'rejected_geofence'),        # below it
-    ((60.0, 0.0, 5.0, 0, 0, 0, 0), 'waypoint_jump', 'rejected_jumps'),     # 60 m from the drone
-    ((1000.0, 0.0, 5.0, 0, 0, 0, 0), 'geofence', 'rejected_geofence'),
+# -- the flight envelope: geofence, reach, speeds (anafi_control.envelope) ------------------------
+_K = 50.0 / math.hypot(248.0, 4.0)      # the target's fence: 250 m less the 2 m margin
+
+
+@pytest.mark.parametrize('wp, limit, target', [
+    ((300.0, 0.0, 5.0, 0, 0, 0, 0), 'geofence',                              # 300 m from the start: on the fence,
+     (248.0 * _K, 0.0, 1.0 + 4.0 * _K)),                                    # then 50 m from the drone toward it
+    ((3.0, 2.0, 60.0, 0, 0, 0, 0), 'geofence', (3.0, 2.0, 50.0)),          # above the altitude band: on the ceiling
+    ((3.0, 2.0, 0.1, 0, 0, 0, 0), 'geofence', (3.0, 2.0, 0.5)),            # below it: on the floor
+    ((60.0, 0.0, 1.0, 0, 0, 0, 0), 'reach', (50.0, 0.0, 1.0)),             # 60 m from the drone: 50 m toward it
+    ((3.0, 2.0, 5.0, 1e6, 0, 0, 0), 'speed', (3.0, 2.0, 5.0)),             # the reference speed
+    ((3.0, 2.0, 5.0, 0, 0, -1e300, 0), 'vertical_speed', (3.0, 2.0, 5.0)),
 ])
-def test_waypoints_beyond_the_limits_are_rejected_and_held(ctl, wp, key, counter):
+def test_waypoints_beyond_the_envelope_are_limited_and_flown(ctl, wp, limit, target):
     t = warm(ctl)
-    assert not ctl.on_waypoint(t + 0.03, wp)
-    assert ctl.counters[counter] == 1 and ctl.counters['rejected_waypoints'] == 1
-    outs = hold_cycles(ctl, t + 0.04, key=key)
-    assert ctl.gate.hold[:3] == POS
-    assert outs[0].reason.startswith(MESSAGES[key] + ' (')
-    assert ctl.health().level == contract.LEVEL_WARN and ctl.health().message.startswith('holding position')
-    feed(ctl, t + 0.2)                  # a good waypoint again: tracking
-    assert_runs(ctl.cycle(t + 0.2), warming=True)
+    assert ctl.on_waypoint(t + 0.03, wp)
+    ctl.on_state(t + 0.04, POS, LEVEL, VEL)
+    out = ctl.cycle(t + 0.04)
+    assert out.ok and out.key == 'limiting' and ctl.mode == 'ok', out
+    assert_finite_command(out.command)
+    assert ctl.counters['limited_%s' % limit] == 1 and ctl.counters['limiting'] == 1
+    assert ctl.counters['ok'] == 3 and ctl.counters['hover'] == 0 and ctl.counters['rejected_waypoints'] == 0
+    inputs = ctl.gate.check(t + 0.05)[0]
+    assert inputs.waypoint[:3] == pytest.approx(target)
+    assert abs(inputs.waypoint[3]) <= 10.0 and abs(inputs.waypoint[5]) <= 2.0
+    h = ctl.health()
+    assert h.level == contract.LEVEL_WARN and h.message.startswith('limiting: ') and 'tracking' not in h.message
+    feed(ctl, t + 0.1)                  # a waypoint inside the envelope again: tracking
+    assert_runs(ctl.cycle(t + 0.1))
+    assert ctl.health().message == 'tracking'
 
 
-def test_geofence_centre_is_the_first_state_and_limits_are_configurable():
-    limits = WaypointLimits(geofence_radius=10.0, min_altitude=1.0, max_altitude=20.0, max_waypoint_jump=100.0)
-    gate = InputGate(limits=limits)
+def test_geofence_centre_is_the_first_state_and_the_envelope_is_configurable():
+    envelope = Envelope(geofence_radius=10.0, geofence_margin=0.0, min_altitude=1.0, max_altitude=20.0,
+                        max_waypoint_jump=100.0)
+    gate = InputGate(limits=envelope)
     gate.on_state(0.0, (50.0, 50.0, 5.0), LEVEL, (0, 0, 0))
-    gate.on_state(0.1, (0.0, 0.0, 5.0), LEVEL, (0, 0, 0))
+    gate.on_state(0.1, (50.0, 50.0, 5.0), LEVEL, (0, 0, 0))
     assert gate.centre == (50.0, 50.0)
     assert gate.on_waypoint(0.1, (55.0, 55.0, 5.0, 0, 0, 0, 0))
-    assert not gate.on_waypoint(0.2, (0.0, 0.0, 5.0, 0, 0, 0, 0))
-    assert gate.check(0.2)[1] == 'geofence'
+    assert gate.check(0.1)[1] == 'ok'
+    assert gate.on_waypoint(0.2, (0.0, 50.0, 5.0, 0, 0, 0, 0))
+    inputs, key, reason = gate.check(0.2)
+    assert key == 'limiting' and 'geofence' in reason and inputs.waypoint[:3] == (40.0, 50.0, 5.0)
+    assert gate.counters['limited_geofence'] == 1
 
 
-def test_no_jump_check_without_a_state_but_the_altitude_band_applies():
+def test_the_hold_point_is_moved_into_the_fence():
+    gate = InputGate(limits=Envelope(geofence_radius=10.0, max_waypoint_jump=100.0))
+    gate.on_state(0.0, (0.0, 0.0, 5.0), LEVEL, (0, 0, 0))
+    gate.on_state(0.1, (30.0, 0.0, 5.0), LEVEL, (0, 0, 0))      # the drone overshot the fence
+    gate.on_waypoint(0.1, (NAN,) * 7)
+    inputs, key, _ = gate.check(0.1)
+    assert key == 'bad_waypoint' and inputs.waypoint[:3] == (8.0, 0.0, 5.0)      # 10 m less the margin
+
+
+def test_no_reach_without_a_state_but_the_altitude_band_applies():
     gate = InputGate()
     assert gate.on_waypoint(0.0, (100.0, 0.0, 5.0, 0, 0, 0, 0))
-    assert not gate.on_waypoint(0.0, (0.0, 0.0, -1.0, 0, 0, 0, 0))
+    assert gate.on_waypoint(0.0, (0.0, 0.0, -1.0, 0, 0, 0, 0))
+    assert gate.envelope.limit_waypoint((100.0, 0.0, 5.0, 0, 0, 0, 0), None, None)[1] == []
+    assert gate.envelope.limit_waypoint((0.0, 0.0, -1.0, 0, 0, 0, 0), None, None)[0][2] == 0.5
 
 
 @pytest.mark.parametrize('kw', [dict(geofence_radius=0.0), dict(max_waypoint_jump=-1.0), dict(min_altitude=NAN),
                                 dict(min_altitude=10.0, max_altitude=5.0), dict(max_altitude=True),
-                                dict(geofence_radius='1')])
-def test_bad_limits_are_refused(kw):
+                                dict(geofence_radius='1'), dict(max_reference_speed=0.0),
+                                dict(max_command_tilt_deg=90.0), dict(geofence_margin=-1.0),
+                                dict(geofence_margin=300.0), dict(unknown=1.0)])
+def test_bad_envelopes_are_refused(kw):
     with pytest.raises(ValueError):
-        WaypointLimits(**kw)
+        Envelope(**kw)
     with pytest.raises(ValueError):
         InputGate(limits='x')
 
@@ -429,3 +462,13 @@ def test_every_controller_has_the_contract_timeouts_and_rule():
                       lambda: PreviewMpc(_prediction_model(), bad)):
             with pytest.raises(ValueError, match='timeout'):
                 build()
+
+
+def test_stalled_when_the_cycles_stop():
+    h = health('ok', 'ok', [('cycles', 3)])
+    assert contract.stalled(h, None) is h and contract.stalled(h, contract.STALL_TIMEOUT) is h
+    s = contract.stalled(h, 12.34)
+    assert s.level == contract.LEVEL_WARN and s.values == h.values
+    assert s.message == 'stalled: no controller cycle for 12.3 s of wall time (ROS time stopped?); last: tracking'
+    err = health('solver_failed', 'solver')
+    assert contract.stalled(err, 5.0, timeout=1.0).level == contract.LEVEL_ERROR

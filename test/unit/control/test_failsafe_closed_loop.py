@@ -59,8 +59,6 @@ def fly(controller_class, fault):
             wp = (x, 0.0, ALT, SPEED if t > 3.0 else 0.0, 0.0, 0.0, 0.0)
             if after and fault == 'nan_waypoint':
                 wp = (NAN,) + wp[1:]
-            if after and fault == 'far_waypoint':
-                wp = (x + 1000.0,) + wp[1:]
             ctl.on_waypoint(t, wp)
         if k % cycle_every == 0:
             ctl.cycle(t)
@@ -92,8 +90,7 @@ def firmware_brake(controller_class):
 
 
 @pytest.mark.parametrize('cls', CONTROLLERS, ids=lambda c: c.NAME)
-@pytest.mark.parametrize('fault, failsafe', [('nan_waypoint', HOLD), ('stale_waypoint', HOLD),
-                                             ('far_waypoint', HOLD), ('nan_state', SILENT),
+@pytest.mark.parametrize('fault, failsafe', [('nan_waypoint', HOLD), ('stale_waypoint', HOLD), ('nan_state', SILENT),
                                              ('stale_state', SILENT)])
 def test_a_fault_at_8_m_s_stops_the_drone_within_the_firmware_brake_distance(cls, fault, failsafe):
     speed, brake_distance, _, brake_speed, _ = firmware_brake(cls)

@@ -4,7 +4,7 @@ Bounded for CI: ``FUZZ_EXAMPLES`` examples per property (default 50; ``FUZZ_EXAM
 run), no deadline. Properties: nothing raises, nothing non-finite comes out, and every rejected input is
 counted (the counters grow). Cores: the telemetry parser, the interface core (GroundTruthInterface) and the
 supervisor's capped line reader, the reference-log reader, the controller contract's InputGate /
-WaypointLimits, and the MPC and PID controllers through ``Controller.cycle``.
+its flight envelope (anafi_control.envelope), and the MPC and PID controllers through ``Controller.cycle``.
 """
 import io
 import math
@@ -258,7 +258,7 @@ def _run_events(controller, events):
                 assert controller.counters['rejected_waypoints'] == before + 1
         else:
             out = controller.cycle(t_ev)
-            assert out.key in (contract.OK,) + contract.HOVER_KEYS
+            assert out.key in contract.TRACKING + contract.HOVER_KEYS
             if out.command is not None:
                 commands += 1
                 assert len(out.command) == 4 and all(math.isfinite(v) for v in out.command), out
@@ -268,7 +268,7 @@ def _run_events(controller, events):
                 # a hold starts from reset loops: the PID framework warms up for one computation
                 assert out.result is not None, out
     c = controller.counters
-    assert c['cycles'] == c[contract.OK] + c['hover']
+    assert c['cycles'] == c[contract.OK] + c['hover'] and c[contract.LIMITING] <= c[contract.OK]
     assert c['hover'] == c[contract.HOLD] + c[contract.SILENT]
     return commands
 
@@ -300,12 +300,13 @@ def test_input_gate_never_raises_and_counts_rejects(events):
             if ok:
                 wp = gate.waypoint.value
                 assert len(wp) == 7 and all(math.isfinite(v) for v in wp)
-                assert gate.limits.check(wp, gate.centre, None) is None
         else:
             inputs, key, reason = gate.check(ev[1])
             gate.count_cycle(key)
-            if key == contract.OK or contract.failsafe(key) == contract.HOLD:
+            if key in contract.TRACKING or contract.failsafe(key) == contract.HOLD:
                 assert all(math.isfinite(v) for v in inputs.pos + inputs.vel + (inputs.yaw,) + inputs.waypoint)
+                assert gate.envelope.inside(inputs.waypoint, gate.centre, tolerance=1e-6 * (1 + abs(
+                    gate.envelope.geofence_radius)))
             else:
                 assert inputs is None
 
@@ -317,19 +318,23 @@ moderate = st.floats(-1e150, 1e150)
 @fuzz()
 @given(st.tuples(*[moderate] * 3), st.one_of(st.none(), st.tuples(moderate, moderate)),
        st.one_of(st.none(), st.tuples(moderate, moderate, moderate)))
-def test_waypoint_limits_check_never_raises(wp, centre, drone):
-    out = contract.WaypointLimits().check(wp + (0.0, 0.0, 0.0, 0.0), centre, drone)
-    assert out is None or out[0] in (contract.GEOFENCE, contract.WAYPOINT_JUMP)
+def test_the_envelope_never_raises_and_keeps_the_target_in_the_fence(wp, centre, drone):
+    env = contract.Envelope()
+    out, notes = env.limit_waypoint(wp + (0.0, 0.0, 0.0, 0.0), centre, drone)
+    assert all(math.isfinite(v) for v in out)
+    assert set(n for n, _ in notes) <= set(('geofence', 'reach', 'fence_braking'))
+    assert env.inside(out, centre, tolerance=1e-9 * (1.0 + (abs(centre[0]) + abs(centre[1]) if centre else 0.0)))
 
 
 # found by fuzzing: the distance to the drone once overflowed (sqrt of squares) for a finite but
-# huge state; now math.hypot
-def test_a_huge_finite_state_then_a_waypoint_is_rejected_not_raised():
+# huge state; now math.hypot, and the target is clipped into the fence first
+def test_a_huge_finite_state_then_a_waypoint_is_limited_not_raised():
     gate = contract.InputGate()
     assert gate.on_state(0.0, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0, 1.0), (0.0, 0.0, 0.0))
     assert gate.on_state(0.1, (1e155, 0.0, 5.0), (0.0, 0.0, 0.0, 1.0), (0.0, 0.0, 0.0))   # finite: accepted
-    assert not gate.on_waypoint(0.1, (0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 0.0))                # rejected, no OverflowError
-    assert gate.counters['rejected_jumps'] == 1
+    assert gate.on_waypoint(0.1, (0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 0.0))                    # no OverflowError
+    inputs, key, _ = gate.check(0.1)
+    assert key == contract.LIMITING and gate.envelope.inside(inputs.waypoint, gate.centre)
 
 
 @fuzz(max(10, EXAMPLES // 5))

@@ -66,14 +66,16 @@ def test_tracking_defaults_are_the_constructor_defaults():
     assert tr.gate.waypoint_timeout == DEFAULTS['waypoint_timeout']
     assert tr.twist_in_child_frame == DEFAULTS['twist_in_child_frame']
     assert tr.cum_reset_distance == DEFAULTS['cum_reset_distance']
-    assert all(tr.gate.limits.as_dict()[k] == DEFAULTS[k] for k in LIMIT_DEFAULTS)
+    assert all(tr.gate.envelope.as_dict()[k] == DEFAULTS[k] for k in LIMIT_DEFAULTS)
     assert MpcTracking.RATE == DEFAULTS['rate'] == pytest.approx(1.0 / DEFAULT_PARAMS['dt'])
     assert tr.config() == dict((k, _yaml()[k]) for k in RECONFIGURABLE)
 
 
-def test_waypoint_limits_are_the_same_in_both_controller_yamls_and_the_code():
+def test_the_flight_envelope_is_the_same_in_every_controller_yaml_and_the_code():
     with open(os.path.join(ROOT, 'anafi_sim', 'config', 'pid.yaml')) as f:
         pid = yaml.safe_load(f)
+    with open(os.path.join(ROOT, 'anafi_sim', 'config', 'preview_mpc.yaml')) as f:
+        preview = yaml.safe_load(f)
     data = _yaml()
     for key, value in LIMIT_DEFAULTS.items():
-        assert data[key] == pid[key] == value == DEFAULTS[key], key
+        assert data[key] == pid[key] == preview[key] == value == DEFAULTS[key], key

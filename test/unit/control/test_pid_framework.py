@@ -52,7 +52,7 @@ def test_yaml_matches_default_config():
     with open(os.path.join(ROOT, 'anafi_sim', 'config', 'pid.yaml')) as f:
         data = yaml.safe_load(f)
     limits = dict((k, data.pop(k)) for k in LIMIT_DEFAULTS if k in data)
-    assert limits == dict(LIMIT_DEFAULTS)      # the waypoint limits (contract.WaypointLimits), = the code defaults
+    assert limits == dict(LIMIT_DEFAULTS)      # the flight envelope (anafi_control.envelope), = the code defaults
     assert sorted(data) == sorted(LOOP_NAMES)
     for loop in LOOP_NAMES:
         assert sorted(data[loop]) == sorted(DEFAULT_CONFIG[loop])

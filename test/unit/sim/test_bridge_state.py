@@ -174,3 +174,10 @@ def test_settings_are_checked():
         BridgeStateAssembler(world_yaw=float('nan'))
     with pytest.raises(ValueError):
         BridgeStateAssembler(source='state_enu').on_pose(1.0, (0, 0, 0), (0, 0, 0, 1), 1.0)
+
+
+def test_topic_names_as_the_real_bridges_have_them():
+    from anafi_sim import names
+    assert (names.STATE_ENU, names.POSE_ENU, names.SPEED) == (
+        'position_control/state_enu', 'drone/pose_enu', 'drone/speed')
+    assert names.CAMERA_BASE_ATTITUDE == 'camera/base/attitude'

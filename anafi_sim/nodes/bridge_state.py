@@ -47,6 +47,7 @@ class BridgeStateNode(object):
         self.frame_id = p.string('frame_id', 'world', allow_empty=False)
         self.child_frame_id = p.string('child_frame_id', '%s/base_link' % self.drone, allow_empty=False)
         self.lock = threading.Lock()
+        self.refused = 0
         self.pub = rospy.Publisher(p.ros_name('odom_topic', names.ESTIMATE), Odometry, queue_size=10)
         self.pub_diag = diagnostics_publisher(queue_size=5)
         if self.core.source == 'state_enu':
@@ -82,6 +83,12 @@ class BridgeStateNode(object):
         self._publish(states)
 
     def _publish(self, states):
+        refused = self.core.counters['refused']
+        if refused != self.refused:
+            self.refused = refused
+            rospy.logwarn_throttle(5.0, '%s: refused %d messages so far (%s)' % (
+                rospy.get_name(), refused, ', '.join('%s %d' % (k, v) for k, v in self.core.counters.items()
+                                                     if k not in ('states', 'refused') and v)))
         for s in states:
             msg = Odometry()
             msg.header.stamp = rospy.Time.from_sec(s.stamp)

@@ -8,6 +8,7 @@ controller its first waypoint: until then it has none and sends no command) only
   remote first);
 - the first waypoint is within reach: at most ``max_reach`` [m] from the drone's position.
 
+``state_from`` (text) names where drone/odom comes from (the bridge topics), in the waiting line.
 ``check(now)`` returns (ready, waiting): the list of what is still missing, one clause each, for the one
 line the node logs while it waits.
 """
@@ -25,7 +26,8 @@ FLYING = 'flying'
 class PreflightCheck(object):
     """Go / wait for a first waypoint (x, y, z) [m], world ENU."""
 
-    def __init__(self, first_waypoint, max_reach=DEFAULTS['max_reach'], state_timeout=DEFAULTS['state_timeout']):
+    def __init__(self, first_waypoint, max_reach=DEFAULTS['max_reach'], state_timeout=DEFAULTS['state_timeout'],
+                 state_from=''):
         for name, value in (('max_reach', max_reach), ('state_timeout', state_timeout)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
                 raise ValueError('%s must be a finite number > 0, got %r' % (name, value))
@@ -35,6 +37,7 @@ class PreflightCheck(object):
             raise ValueError('first waypoint must be 3 numbers, got %r' % (first_waypoint,))
         if len(self.first) != 3 or not all(math.isfinite(v) for v in self.first):
             raise ValueError('first waypoint must be 3 finite numbers, got %r' % (first_waypoint,))
+        self.state_from = str(state_from)   # where drone/odom comes from, named while it is missing
         self.max_reach = float(max_reach)
         self.state_timeout = float(state_timeout)
         self.state_time = None
@@ -66,9 +69,11 @@ class PreflightCheck(object):
     def check(self, now):
         waiting = []
         if self.state_time is None:
-            waiting.append('a state on drone/odom (none yet)')
+            waiting.append('a state on drone/odom (none yet%s)' % (
+                '; from %s' % self.state_from if self.state_from else ''))
         elif now - self.state_time > self.state_timeout:
-            waiting.append('a fresh state on drone/odom (last %.1f s ago)' % (now - self.state_time))
+            waiting.append('a fresh state on drone/odom (last %.1f s ago%s)' % (
+                now - self.state_time, '; from %s' % self.state_from if self.state_from else ''))
         if self.drone_state != FLYING:
             waiting.append('drone/state %s (now %s)' % (FLYING, self.drone_state or 'not heard'))
         d = self.distance()

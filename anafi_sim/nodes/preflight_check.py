@@ -6,7 +6,7 @@ anafi_sim.mission.preflight.PreflightCheck. Topics relative to the node's namesp
 
 - in ~state_topic (drone/odom, nav_msgs/Odometry: bridge_state.py's), drone/state (std_msgs/String);
 - out ~start_topic (trajectory_generator/command, std_msgs/String, latched): 'start' once the state is
-  fresh (within ~state_timeout s), drone/state is flying and the scenario's first waypoint (~scenario or
+  fresh (within ~state_timeout s; ~state_from: where it comes from, named while it is missing), drone/state is flying and the scenario's first waypoint (~scenario or
   ~scenario_file, as the generator) is within ~max_reach m of the drone. Until then the generator publishes
   no waypoint, so the controller sends no command; every ~log_period s (wall, 2.0) one line says what it
   waits for.
@@ -34,7 +34,8 @@ class PreflightCheckNode(object):
         scenario = load_scenario(scenario_file or p.string('scenario', 'circle_r2_v1', allow_empty=False))
         first = scenario.waypoint(0.0)[:3]
         self.core = PreflightCheck(first, max_reach=p.positive('max_reach', DEFAULTS['max_reach']),
-                                   state_timeout=p.positive('state_timeout', DEFAULTS['state_timeout']))
+                                   state_timeout=p.positive('state_timeout', DEFAULTS['state_timeout']),
+                                   state_from=p.string('state_from', ''))
         self.log_period = p.positive('log_period', 2.0)
         self.started = False
         self.aborted = False

@@ -41,3 +41,9 @@ def test_settings_are_checked(kwargs):
     args.update(kwargs)
     with pytest.raises(ValueError):
         PreflightCheck(**args)
+
+
+def test_the_waiting_line_names_the_state_source():
+    c = PreflightCheck((0.0, 0.0, 1.0), state_from='/anafi/position_control/state_enu (bridge_state.py)')
+    assert c.check(0.0)[1][0] == 'a state on drone/odom (none yet; from /anafi/position_control/state_enu ' \
+                                 '(bridge_state.py))'

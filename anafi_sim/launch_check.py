@@ -185,7 +185,7 @@ RULES = {
     'ready_timeout': positive, 'mirror_rate': positive, 'drones': drones, 'max_drones': max_drones,
     'layout': layout,
     'fence_radius': positive, 'fence_min_altitude': finite, 'fence_max_altitude': finite,
-    'max_reach': optional_positive, 'source': state_source, 'world_yaw': finite,
+    'max_reach': optional_positive, 'bridge_only': flag, 'source': state_source, 'world_yaw': finite,
 }
 
 

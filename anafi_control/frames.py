@@ -69,6 +69,17 @@ def nwu_from_enu(q):
     return quaternion_multiply((-x, -y, -z, w), q)
 
 
+def enu_from_nwu_vector(v):
+    """A vector (x, y, z) in a north-west-up world frame (the bridge's drone/speed) in ENU instead."""
+    return (-float(v[1]), float(v[0]), float(v[2]))
+
+
+def nwu_from_enu_vector(v):
+    """A vector (x, y, z) in the ENU world frame in north-west-up instead (what the bridge publishes on
+    drone/speed: (north, -east, -down) of the firmware's NED speed)."""
+    return (float(v[1]), -float(v[0]), float(v[2]))
+
+
 def yaw_from_quaternion(x, y, z, w):
     """Heading [rad] of a quaternion (x, y, z, w)."""
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))

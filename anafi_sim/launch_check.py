@@ -55,6 +55,18 @@ def port(value):
     return None
 
 
+def finite(value):
+    return None if _number(value) is not None else 'must be a finite number'
+
+
+def optional_positive(value):
+    return None if value.strip() == '' else positive(value)
+
+
+def state_source(value):
+    return None if value in ('state_enu', 'pose_speed') else 'must be state_enu or pose_speed'
+
+
 def base_name(value):
     return None if _BASE_NAME.match(value) else 'must be a ROS base name (a letter, then letters, digits, _)'
 
@@ -320,6 +332,8 @@ RULES = {
     'sync_period': positive, 'sync_timeout': positive, 'progress_period': non_negative,
     'ready_timeout': positive, 'mirror_rate': positive, 'drones': drones, 'max_drones': max_drones,
     'layout': layout,
+    'fence_radius': positive, 'fence_min_altitude': finite, 'fence_max_altitude': finite,
+    'max_reach': optional_positive, 'bridge_only': flag, 'source': state_source, 'world_yaw': finite,
 }
 
 
@@ -346,6 +360,10 @@ def check(args, cap_cache=None):
                                          cap=machine_cap(layout, cache_path=cap_cache))
         if problem:
             errors.append('launch argument %s:=%s: %s' % (name, value, problem))
+    low, high = _number(given.get('fence_min_altitude', '')), _number(given.get('fence_max_altitude', ''))
+    if low is not None and high is not None and not low < high:
+        errors.append('launch argument fence_max_altitude:=%s: must be above fence_min_altitude:=%s'
+                      % (given['fence_max_altitude'], given['fence_min_altitude']))
     return errors
 
 

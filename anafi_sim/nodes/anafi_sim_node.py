@@ -12,13 +12,15 @@ topics are put under /<~drone_name>/). Subscribes: drone/rpyt
 (olympe_bridge/PilotingCommand), drone/takeoff, drone/land (std_msgs/Empty).
 Publishes: drone/odom (nav_msgs/Odometry of the estimate, world ->
 <drone>/base_link, twist in the child frame; angular twist not estimated:
-zero), drone/pose_enu, drone/attitude, drone/speed (world ENU), drone/altitude,
-drone/rpy (deg), camera/attitude and camera/base_attitude (as the real bridge: frame_id "/body",
+zero), drone/pose_enu (ENU), drone/attitude and drone/speed (as the real bridge: frame_id "/world",
+north-west-up referenced), drone/altitude,
+drone/rpy (deg), camera/attitude and camera/base/attitude (as the real bridge: frame_id "/body",
 north-west-up referenced, anafi_sim.sim.bridge), drone/state (latched), sim/truth (ground
 truth Odometry stamped at its sample's time), /diagnostics (1 Hz wall),
 /clock when ~publish_clock; with ~publish_state_enu (true) also position_control/state_enu
 (anafi_control/State, the reference implementation's bridge fork: frame ids "/world",
-pose = drone/pose_enu, twist.linear = drone/speed, twist.angular = 0; wire-identical class from anafi_sim.ros.wire_types).
+pose = drone/pose_enu, twist.linear = the ENU velocity (drone/speed turned to east, north, up), twist.angular = 0;
+wire-identical class from anafi_sim.ros.wire_types).
 Sets ~telemetry_bound_port (the port it serves on: ~telemetry_port, or a free one for 0) and
 ~telemetry_stream_id (a new random id per start, printed in every telemetry sample) for the interface (its
 ~simulator_node). Parameters: see anafi_sim/config/sim.yaml; the
@@ -50,7 +52,7 @@ from anafi_sim.ros.context import NodeContext
 from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publisher, private_params, run_node,
                                 start_diagnostics_thread)
 from anafi_sim.ros.wire_types import paper_state_class, piloting_command_class
-from anafi_sim.sim.bridge import CAMERA_FRAME_ID, MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
+from anafi_sim.sim.bridge import CAMERA_FRAME_ID, WORLD_FRAME_ID, MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.sim.clock import SYNC_DEFAULTS, Lockstep, SimClock, StartHold
 from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
 from anafi_sim.sim.simulator import SimulatedAnafi
@@ -59,8 +61,6 @@ from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, new_stream_id
 from anafi_sim.telemetry.server import TelemetryServer
 
 
-STATE_ENU_FRAME_ID = '/world'
-"""frame_id of every header in position_control/state_enu, as the reference implementation's bridge sets it."""
 
 FIRST_TICK_HOLD = 1.0
 """s of wall time the lockstep holds the first step's /clock tick: nodes that wait for /clock to start
@@ -232,11 +232,12 @@ class AnafiSimNode(object):
             odom.twist.twist = conversions.twist(e.body_velocity, (0.0, 0.0, 0.0))
             self.pub_odom.publish(odom)
         if wanted(self.pub_pose):
-            self.pub_pose.publish(self._header(PoseStamped(pose=pose), stamp))
+            self.pub_pose.publish(self._header(PoseStamped(pose=pose), stamp, WORLD_FRAME_ID))
         if wanted(self.pub_attitude):
-            self.pub_attitude.publish(self._header(QuaternionStamped(quaternion=pose.orientation), stamp))
+            self.pub_attitude.publish(self._header(QuaternionStamped(quaternion=Quaternion(*e.attitude_nwu)), stamp,
+                                                   WORLD_FRAME_ID))
         if wanted(self.pub_speed):
-            self.pub_speed.publish(self._header(Vector3Stamped(vector=Vector3(*e.velocity)), stamp))
+            self.pub_speed.publish(self._header(Vector3Stamped(vector=Vector3(*e.speed_nwu)), stamp, WORLD_FRAME_ID))
         if wanted(self.pub_altitude):
             self.pub_altitude.publish(Float32(e.position[2]))
         if wanted(self.pub_rpy):
@@ -252,12 +253,12 @@ class AnafiSimNode(object):
 
     def _state_enu(self, pose, velocity, stamp):
         """anafi_control/State as the reference implementation's bridge fills it: frame ids "/world", pose =
-        drone/pose_enu, twist.linear = drone/speed (ENU), twist.angular = 0."""
+        drone/pose_enu, twist.linear = the velocity (east, north, up), twist.angular = 0."""
         msg = self.State()
         for header in (msg.header, msg.pose.header, msg.twist.header, msg.twist.twist.linear.header,
                        msg.twist.twist.angular.header):
             header.stamp = stamp
-            header.frame_id = STATE_ENU_FRAME_ID
+            header.frame_id = WORLD_FRAME_ID
         msg.pose.pose = pose
         v = msg.twist.twist.linear.vector
         v.x, v.y, v.z = velocity

@@ -11,9 +11,12 @@ bridge negates the ROS yaw rate, so a positive ROS yaw rate turns
 counter-clockwise), gaz + = climb.
 
 ``bridge_estimate``: the numbers of the bridge's estimate topics (drone/odom, drone/rpy, camera/attitude,
-...) from the drone's own estimate.
+...) from the drone's own estimate. drone/speed and drone/attitude as the real bridge has them (both bridges,
+from the video metadata's NED values): frame_id "/world", referenced to north-west-up: the speed is
+(north, -east, -down), the attitude (x, -y, -z, w) of the NED quaternion; drone/pose_enu and
+position_control/state_enu (the authors' fork) are ENU.
 
-Camera attitude (camera/attitude, camera/base_attitude; README, "The camera attitude"): anafi_ros builds it
+Camera attitude (camera/attitude, camera/base/attitude; README, "The camera attitude"): anafi_ros builds it
 from the video metadata's frame view quaternion (Olympe's camera.quat; camera.base_quat without the user's
 tilt), which Parrot's metadata format defines in the local north-east-down frame, like the drone's own
 quaternion: the camera's attitude in the world, heading included (the Anafi's gimbal has no yaw axis).
@@ -28,15 +31,21 @@ import math
 from anafi_control import frames
 
 BridgeEstimate = collections.namedtuple('BridgeEstimate', 'position orientation body_velocity velocity rpy_deg '
-                                                         'camera_orientation camera_base_orientation')
+                                                         'camera_orientation camera_base_orientation '
+                                                         'speed_nwu attitude_nwu')
 """What the bridge publishes of the drone's estimate: position (x, y, z) [m] and velocity [m/s] world ENU,
 orientation quaternion (x, y, z, w), body_velocity [m/s] FLU (drone/odom's twist), rpy_deg (roll, pitch,
 yaw) [deg] (drone/rpy), camera_orientation: the camera's attitude (gimbal pitch command, the drone's
 yaw) as the real bridge publishes it on camera/attitude (``camera_attitude``: north-west-up referenced),
-camera_base_orientation: the same without the gimbal's tilt (camera/base_attitude)."""
+camera_base_orientation: the same without the gimbal's tilt (camera/base/attitude), speed_nwu: the velocity
+(north, west, up) [m/s] (drone/speed), attitude_nwu: the orientation referenced to north-west-up
+(drone/attitude)."""
 
 CAMERA_FRAME_ID = '/body'
-"""header.frame_id of the real bridge's camera/attitude and camera/base_attitude (a misnomer, see above)."""
+"""header.frame_id of the real bridge's camera/attitude and camera/base/attitude (a misnomer, see above)."""
+
+WORLD_FRAME_ID = '/world'
+"""header.frame_id of the real bridge's drone/speed, drone/attitude, drone/pose_enu and state_enu."""
 
 # Firmware settings used by the paper (Table 1).
 MAX_TILT_DEG = math.degrees(math.asin(5.0 / 9.81))   # 30.64 deg
@@ -104,7 +113,9 @@ def bridge_estimate(values, gimbal_pitch):
     """BridgeEstimate of the estimate's ``values`` (x, y, z, vx, vy, vz, roll, pitch, yaw) and the gimbal
     pitch command [rad]."""
     x, y, z, vx, vy, vz, roll, pitch, yaw = values
-    return BridgeEstimate((x, y, z), frames.euler_to_quaternion(roll, pitch, yaw),
+    orientation = frames.euler_to_quaternion(roll, pitch, yaw)
+    return BridgeEstimate((x, y, z), orientation,
                           frames.world_to_body(roll, pitch, yaw, (vx, vy, vz)), (vx, vy, vz),
                           (math.degrees(roll), math.degrees(pitch), math.degrees(yaw)),
-                          camera_attitude(0.0, gimbal_pitch, yaw), camera_attitude(0.0, 0.0, yaw))
+                          camera_attitude(0.0, gimbal_pitch, yaw), camera_attitude(0.0, 0.0, yaw),
+                          frames.nwu_from_enu_vector((vx, vy, vz)), frames.nwu_from_enu(orientation))

@@ -9,7 +9,7 @@ connection that works here works with their packages. Checks, in order:
 1. names and types: position_control/state_enu is anafi_control/State, position_control/waypoint (our
    trajectory generator with ~waypoint_type anafi_control) is anafi_control/Waypoint and both connect to
    their classes; state_enu as their bridge fork fills it (frame ids "/world", pose = drone/pose_enu of the
-   same step, twist.linear = drone/speed, angular 0); /<drone>/sphinx_interface_node/publish_hz = 100;
+   same step, twist.linear = drone/speed (north-west-up) in ENU, angular 0); /<drone>/sphinx_interface_node/publish_hz = 100;
 2. their MPC (a P controller on state_enu and their waypoint, commanding drone/rpyt with header.stamp 0 at
    10 Hz wall, /use_sim_time false) flies the drone to the waypoint: the lockstep takes the unstamped
    commands at their arrival and says so on /diagnostics;
@@ -239,7 +239,9 @@ class TestCompat(unittest.TestCase):
             speed = self.latest.speed_by_stamp.get(s.header.stamp)
         self.assertIsNotNone(speed, 'no drone/speed of the same step as state_enu')
         v = s.twist.twist.linear.vector
-        self.assertEqual((v.x, v.y, v.z), (speed.vector.x, speed.vector.y, speed.vector.z))
+        # drone/speed is north-west-up as on the real bridge; state_enu's twist the same velocity in ENU
+        self.assertEqual(speed.header.frame_id, '/world')
+        self.assertEqual((v.x, v.y, v.z), (-speed.vector.y, speed.vector.x, speed.vector.z))
 
     def test_2_their_mpc_flies_in_lockstep_on_unstamped_commands(self):
         x, y, z, yaw = WAYPOINT

@@ -57,9 +57,12 @@ def quaternion(m):
 
 
 def angle_deg(a, b):
-    """Angle [deg] of the rotation between two rotation matrices."""
-    c = (np.trace(a.T.dot(b)) - 1.0) / 2.0
-    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+    """Angle [deg] of the rotation between two rotation matrices (atan2 of the sine and cosine parts: exact
+    near 0, where acos of the trace alone loses half the float precision)."""
+    r = a.T.dot(b)
+    c = (np.trace(r) - 1.0) / 2.0
+    s = 0.5 * math.sqrt((r[2, 1] - r[1, 2]) ** 2 + (r[0, 2] - r[2, 0]) ** 2 + (r[1, 0] - r[0, 1]) ** 2)
+    return math.degrees(math.atan2(s, c))
 
 
 def expected_camera(yaw_enu, tilt_down):

@@ -26,6 +26,8 @@ def test_the_launch_files_defaults_pass():
     ('drone_name=1drone', ['drone_name']), ('initial_x=1e999', ['initial_x']), ('controller=lqr', ['controller']),
     ('model_file=nope.yaml', ['model_file', 'anafi_model.yaml']), ('model_file=../sim.yaml', ['model_file']),
     ('use_sim_time=yes', ['use_sim_time']), ('scenario_file=/no/such.yaml', ['scenario_file']),
+    ('fence_radius=0', ['fence_radius']), ('fence_min_altitude=low', ['fence_min_altitude']),
+    ('max_reach=-2', ['max_reach']), ('source=odom', ['source', 'state_enu']), ('world_yaw=inf', ['world_yaw']),
 ])
 def test_a_bad_argument_is_one_line_naming_it(arg, words):
     [line] = check(parse([arg]))
@@ -177,3 +179,9 @@ def test_the_fleet_size_is_checked_against_the_layout_given(tmp_path, monkeypatc
     assert 'fleet cap of 10' in line
     [line] = launch_check.check([('layout', 'pooled')])
     assert 'must be per_drone or shared' in line
+
+
+def test_the_fence_altitudes_must_be_in_order():
+    assert check(parse(['fence_radius=5', 'fence_min_altitude=1', 'fence_max_altitude=4', 'max_reach='])) == []
+    [line] = check(parse(['fence_min_altitude=4', 'fence_max_altitude=1']))
+    assert 'fence_max_altitude:=1' in line and 'above' in line

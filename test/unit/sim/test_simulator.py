@@ -93,6 +93,11 @@ def test_bridge_estimate_numbers():
     camera = frames.euler_to_quaternion(0.0, -0.3, math.pi / 2)
     assert frames.enu_from_nwu(e.camera_orientation) == pytest.approx(camera)
     assert frames.enu_from_nwu(e.camera_base_orientation) == pytest.approx(frames.euler_to_quaternion(0, 0, math.pi / 2))
+    # drone/speed and drone/attitude as the real bridge: north-west-up; flying east = north 0, west -1
+    assert e.speed_nwu == (0.0, -1.0, 0.5)
+    assert frames.enu_from_nwu(e.attitude_nwu) == pytest.approx(e.orientation)
+    # heading north (ENU yaw 90 deg) is yaw 0 in NWU
+    assert frames.yaw_from_quaternion(*e.attitude_nwu) == pytest.approx(0.0, abs=1e-12)
 
 
 def test_health_values_and_warnings():

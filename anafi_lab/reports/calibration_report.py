@@ -209,8 +209,15 @@ EARTH_RADIUS = 6378137.0                  # m, WGS-84 equatorial: the length of 
 TABLE3_TOLERANCE = 0.01                   # m, the paper's last digit: a cell matches within half a unit more
 
 
+STORED_DIGITS = 10
+"""Significant digits of a float in the contexts (and so in benchmarks/results/calibration.yaml): more than the texts
+print, fewer than the float noise of the fits reaches (last bits that move with the BLAS kernel and the summation
+order), so that a calibration regenerates the stored file byte for byte."""
+
+
 def _plain(value):
-    """``value`` as YAML-safe data: namedtuples and dicts as dicts, tuples as lists, numpy scalars as Python."""
+    """``value`` as YAML-safe data: namedtuples and dicts as dicts, tuples as lists, numpy scalars as Python, floats
+    rounded to ``STORED_DIGITS`` significant digits."""
     if hasattr(value, '_asdict'):
         value = value._asdict()
     if isinstance(value, dict):
@@ -222,7 +229,7 @@ def _plain(value):
     if isinstance(value, (int, np.integer)):
         return int(value)
     if isinstance(value, (float, np.floating)):
-        return float(value)
+        return float('%.*g' % (STORED_DIGITS, value))
     return value
 
 

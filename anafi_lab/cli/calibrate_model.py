@@ -91,7 +91,7 @@ def compare_with_committed(args):
     lines = []
     for option, _, _ in OUTPUTS:
         path, original = getattr(args, option), committed(option)
-        if not path or os.path.dirname(os.path.abspath(path)) != args.run_dir:
+        if not path or os.path.dirname(os.path.abspath(path)) != args.run_dir or not os.path.isfile(path):
             continue
         same = os.path.isfile(original) and filecmp.cmp(path, original, shallow=False)
         lines.append('%s %s' % ('same as   ' if same else 'DIFFERS from', os.path.relpath(original, paths.checkout())))

@@ -3,7 +3,7 @@
 # Every Python package below the three roots is shipped: anafi_sim with its stage subpackages
 # (sim, telemetry, interface, gazebo, mission, ros), anafi_control and anafi_lab (engine, calibration,
 # fidelity, reports, cli). Data files
-# (anafi_sim/{config,launch,urdf}) are not Python packages: CMakeLists.txt installs them under
+# (anafi_sim/{config,data,launch,urdf}) are not Python packages: CMakeLists.txt installs them under
 # share/anafi_sim/anafi_sim, where anafi_sim/paths.py finds them.
 import os
 

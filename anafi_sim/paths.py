@@ -2,7 +2,7 @@
 
 ``package_dir()`` is the folder that holds ``package.xml``: the source tree (devel space) or
 ``<install>/share/anafi_sim`` (install space, where CMakeLists.txt installs ``anafi_sim/config``,
-``launch`` and ``urdf`` under the same relative paths). Without a ROS environment (plain pytest on a
+``data``, ``launch`` and ``urdf`` under the same relative paths). Without a ROS environment (plain pytest on a
 checkout) it falls back to the checkout this module was imported from.
 """
 import functools
@@ -42,6 +42,7 @@ def checkout():
     return os.path.dirname(os.path.realpath(os.path.join(package_dir(), 'package.xml')))
 
 
-def reference_logs_dir():
-    """``<checkout>/../shared/reference_logs``: the shared Sphinx logs beside the checkout (may not exist)."""
-    return os.path.join(os.path.dirname(checkout()), 'shared', 'reference_logs')
+def reference_logs_dir(*parts):
+    """``anafi_sim/data/reference_logs``: the paper's reference logs shipped with the package (its README says
+    where they come from): the 14 Sphinx runs, ``reference_logs_dir('real')`` the four real flights."""
+    return data_path('data', 'reference_logs', *parts)

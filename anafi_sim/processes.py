@@ -13,7 +13,7 @@ ROS batch, tools/demo.sh, the rostests and the benchmarks; no core module import
   free port that is proven to be ours), ``private_master`` (the same with its processes' environment);
 - CPU accounting: ``cpu_seconds`` of a process, ``cpu_snapshot`` / ``cpu_delta`` of named pids,
   ``TreeCpu`` of a process tree over a window, ``CpuWindow`` (trees + load + machine busy share),
-  ``machine_busy``, ``cpu_model``.
+  ``machine_busy``, ``cpu_model``, ``machine`` (the line a result names its machine and load with).
 
 psutil is optional: without it the descendants are not collected (only the process group is
 signalled) and the CPU figures are NaN / unavailable.
@@ -343,6 +343,22 @@ def cpu_model():
     except IOError:
         pass
     return platform.processor() or 'unknown'
+
+
+def load_average():
+    """The 1-min load average of the machine (NaN where the OS does not tell)."""
+    try:
+        return os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return float('nan')
+
+
+def machine(load=None):
+    """The machine a figure was measured on, for result pages: '<CPU model> (<arch>), <n> cores, load <L>,
+    Python <version>'; ``load``: the 1-min load average when the measurement started (default: now)."""
+    load = load_average() if load is None else load
+    return '%s (%s), %d cores, load %.1f, Python %s' % (cpu_model(), platform.machine(), os.cpu_count() or 0, load,
+                                                         platform.python_version())
 
 
 def cpu_seconds(pid):

@@ -29,7 +29,6 @@ import csv
 import datetime
 import filecmp
 import os
-import platform
 import pstats
 import shutil
 import sys
@@ -39,7 +38,7 @@ import time
 from anafi_sim.run_files import read_yaml, write_yaml
 
 import bench_sync
-from anafi_sim import paths
+from anafi_sim import paths, processes
 from anafi_lab.engine import runs, sweep
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, Engine
@@ -223,7 +222,7 @@ def header():
              '`anafi_lab/engine/engine.py` (one process per run, virtual time, the cores the ROS nodes run, '
              'on the ROS graph\'s schedule: `DEFAULT_SCHEDULE`); command line `anafi_lab/cli/experiment.py` '
              '(`run`, `batch`, `sweep`); `make bench` runs the batch, `make bench-ros` the ROS batch.' % (
-                 '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0, platform.python_version())), '']
+                 processes.machine()), '']
 
 
 def batch_section(b):

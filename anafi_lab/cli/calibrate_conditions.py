@@ -3,7 +3,7 @@
 
 Usage: calibrate_conditions.py [--logs DIR] [--profile YAML] [--report MD] [--fidelity MD] [--store YAML]
                                [--render-only] [--seeds N] [--workers N]
-Defaults (paths of the package's checkout): logs <checkout>/../shared/reference_logs/real, profile
+Defaults (paths of the package's checkout): logs anafi_sim/data/reference_logs/real (shipped), profile
 anafi_sim/config/conditions/real_flights.yaml, report docs/calibration.md (its "Real flights" section is
 replaced; calibrate_model.py keeps it when it rewrites the file), fidelity docs/fidelity.md (its real-flights
 replay section, kept by anafi_lab/cli/measure_fidelity.py). The method is
@@ -28,9 +28,9 @@ COMMAND = 'anafi_lab/cli/calibrate_conditions.py'
 def parse_args(argv):
     root = paths.checkout()
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    parser.add_argument('--logs', default=os.path.join(paths.reference_logs_dir(), 'real'),
-                        help='directory with the real-flight log CSVs (default: <checkout>/../shared/'
-                             'reference_logs/real)')
+    parser.add_argument('--logs', default=paths.reference_logs_dir('real'),
+                        help='directory with the real-flight log CSVs (default: the shipped ones, '
+                             'anafi_sim/data/reference_logs/real)')
     parser.add_argument('--profile', default=os.path.join(root, 'anafi_sim', 'config', 'conditions',
                                                           'real_flights.yaml'),
                         help='conditions profile YAML to write ("" to skip)')

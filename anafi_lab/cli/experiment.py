@@ -152,13 +152,19 @@ def _selection(text, groups, known, what):
     return out
 
 
+def command_line(argv=None):
+    """This command as the reports quote it: paths below the checkout relative to it."""
+    root = paths.checkout() + os.sep
+    return 'anafi_lab/cli/experiment.py ' + ' '.join(a.replace(root, '') for a in (argv or sys.argv[1:]))
+
+
 def cmd_batch(args):
     scenarios = _selection(args.scenarios, GROUPS, set(list_scenarios()), 'scenario')
     controllers = _selection(args.controllers or BATCH_CONTROLLERS[args.engine], {}, set(report.KNOWN_CONTROLLERS),
                              'controller')
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
-    command = 'anafi_lab/cli/experiment.py ' + ' '.join(sys.argv[1:])
+    command = command_line()
     if args.engine == 'ros':
         if args.conditions:
             raise ValueError('--conditions is for the in-process batch (roslaunch anafi_sim experiment.launch '
@@ -189,7 +195,7 @@ def cmd_sweep(args):
     spec = load_spec(args.spec)
     if args.conditions:
         spec['conditions'] = args.conditions
-    command = 'anafi_lab/cli/experiment.py ' + ' '.join(sys.argv[1:])
+    command = command_line()
     table, out_paths, meta = run_sweep(spec, args.out, workers=args.workers, scheduler=args.scheduler,
                                        command=command, plot=not args.no_plot)
     ok = sum(1 for r in table if r['ok'])

@@ -1,13 +1,13 @@
 #!/usr/bin/env python3
-"""Fidelity of the stand-in against the shared Sphinx logs: closed-loop replays -> docs/fidelity.md and
-docs/fidelity/*.png (the cores are anafi_lab/fidelity/, the report anafi_lab/reports/fidelity_report.py and its
-template; this script only wires them to files).
+"""Fidelity of the stand-in against the Sphinx reference logs (shipped: anafi_sim/data/reference_logs): closed-loop
+replays -> docs/fidelity.md and docs/fidelity/*.png (the cores are anafi_lab/fidelity/, the report
+anafi_lab/reports/fidelity_report.py and its template; this script only wires them to files).
 
 Stage: benchmark (not a test; the regression guard is test/unit/lab/test_fidelity.py). Steps (``--steps``,
 default all; measured figures are kept in benchmarks/results/fidelity.yaml (``--store``) so that a step can be
 rerun alone and the report re-rendered: ``--steps ,`` measures nothing and re-renders the report from it):
 
-- ``replay``: every shared log replayed in closed loop by its controller on the in-process engine with the
+- ``replay``: every reference log replayed in closed loop by its controller on the in-process engine with the
   model effects OFF (anafi_sim/config/anafi_model.yaml with every effect key off) and ON
   (anafi_sim/config/anafi_model_fitted.yaml, or the calibration's fitted dict when that file is missing),
   and for the MPC logs with the MPC's ``paper_timing`` true as well (when mpc.yaml knows the key); one
@@ -28,9 +28,9 @@ rerun alone and the report re-rendered: ``--steps ,`` measures nothing and re-re
 - ``self_replay``: the replay method on the stand-in's own runs of every paper scenario (``variants.self_replay_runs``):
   recorded as the paper's logger recorded Sphinx, replayed, compared (ratio 1 = the method adds nothing).
 
-Logs of other scenarios (e.g. Sphinx's runs of Tables 4 and 5, in the shared logs' format, named
+Logs of other scenarios (e.g. Sphinx's runs of Tables 4 and 5, in the reference logs' format, named
 ``<scenario>_<pid|mpc>.csv``) are replayed alike: ``--logs DIR --steps replay`` (with ``--out`` / ``--figures`` /
-``--store`` elsewhere); the models are calibrated on ``--calibration-logs`` (default the shared logs) whatever
+``--store`` elsewhere); the models are calibrated on ``--calibration-logs`` (default the shipped logs) whatever
 ``--logs`` is.
 
     python anafi_lab/cli/measure_fidelity.py [--steps replay,...,self_replay] [--workers 2]
@@ -39,13 +39,12 @@ import argparse
 import collections
 import datetime
 import os
-import platform
 import sys
 import time
 
 import yaml
 
-from anafi_sim import paths, run_files
+from anafi_sim import paths, processes, run_files
 from anafi_lab.calibration import conditions, estimate, fit
 from anafi_lab.fidelity import replay as F
 from anafi_lab.fidelity import held_out as H
@@ -65,9 +64,10 @@ def parse_args(argv):
     root = paths.checkout()
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--logs', default=paths.reference_logs_dir(),
-                        help='directory with the reference-log CSVs (default: <checkout>/../shared/reference_logs)')
+                        help='directory with the reference-log CSVs (default: the shipped ones, '
+                             'anafi_sim/data/reference_logs)')
     parser.add_argument('--calibration-logs', default=paths.reference_logs_dir(),
-                        help='directory of the logs the models are calibrated on (default: the shared logs)')
+                        help='directory of the logs the models are calibrated on (default: the shipped reference logs)')
     parser.add_argument('--out', default=os.path.join(root, 'docs', 'fidelity.md'), help='Markdown report')
     parser.add_argument('--figures', default=os.path.join(root, 'docs', 'fidelity'),
                         help='directory of the figures (one PNG per log)')
@@ -269,6 +269,7 @@ def main(argv=None):
     measured = measured._replace(walls=dict((k, v) for k, v in measured.walls.items() if k in STEPS))
     plan = plan_steps(args, off, on, shipped_model, timing)
     prune(measured, plan, off, on)
+    load = processes.load_average()      # the machine's load before the steps
     t0 = time.perf_counter()
     for step in args.steps:
         t = time.perf_counter()
@@ -278,8 +279,7 @@ def main(argv=None):
         meta = collections.OrderedDict([
             ('command', (COMMAND + ' ' + ' '.join(argv)).rstrip()),
             ('date', datetime.datetime.now().strftime('%Y-%m-%d %H:%M')),
-            ('machine', '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0,
-                                                    platform.python_version())),
+            ('machine', processes.machine(load)),
             ('shipped_model', shipped), ('fitted_model', how), ('paper_timing_supported', timing),
             ('wall_s', round(time.perf_counter() - t0, 1))])
         measured = measured._replace(meta=dict(meta), fitted=dict(on))

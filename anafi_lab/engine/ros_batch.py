@@ -21,7 +21,6 @@ Exit code 0 when every run produced a final summary, 1 otherwise.
 import argparse
 import datetime
 import os
-import platform
 import sys
 import time
 
@@ -271,6 +270,7 @@ def main(argv=None):
     todo = [(s, c, 1, []) for s in args.scenario_list for c in args.controller_list]
     print('%d runs (%s x %s), rtf %g, runs in %s' % (len(todo), len(args.scenario_list),
                                                     ','.join(args.controller_list), args.rtf, runs_dir))
+    load = processes.load_average()      # the machine's load before the batch
     t_start = time.monotonic()
     records, active = [], []
     try:
@@ -315,10 +315,8 @@ def main(argv=None):
     wall = time.monotonic() - t_start
     cmd = 'anafi_lab/engine/ros_batch.py' + (' ' + ' '.join(argv if argv is not None else sys.argv[1:])).rstrip()
     meta = {'command': cmd.strip(), 'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M'),
-            'machine': '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0,
-                                                   platform.python_version()),
-            'rtf': '%g' % args.rtf, 'wall_s': round(wall, 1), 'mirror': args.mirror, 'pid_mode': args.pid_mode,
-            'sync': bool(args.sync)}
+            'machine': processes.machine(load), 'rtf': '%g' % args.rtf, 'wall_s': round(wall, 1),
+            'mirror': args.mirror, 'pid_mode': args.pid_mode, 'sync': bool(args.sync)}
     report_path = write_report(args, records, meta)
     ok = sum(1 for r in records if r['ok'])
     print('batch done: %d of %d runs ok, %.0f s wall (%.1f min); report %s' % (ok, len(records), wall, wall / 60.0,

@@ -22,7 +22,6 @@ and ``anafi_lab.engine.sweep``).
 import collections
 import datetime
 import os
-import platform
 import sys
 import time
 
@@ -31,7 +30,7 @@ from anafi_sim.mission import step_response
 from anafi_lab.engine.engine import Engine
 from anafi_sim.mission.reference_log import write_log
 from anafi_sim.mission.trajectory import load_scenario
-from anafi_sim import run_files
+from anafi_sim import processes, run_files
 from anafi_sim.numeric import fmt
 
 SYNC_SCHEDULE = collections.OrderedDict([('controller_phase', 0.0), ('generator_phase', 0.005), ('mpc_latency', 0.0)])
@@ -304,6 +303,7 @@ def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLER
     workers = workers or os.cpu_count() or 1
     tasks = batch_tasks(scenarios, controllers, runs_dir, plots_dir if plots else None, seed, schedule, conditions)
     order = sorted(range(len(tasks)), key=lambda i: -cost(tasks[i]))
+    load = processes.load_average()      # the machine's load before the batch (its own work comes on top)
     t0 = time.perf_counter()
     records = execute(tasks, workers=workers, scheduler=scheduler, progress=progress, label='batch', order=order)
     wall = time.perf_counter() - t0
@@ -322,7 +322,7 @@ def batch(out_dir, scenarios=report.ALL_SCENARIOS, controllers=report.CONTROLLER
     meta = collections.OrderedDict([
         ('command', command or 'anafi_lab/cli/experiment.py batch'),
         ('date', datetime.datetime.now().strftime('%Y-%m-%d %H:%M')),
-        ('machine', '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0, platform.python_version())),
+        ('machine', processes.machine(load)),
         ('engine', 'inprocess'),
         ('rtf', 'none (virtual time)'), ('wall_s', round(wall, 1)), ('mirror', 'no (in-process engine)'),
         ('pid_mode', 'distributed'), ('conditions', conditions or 'none (sim.yaml: no wind)'),

@@ -39,12 +39,11 @@ import datetime
 import itertools
 import json
 import os
-import platform
 import time
 
 import yaml
 
-from anafi_sim import paths
+from anafi_sim import paths, processes
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import CONTROLLERS, WIND_KEYS, make_schedule, simulator_config, wind_settings
 from anafi_lab.engine.runs import execute, make_task, run_task
@@ -452,6 +451,7 @@ def run_sweep(spec, out_dir, workers=1, scheduler=None, command='', progress=Non
     """Run a spec (a dict, see ``load_spec``) into ``out_dir``; returns (rows, paths)."""
     tasks = expand(spec)
     os.makedirs(out_dir, exist_ok=True)
+    load = processes.load_average()      # the machine's load before the sweep
     t0 = time.perf_counter()
     records = execute(tasks, workers=workers, scheduler=scheduler, progress=progress, label=spec.get('name', 'sweep'),
                       function=run_task)
@@ -467,8 +467,7 @@ def run_sweep(spec, out_dir, workers=1, scheduler=None, command='', progress=Non
                                           % spec.get('name', ''))
         plot_name = 'e_mu.png'
     meta = {'command': command or 'experiment.py sweep', 'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M'),
-            'machine': '%s, %d CPUs, Python %s' % (platform.machine(), os.cpu_count() or 0,
-                                                   platform.python_version()),
+            'machine': processes.machine(load),
             'workers': 'Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)' % workers,
             'wall_s': wall, 'sim_s': sum(r['sim_s'] or 0.0 for r in table)}
     with open(paths['summary'], 'w') as stream:

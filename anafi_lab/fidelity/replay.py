@@ -1,7 +1,7 @@
 """Fidelity of the stand-in: closed-loop replay of the shared Sphinx reference logs (pure, no ROS).
 
 Stage: experiments (on top of ``anafi_lab.engine.engine``). For one reference log (format of
-shared/reference_logs, ``anafi_sim.mission.reference_log``) named ``<scenario>_<pid|mpc>``:
+anafi_sim/data/reference_logs, ``anafi_sim.mission.reference_log``) named ``<scenario>_<pid|mpc>``:
 
 1. ``replay_plan``: the log's waypoint stream as the 10 Hz stream the controller saw. The waypoint columns
    change at 10 Hz (every other 20 Hz sample); each change becomes one generator tick (consecutive changes

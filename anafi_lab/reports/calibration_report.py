@@ -27,6 +27,10 @@ from anafi_sim.mission.reference_log import STATE_NAMES, WRAP_16
 from anafi_sim.sim.bridge import MAX_VERTICAL_SPEED
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF
 
+#: how the texts name the folder of the logs they were fitted on, by default the reference logs shipped with the
+#: package (``paths.reference_logs_dir()``)
+LOGS_LABEL = 'anafi_sim/data/reference_logs'
+
 
 def _fmt(value, digits=6):
     """YAML scalar: true/false, or a float with ``digits`` significant digits that reads back as a float."""
@@ -101,9 +105,9 @@ def _effect_figures(cal, fitted):
         'float16_margin': checks()['float16_margin'], 'quantum_probe': int(round(1.0 / estimate.PROBE_STEP))}
 
 
-def model_context(cal, log_names, fitted=False):
-    """The figures of a model YAML (``templates/anafi_model.yaml``) as YAML-safe data: the header's logs and
-    effects, the values of ``MODEL_KEYS`` and the figures of their comments."""
+def model_context(cal, log_names, fitted=False, logs_label=LOGS_LABEL):
+    """The figures of a model YAML (``templates/anafi_model.yaml``) as YAML-safe data: the header's logs (their
+    folder ``logs_label``) and effects, the values of ``MODEL_KEYS`` and the figures of their comments."""
     p = cal.fitted if fitted else cal.params
     d, e, c = cal.drag, cal.estimate, cal.commands
     figures = _effect_figures(cal, fitted)
@@ -118,7 +122,8 @@ def model_context(cal, log_names, fitted=False):
         'effective_delay': e.effective_delay, 'estimate_fit': _first_order(e.fit), 'change_rate': e.change_rate,
         'log_rate': e.rate, 'float16': e.float16})
     on = [name for name, keys in EFFECT_GROUPS.items() if any(p[k] != EFFECTS_OFF[k] for k in keys if k in EFFECTS_OFF)]
-    return _plain({'log_names': list(log_names), 'excluded': [name for name, report in cal.garbage.items() if report],
+    return _plain({'logs_label': logs_label, 'log_names': list(log_names),
+                   'excluded': [name for name, report in cal.garbage.items() if report],
                    'effects_on': on, 'values': [(key, p[key]) for key in MODEL_KEYS],
                    'off': dict((key, cal.fitted[key]) for key, off in EFFECTS_OFF.items()
                                if p[key] == off and cal.fitted[key] != off),
@@ -204,8 +209,15 @@ EARTH_RADIUS = 6378137.0                  # m, WGS-84 equatorial: the length of 
 TABLE3_TOLERANCE = 0.01                   # m, the paper's last digit: a cell matches within half a unit more
 
 
+STORED_DIGITS = 10
+"""Significant digits of a float in the contexts (and so in benchmarks/results/calibration.yaml): more than the texts
+print, fewer than the float noise of the fits reaches (last bits that move with the BLAS kernel and the summation
+order), so that a calibration regenerates the stored file byte for byte."""
+
+
 def _plain(value):
-    """``value`` as YAML-safe data: namedtuples and dicts as dicts, tuples as lists, numpy scalars as Python."""
+    """``value`` as YAML-safe data: namedtuples and dicts as dicts, tuples as lists, numpy scalars as Python, floats
+    rounded to ``STORED_DIGITS`` significant digits."""
     if hasattr(value, '_asdict'):
         value = value._asdict()
     if isinstance(value, dict):
@@ -217,7 +229,7 @@ def _plain(value):
     if isinstance(value, (int, np.integer)):
         return int(value)
     if isinstance(value, (float, np.floating)):
-        return float(value)
+        return float('%.*g' % (STORED_DIGITS, value))
     return value
 
 
@@ -394,7 +406,7 @@ def _estimate_effects_context(f):
                        'angle_steps_m': (degree * math.cos(math.radians(checks()['latitude_deg'])), degree)}}
 
 
-def report_context(cal, logs, plot_name=None, logs_label='shared/reference_logs'):
+def report_context(cal, logs, plot_name=None, logs_label=LOGS_LABEL):
     """The figures of the Markdown report (``templates/calibration.md``) as YAML-safe data (dicts, lists, numbers,
     short labels): what ``format_report`` renders and ``calibrate_model.py`` stores beside the report."""
     context = _model_context(cal, logs, plot_name, logs_label)
@@ -408,13 +420,14 @@ def report_context(cal, logs, plot_name=None, logs_label='shared/reference_logs'
     return _plain(context)
 
 
-def stored_context(cal, logs, plot_name=None):
+def stored_context(cal, logs, plot_name=None, logs_label=LOGS_LABEL):
     """Everything ``calibrate_model.py`` writes as text, as figures (what it stores in
     benchmarks/results/calibration.yaml): {'report': ``report_context``, 'model': ``model_context`` of
     anafi_model.yaml, 'model_fitted': of anafi_model_fitted.yaml}."""
     names = [log.name + '.csv' for log in logs]
-    return {'report': report_context(cal, logs, plot_name), 'model': model_context(cal, names),
-            'model_fitted': model_context(cal, names, fitted=True)}
+    return {'report': report_context(cal, logs, plot_name, logs_label),
+            'model': model_context(cal, names, logs_label=logs_label),
+            'model_fitted': model_context(cal, names, fitted=True, logs_label=logs_label)}
 
 
 def render_model_yaml(context):
@@ -422,7 +435,7 @@ def render_model_yaml(context):
     return render('anafi_model.yaml', **context)
 
 
-def format_report(cal, logs, plot_name=None, logs_label='shared/reference_logs'):
+def format_report(cal, logs, plot_name=None, logs_label=LOGS_LABEL):
     """The Markdown calibration report (method, parameters, residuals per file, Table 3 with garbage flags)."""
     return render_report(report_context(cal, logs, plot_name, logs_label))
 

@@ -5,7 +5,7 @@ Units and frames: positions [m], velocities [m/s] in the ENU world frame,
 times [s] (ROS time), yaw of the waypoint [deg], attitude [rad].
 
 Every input is turned into one representation, a ``reference_log.ReferenceLog``
-(the column format of shared/reference_logs: one row per drone-estimate
+(the column format of anafi_sim/data/reference_logs: one row per drone-estimate
 sample with the ground truth and the waypoint of that instant), then
 ``evaluate_log`` computes, over the measured window:
 

@@ -1,7 +1,7 @@
 """Experiment plots (pure Python + matplotlib Agg, no ROS, no pyplot): like the paper's Figs. 2 and 6.
 
 Stage: evaluation output -> figures. Input: reference-log CSV files (the evaluator's export, the
-column format of shared/reference_logs, ``anafi_sim.mission.reference_log``): positions [m] and velocities
+column format of anafi_sim/data/reference_logs, ``anafi_sim.mission.reference_log``): positions [m] and velocities
 [m/s] in the ENU world frame, attitude [rad], waypoint yaw [deg], time [ns]. Time on the plots is
 seconds since the log's first sample; the measured window (s since the first sample, as in the
 evaluator's summary 'window') is shaded.

@@ -1,7 +1,7 @@
 """Reference flight logs (CSV) of the paper's Sphinx runs: read, write, check, evaluate (pure Python).
 
 Stage: evaluation / calibration input. A reference log (format of
-``shared/reference_logs/``) has one row per sample (~20 Hz) and the columns
+``anafi_sim/data/reference_logs/``) has one row per sample (~20 Hz) and the columns
 ``COLUMNS``: ``time`` [int ns, ROS time], ground truth ``*_sphinx`` and the
 drone's own estimate ``*_anafi`` (x, y, z [m], vx, vy, vz [m/s] in the ENU
 world frame; roll, pitch, yaw [rad], FLU Euler), and the waypoint ``wp_*``

@@ -7,7 +7,7 @@ offline. Same core as the live evaluator (anafi_sim.mission.evaluation).
     evaluate_log.py FILE... [--window T0 T1] [--drone NAME] [--yaml OUT] [--csv-dir DIR]
                     [--receive-time] [--min-altitude M] [--fail-on-garbage]
 
-FILE: a CSV in the column format of shared/reference_logs (e.g. the
+FILE: a CSV in the column format of anafi_sim/data/reference_logs (e.g. the
 paper's logs or an export of a real flight) or a rosbag (*.bag) with
 <drone>/position_control/waypoint (anafi_sim/Waypoint), <drone>/drone/odom
 and optionally <drone>/ground_truth/odom (nav_msgs/Odometry) and

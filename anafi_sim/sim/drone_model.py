@@ -57,7 +57,7 @@ fitted by ``anafi_lab/calibration/fit.py``, see docs/calibration.md):
   command swings through level (docs/calibration.md). The whole loop:
   ``frames.tilt_loop_step``.
 
-The firmware's wind handling (identified from the real-flight logs, shared/reference_logs/real; settings,
+The firmware's wind handling (identified from the real-flight logs, anafi_sim/data/reference_logs/real; settings,
 not model keys, because Sphinx flew without wind and cannot show it; docs/calibration.md "Wind handling"):
 ``wind_compensation`` K [-] (0 = off) and ``wind_compensation_time_constant`` tau_w [s]. The firmware keeps
 an estimate d of the horizontal acceleration the wind puts on the drone, the difference between the drag on

@@ -10,8 +10,8 @@ sourced:
 
 1. environment: ROS_PACKAGE_PATH, PYTHONPATH, CMAKE_PREFIX_PATH, PATH and Python's sys.path name no part of
    the devel space or of the checkout; rospack, ``import anafi_sim`` / ``anafi_control``, the generated
-   messages and dynamic_reconfigure modules and anafi_sim.paths (the data files) all point into the
-   install space;
+   messages and dynamic_reconfigure modules and anafi_sim.paths (the data files, the shipped reference
+   logs) all point into the install space;
 2. contents: every Python package of the checkout (anafi_sim.*, with the nodes, anafi_control) and every script of
    anafi_sim/scripts is installed; the scripts run on PYTHON_EXECUTABLE (which imports osqp);
 3. every launch file loads there as roslaunch loads it (includes, $(find) paths, rosparam files) and
@@ -261,7 +261,8 @@ class InstallSpaceTest(unittest.TestCase):
                     'print(json.dumps({"sys.path": sys.path, "rospack": rospkg.RosPack().get_path("anafi_sim"), '
                     '"anafi_sim": anafi_sim.__file__, "anafi_control": anafi_control.__file__, '
                     '"msg": anafi_sim.msg.__file__, "cfg": anafi_sim.cfg.MpcConfig.__file__, '
-                    '"package_dir": paths.package_dir(), "mpc.yaml": paths.config_path("mpc.yaml")}))')
+                    '"package_dir": paths.package_dir(), "mpc.yaml": paths.config_path("mpc.yaml"), '
+                    '"reference_logs": paths.reference_logs_dir()}))')
             r = self.run_in(space, [PYTHON, '-c', code])
             self.assertEqual(r.returncode, 0, r.stderr.decode())
             found = json.loads(r.stdout.decode())
@@ -272,6 +273,11 @@ class InstallSpaceTest(unittest.TestCase):
             for what, path in sorted(found.items()):
                 self.assertTrue(under(path, prefix), '%s: %s is %s, not in %s' % (space, what, path, prefix))
             self.assertTrue(os.path.isfile(found['mpc.yaml']), found['mpc.yaml'])
+            for sub in ('', 'real'):      # the shipped reference logs, as in the source tree
+                logs = os.path.join(found['reference_logs'], sub)
+                self.assertEqual(sorted(n for n in os.listdir(logs) if n.endswith('.csv')),
+                                 sorted(n for n in os.listdir(os.path.join(ROOT, PKG, 'data', 'reference_logs', sub))
+                                        if n.endswith('.csv')), logs)
 
     def test_1_packages_and_scripts_installed(self):
         packages = sorted(find_packages(ROOT, include=[p for r in PY_ROOTS for p in (r, r + '.*')]))

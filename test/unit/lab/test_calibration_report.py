@@ -57,12 +57,12 @@ def test_a_stored_figure_changes_the_report_where_it_is_quoted():
 
 
 # Digits the template's words may hold: names (sections, tables, equations, logs, symbols), units, the 0 and 1
-# of formulas and definitions, and the YAML scalar's ".0".
+# of formulas and definitions, the YAML scalar's ".0" and the command `UPDATE=1 make calibrate`.
 ALLOWED = re.compile(r"R\^2|\(c-e\)|Table [23]|eq\. \(?15\)?|issue 2|float16|3-D|1/k|1 / tau|1/\(2 rate\)|"
                      r"1 / \(c tau\)|1/\(c tau\)|\(I - G r J\)\^-1|1 / sqrt\(1 \+ \(G r\)\^2\)|"
                      r"\(1 \+ \(G r\)\^2\)\^\(-p/2\)|m/s\^2|1/s\^2|2 pi i v|k1|k2|b0|v0|v1|x_straight_4_pid|"
                      r"yaw-180|yaw-0|x_straight_2/3_pid|\^-1|2\^|1/|x_pred|\(1 - a r\)|0, 1\)|1 - its gain|"
-                     r"time 0|b = 0|w > 0|of 1 |\(1 \+ c \|v\|\)| 1, as the model|\.0|\(1 - a\)")
+                     r"time 0|b = 0|w > 0|of 1 |\(1 \+ c \|v\|\)| 1, as the model|\.0|\(1 - a\)|UPDATE=1 make")
 
 
 # Labels the fidelity and batch templates' words may hold: names of logs and scenarios, of the paper's sections,

@@ -190,9 +190,7 @@ def test_the_real_flight_sections_rerender_identical_from_their_figures(tmp_path
     from anafi_lab.cli import calibrate_conditions
     from anafi_sim import paths
     root = paths.checkout()
-    logs = os.path.join(paths.reference_logs_dir(), 'real')
-    if not os.path.isdir(logs):
-        pytest.skip('real-flight logs not found at %s' % logs)
+    logs = paths.reference_logs_dir('real')
     files = {'profile': os.path.join(root, 'anafi_sim', 'config', 'conditions', 'real_flights.yaml'),
              'report': os.path.join(root, 'docs', 'calibration.md'),
              'fidelity': os.path.join(root, 'docs', 'fidelity.md')}

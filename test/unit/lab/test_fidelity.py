@@ -1,4 +1,4 @@
-"""Fidelity regression guard: the shared Sphinx logs replayed in closed loop on the stand-in with the SHIPPED
+"""Fidelity regression guard: the shipped Sphinx reference logs replayed in closed loop on the stand-in with the SHIPPED
 defaults (anafi_sim/config/anafi_model.yaml, mpc.yaml, pid.yaml, the engine's schedule) must stay within
 15 % of Sphinx in every logged metric (e_mu, e_max against the estimate and against ground truth).
 
@@ -8,7 +8,7 @@ so the list is updated rather than silently outgrown. The replay's own pieces (t
 the frame shift, the estimate resampling, the cells) are tested on synthetic logs first.
 
 The replays run in-process (anafi_lab/engine/engine.py, virtual time): about 20-30 s for the 14 logs on
-an idle machine. Skipped when ../shared/reference_logs (beside the checkout) is missing.
+an idle machine. The logs are the package's (anafi_sim/data/reference_logs).
 """
 import collections
 import math
@@ -40,7 +40,7 @@ def markdown(table):
 def fmt3(value):
     return fmt(value, 3)
 
-LOG_DIR = paths.reference_logs_dir()   # <checkout>/../shared/reference_logs
+LOG_DIR = paths.reference_logs_dir()   # anafi_sim/data/reference_logs
 LOGS = tuple('static_waypoint_yaw_%d_%s' % (y, c) for y in (0, 180) for c in ('mpc', 'pid')) + tuple(
     'x_straight_%d_%s' % (v, c) for v in range(1, 6) for c in ('mpc', 'pid'))
 
@@ -629,16 +629,12 @@ def test_scenario_table_shows_a_run_or_the_range_over_several():
     assert text.splitlines()[-1] == '| s | 1.000 / 2.000 | 1.000-1.500 / 1.000-2.000 | - |'
 
 
-# ----------------------------------------------------------------------------------------- the shared logs
+# ----------------------------------------------------------------------------------------- the shipped logs
 @pytest.fixture(scope='module')
 def replays():
-    if not os.path.isdir(LOG_DIR):
-        pytest.skip('reference logs not found at %s (shared/reference_logs beside the checkout)' % LOG_DIR)
     out = {}
     for name in LOGS:
         path = os.path.join(LOG_DIR, name + '.csv')
-        if not os.path.isfile(path):
-            continue
         log = read_log(path)
         rep = F.run_replay(F.replay_plan(log))
         out[name] = (F.reference_cells(log), rep)

@@ -1,8 +1,8 @@
 """anafi_sim.mission.evaluation: tracking-error statistics, alignment, garbage handling, the paper's Table 3
-from the shared reference logs, CSV and rosbag round trips, the live core and the command line.
+from the shipped reference logs, CSV and rosbag round trips, the live core and the command line.
 
 Expected numbers are worked out by hand in the tests (3-4-5 triangles, sums written out) or come
-from the paper (Table 3) and shared/reference_logs/README.md.
+from the paper (Table 3) and the reference logs' README (anafi_sim/data/reference_logs/README.md).
 """
 import math
 import os
@@ -17,13 +17,8 @@ from anafi_sim.mission import evaluation as ev
 from anafi_sim.mission.reference_log import read_log, write_log
 
 REPO = paths.checkout()
-REFERENCE_LOGS = paths.reference_logs_dir()
+REFERENCE_LOGS = paths.reference_logs_dir()     # shipped with the package
 CLI = os.path.join(REPO, 'anafi_sim', 'scripts', 'evaluate_log.py')
-
-
-def need_reference_logs():
-    if not os.path.isdir(REFERENCE_LOGS):
-        pytest.skip('shared reference logs not found at %s (../shared beside the repo)' % REFERENCE_LOGS)
 
 
 # ---------------------------------------------------------------- statistics on hand-made data
@@ -153,13 +148,12 @@ PAPER_TABLE_3 = {'mpc': [0.16, 0.36, 0.59, 0.82, 1.41], 'pid': [1.32, 2.67, 4.07
 # x_straight_4_pid.csv gives 5.293 m against the paper's 5.32 (the published file is half-float
 # quantised, 0.0625 m steps at x = 64-128 m, and may not be the exact segment the paper averaged).
 TOLERANCE = {('pid', 4): 0.03}
-GLITCHED = {('pid', 2): 2.57, ('pid', 3): 4.12}      # horizontal e_mu per shared/reference_logs/README.md
+GLITCHED = {('pid', 2): 2.57, ('pid', 3): 4.12}      # horizontal e_mu per the reference logs' README
 
 
 @pytest.mark.parametrize('controller', ['mpc', 'pid'])
 @pytest.mark.parametrize('speed', [1, 2, 3, 4, 5])
 def test_reference_logs_reproduce_table_3(controller, speed):
-    need_reference_logs()
     r = ev.evaluate_csv(os.path.join(REFERENCE_LOGS, 'x_straight_%d_%s.csv' % (speed, controller)))
     paper = PAPER_TABLE_3[controller][speed - 1]
     if (controller, speed) in GLITCHED:
@@ -178,14 +172,12 @@ def test_reference_logs_reproduce_table_3(controller, speed):
 
 
 def test_only_the_two_glitched_reference_logs_are_flagged():
-    need_reference_logs()
     flagged = sorted(name for name in os.listdir(REFERENCE_LOGS) if name.endswith('.csv')
                      and ev.evaluate_csv(os.path.join(REFERENCE_LOGS, name)).has_garbage)
     assert flagged == ['x_straight_2_pid.csv', 'x_straight_3_pid.csv']
 
 
 def test_csv_round_trip_gives_the_same_statistics(tmp_path):
-    need_reference_logs()
     path = os.path.join(REFERENCE_LOGS, 'x_straight_1_mpc.csv')
     first = ev.evaluate_csv(path)
     out = str(tmp_path / 'copy.csv')
@@ -355,7 +347,6 @@ def _run_cli(*args):
 
 
 def test_command_line_on_csv_and_bag(tmp_path):
-    need_reference_logs()
     pytest.importorskip('rosbag')
     bag = str(tmp_path / 'flight.bag')
     _write_bag(bag, _flight())

@@ -5,12 +5,12 @@ import os
 import numpy as np
 import pytest
 
+from anafi_sim import paths
 from anafi_sim.mission import plots
 from anafi_sim.mission.reference_log import write_log
-from conftest import ROOT
 from experiment_logs import make_log
 
-REFERENCE_LOGS = os.path.join(ROOT, '..', 'shared', 'reference_logs')
+REFERENCE_LOGS = paths.reference_logs_dir()     # shipped with the package
 PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 
 
@@ -99,10 +99,8 @@ def test_comparison_png(tmp_path):
         assert f.read(8) == PNG_MAGIC
 
 
-def test_plot_of_a_shared_reference_log(tmp_path):
+def test_plot_of_a_reference_log(tmp_path):
     path = os.path.join(REFERENCE_LOGS, 'static_waypoint_yaw_180_mpc.csv')
-    if not os.path.isfile(path):
-        pytest.skip('shared reference logs not found at %s (../shared beside the repo)' % REFERENCE_LOGS)
     png = plots.plot_run(path, str(tmp_path / 'ref.png'), title='reference')
     assert os.path.getsize(png) < 150000
 

@@ -1,4 +1,5 @@
-"""anafi_sim.mission.reference_log: reading/writing reference-log CSVs, garbage detection, the paper's tracking error."""
+"""anafi_sim.mission.reference_log: reading/writing reference-log CSVs, garbage detection, the paper's tracking error,
+the logs shipped with the package."""
 import math
 import os
 
@@ -7,9 +8,9 @@ import pytest
 
 from anafi_sim.mission.reference_log import (COLUMNS, ReferenceLog, as_logged, detect_garbage,
                                                  horizontal_tracking_error, read_log, tracking_error, write_log)
-from conftest import ROOT
+from anafi_sim import paths
 
-LOG_DIR = os.path.join(os.path.dirname(ROOT), 'shared', 'reference_logs')
+LOG_DIR = paths.reference_logs_dir()      # the logs shipped with the package (anafi_sim/data/reference_logs)
 LOG_NAMES = (['static_waypoint_yaw_%d_%s' % (yaw, c) for yaw in (0, 180) for c in ('mpc', 'pid')]
              + ['x_straight_%d_%s' % (v, c) for v in range(1, 6) for c in ('mpc', 'pid')])
 GLITCHED = ('x_straight_2_pid', 'x_straight_3_pid')
@@ -17,14 +18,8 @@ GLITCHED = ('x_straight_2_pid', 'x_straight_3_pid')
 PAPER = {'mpc': (0.16, 0.36, 0.59, 0.82, 1.41), 'pid': (1.32, 2.67, 4.07, 5.32, 7.00)}
 
 
-def _need_logs():
-    if not os.path.isdir(LOG_DIR):
-        pytest.skip('reference logs not found at %s (shared/ is beside the repo in CI)' % LOG_DIR)
-
-
 @pytest.fixture(scope='module')
 def logs():
-    _need_logs()
     return dict((name, read_log(os.path.join(LOG_DIR, name + '.csv'))) for name in LOG_NAMES)
 
 
@@ -37,6 +32,36 @@ def _synthetic_columns(n=50, seed=1):
 
 
 # ----------------------------------------------------------------------------------------- real logs
+def _csv_names(folder):
+    return sorted(n for n in os.listdir(folder) if n.endswith('.csv'))
+
+
+def test_the_package_ships_the_papers_logs_with_their_source():
+    """The 14 Sphinx logs and the four real flights are package data, with a README that cites the paper."""
+    assert _csv_names(LOG_DIR) == sorted(n + '.csv' for n in LOG_NAMES)
+    assert _csv_names(paths.reference_logs_dir('real')) == [
+        'static_waypoint_yaw_%d_%s.csv' % (yaw, c) for yaw in (0, 180) for c in ('mpc', 'pid')]
+    with open(os.path.join(LOG_DIR, 'README.md')) as f:
+        readme = f.read()
+    assert 'A Multi-Simulation Approach with Model Predictive Control for Anafi' in readme
+    assert 'Pascal Goldschmid and Aamir Ahmad' in readme
+
+
+def test_the_shipped_logs_are_the_published_ones():
+    """Where the project's reference material sits beside the checkout (../shared/reference_logs), the
+    shipped CSVs are byte for byte its files (nothing added, nothing left out)."""
+    published = os.path.join(os.path.dirname(paths.checkout()), 'shared', 'reference_logs')
+    if not os.path.isdir(published):
+        pytest.skip('no published copy at %s to compare with' % published)
+    for sub in ('', 'real'):
+        names = _csv_names(os.path.join(published, sub))
+        assert _csv_names(os.path.join(LOG_DIR, sub)) == names, sub
+        for name in names:
+            with open(os.path.join(LOG_DIR, sub, name), 'rb') as mine, \
+                    open(os.path.join(published, sub, name), 'rb') as theirs:
+                assert mine.read() == theirs.read(), os.path.join(sub, name)
+
+
 def test_reads_every_reference_log_completely(logs):
     for name, log in logs.items():
         assert log.parse_errors == [], name

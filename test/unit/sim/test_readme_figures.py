@@ -40,9 +40,11 @@ def test_batch_run_counts_follow_the_code():
 def test_batch_times_are_those_of_the_committed_results():
     inproc = _results('inprocess', 'experiments.yaml')
     assert len(inproc['records']) == _runs('inprocess')
-    m = re.search(r'(\d+) runs in ([\d.]+) s on 2 cores', README)
+    m = re.search(r'(\d+) runs in ([\d.]+) s on a (\d+)-core ', README)      # a time names its machine
     assert float(m.group(2)) == round(inproc['meta']['wall_s'], 1), (m.group(0), inproc['meta']['wall_s'])
-    m = re.search(r'make bench\s+# the same in-process \(~(\d+) s\)', README)
+    cores = re.search(r'(\d+) (?:CPUs|cores)', inproc['meta']['machine'])
+    assert cores and int(cores.group(1)) == int(m.group(3)), (m.group(0), inproc['meta']['machine'])
+    m = re.search(r'make bench\s+# the same in-process \(~(\d+) s, see below\)', README)
     assert m and int(m.group(1)) == int(round(inproc['meta']['wall_s'])), m and m.group(0)
     ros = _results('experiments.yaml')
     minutes = '%.1f' % (ros['meta']['wall_s'] / 60.0)

@@ -35,11 +35,13 @@ def euler_to_quaternion(roll, pitch, yaw):
 
 
 def quaternion_to_euler(x, y, z, w):
-    """(roll, pitch, yaw) [rad] of a unit quaternion (x, y, z, w)."""
+    """(roll, pitch, yaw) [rad] of a unit quaternion (x, y, z, w). The pitch is the atan2 of sin(pitch) and
+    cos(pitch) (the norm of the rotation matrix's first column in the x-y plane), accurate near +-90 deg too,
+    where an asin of sin(pitch) turns rounding of order eps into an error of order sqrt(eps)."""
     sinp = 2.0 * (w * y - z * x)
-    sinp = max(-1.0, min(1.0, sinp))
+    cosp = math.hypot(w * w + x * x - y * y - z * z, 2.0 * (x * y + w * z))
     roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(sinp)
+    pitch = math.atan2(sinp, cosp)
     yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return roll, pitch, yaw
 

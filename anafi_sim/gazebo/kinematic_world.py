@@ -113,7 +113,7 @@ def _compose(parent_xyz, parent_rpy, xyz, rpy):
     position = np.asarray(parent_xyz, dtype=float) + r_parent.dot(np.asarray(xyz, dtype=float))
     rotation = r_parent.dot(frames.rotation_matrix(*rpy))
     rpy_out = (math.atan2(rotation[2, 1], rotation[2, 2]),
-               math.asin(max(-1.0, min(1.0, -rotation[2, 0]))),
+               math.atan2(-rotation[2, 0], math.hypot(rotation[0, 0], rotation[1, 0])),   # accurate at +-90 deg
                math.atan2(rotation[1, 0], rotation[0, 0]))
     return tuple(float(v) for v in position), rpy_out
 

@@ -72,7 +72,10 @@ def interpolate(samples, t):
 
 
 def angle_between(qa, qb):
-    return 2.0 * math.acos(min(1.0, abs(float(np.dot(qa, qb)))))
+    """Angle [rad] between unit quaternions: 2 atan2(|v|, |w|) of the relative quaternion conj(qa) qb (well
+    conditioned near 0, unlike 2 acos(|qa . qb|))."""
+    x, y, z, w = frames.quaternion_multiply((-qa[0], -qa[1], -qa[2], qa[3]), qb)
+    return 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
 
 
 def errors(models, ref):

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import ROTATION_TOLERANCE, rotation_angle
 
 from anafi_control import frames
 from anafi_sim.gazebo.mirror import Mirror, camera_model_state
@@ -57,12 +58,8 @@ def quaternion(m):
 
 
 def angle_deg(a, b):
-    """Angle [deg] of the rotation between two rotation matrices (atan2 of the sine and cosine parts: exact
-    near 0, where acos of the trace alone loses half the float precision)."""
-    r = a.T.dot(b)
-    c = (np.trace(r) - 1.0) / 2.0
-    s = 0.5 * math.sqrt((r[2, 1] - r[1, 2]) ** 2 + (r[0, 2] - r[2, 0]) ** 2 + (r[1, 0] - r[0, 1]) ** 2)
-    return math.degrees(math.atan2(s, c))
+    """Angle [deg] of the rotation between two rotation matrices."""
+    return math.degrees(rotation_angle(a, b))
 
 
 def expected_camera(yaw_enu, tilt_down):
@@ -105,8 +102,10 @@ def test_the_mirror_places_the_camera_from_the_real_bridges_message(yaw_deg, pit
 def test_the_simulated_bridge_publishes_what_the_real_one_does(yaw_deg, pitch_deg):
     yaw, tilt = math.radians(yaw_deg), math.radians(pitch_deg)
     e = bridge_estimate((0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 0.02, -0.03, yaw), gimbal_pitch=tilt)
-    assert angle_deg(matrix(e.camera_orientation), matrix(real_bridge_quaternion(yaw, tilt))) < 1e-6
-    assert angle_deg(matrix(e.camera_base_orientation), matrix(real_bridge_quaternion(yaw, 0.0))) < 1e-6
+    assert rotation_angle(matrix(e.camera_orientation), matrix(real_bridge_quaternion(yaw, tilt))) \
+        < ROTATION_TOLERANCE
+    assert rotation_angle(matrix(e.camera_base_orientation), matrix(real_bridge_quaternion(yaw, 0.0))) \
+        < ROTATION_TOLERANCE
     m, _ = mirror_camera(e.camera_orientation, yaw, roll=0.02, pitch=-0.03)   # stabilised: drone tilt irrelevant
     assert angle_deg(m, expected_camera(yaw, tilt)) < TOLERANCE_DEG
     assert CAMERA_FRAME_ID == '/body'
@@ -120,7 +119,8 @@ def test_telemetry_and_bridge_sources_agree(yaw_deg):
     state = camera_model_state('cam', (1.0, 2.0, 3.0), frames.euler_to_quaternion(0.0, 0.0, yaw),
                                (0, 0, 0), (0, 0, 0), 0.0, tilt)
     m, position = mirror_camera(camera_attitude(0.0, tilt, yaw), yaw)
-    assert angle_deg(matrix(state.orientation), m) < 1e-6 and position == pytest.approx(state.position)
+    assert rotation_angle(matrix(state.orientation), m) < ROTATION_TOLERANCE
+    assert position == pytest.approx(state.position)
 
 
 def test_the_old_reading_was_a_quarter_turn_off():
@@ -129,8 +129,8 @@ def test_the_old_reading_was_a_quarter_turn_off():
     for yaw_deg in YAWS_DEG:
         yaw = math.radians(yaw_deg)
         raw = matrix(real_bridge_quaternion(yaw, 0.0))
-        assert angle_deg(raw, expected_camera(yaw, 0.0)) == pytest.approx(90.0, abs=1e-6)
-        assert angle_deg(raw, expected_camera(yaw - math.pi / 2, 0.0)) < 1e-6
+        assert rotation_angle(raw, expected_camera(yaw, 0.0)) == pytest.approx(math.pi / 2, abs=ROTATION_TOLERANCE)
+        assert rotation_angle(raw, expected_camera(yaw - math.pi / 2, 0.0)) < ROTATION_TOLERANCE
 
 
 def test_the_reference_mirrors_composition_counts_the_heading_twice():
@@ -140,7 +140,7 @@ def test_the_reference_mirrors_composition_counts_the_heading_twice():
     for yaw_deg in YAWS_DEG:
         yaw = math.radians(yaw_deg)
         composed = rot_z(yaw).dot(matrix(real_bridge_quaternion(yaw, 0.0))).dot(rot_z(math.pi / 2))
-        assert angle_deg(composed, expected_camera(2 * yaw, 0.0)) < 1e-6
+        assert rotation_angle(composed, expected_camera(2 * yaw, 0.0)) < ROTATION_TOLERANCE
 
 
 def test_a_bad_camera_attitude_is_counted_and_ignored():

@@ -42,7 +42,8 @@ def test_a_short_run_gives_the_evaluators_summary(short):
     assert result.ok and result.error == ''
     s = result.summary
     assert s['state'] == 'final' and s['name'] == 'short_circle_mpc'
-    assert list(s)[:8] == ['name', 'samples', 'window', 'duration', 'estimate', 'truth', 'garbage', 'warnings']
+    assert list(s)[:10] == ['name', 'samples', 'window', 'duration', 'estimate', 'truth', 'garbage',
+                          'garbage_samples', 'truth_missing', 'warnings']
     assert 55 <= s['samples'] <= 62                        # 2 s of the 30 Hz estimate
     assert s['window'][1] - s['window'][0] == pytest.approx(2.0, abs=1e-3)
     assert 0.0 < s['estimate']['e_mu'] < 0.5 and 0.0 < s['truth']['e_mu'] < 0.5

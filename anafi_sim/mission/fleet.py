@@ -154,7 +154,7 @@ def drone_from_dict(d, what='drone'):
         raise ValueError('%s: telemetry_command is for source sphinx only (the stand-in gets its own)' % what)
     if command:
         try:
-            allowed_argv(command)   # one of the known tools with its own arguments
+            allowed_argv(command, resolve_names=False)   # an allowed tool with its own arguments
         except ValueError as error:
             raise ValueError('%s: %s' % (what, error))
     start = _start(d.get('start'), offset, what + ': start')

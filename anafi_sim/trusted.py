@@ -1,0 +1,76 @@
+"""Which files the stack may run or read when a parameter names them (pure Python, no ROS).
+
+A ROS 1 parameter can be set by anyone who reaches the master, so a path in a parameter is never trusted by
+itself. A path is *safe* when the file and every folder above it are owned by a trusted user (root or the
+user running the node) and writable by nobody else: no group- or world-writable file or folder, except a
+root-owned folder with the sticky bit (``/tmp``), where nobody can rename or replace an entry they do not
+own. Symbolic links are resolved first; a link is as good as what it points to.
+
+Site settings (folders and tools beyond the package's own) come from files in ``SETTINGS_DIR``
+(``/etc/anafi_sim``), read only when the file itself is safe and owned by root: one absolute path per line,
+``#`` starts a comment (the cores take the folder as an argument, so tests use their own).
+"""
+import os
+import stat
+
+#: the folder of the site settings files (root-owned)
+SETTINGS_DIR = '/etc/anafi_sim'
+#: extra telemetry tools (full paths), one a line
+TELEMETRY_TOOLS = 'telemetry_tools'
+#: extra folders from which file parameters may be read, one a line
+DATA_FOLDERS = 'data_folders'
+
+
+def default_owners():
+    """Users trusted to own a file the stack runs or reads: root and the user running it."""
+    return (0, os.getuid())
+
+
+def unsafe_reason(path, owners=None):
+    """None when ``path`` (resolved) and every folder above it are safe (see the module); else why not."""
+    owners = default_owners() if owners is None else tuple(owners)
+    real = os.path.realpath(path)
+    current = real
+    while True:
+        try:
+            st = os.stat(current)
+        except OSError as error:
+            return '%s: %s' % (current, error.strerror or error)
+        mode = st.st_mode
+        sticky_root = stat.S_ISDIR(mode) and mode & stat.S_ISVTX and st.st_uid == 0
+        if st.st_uid not in owners:
+            return '%s is owned by uid %d (trusted: %s)' % (current, st.st_uid, ', '.join(map(str, owners)))
+        if mode & (stat.S_IWGRP | stat.S_IWOTH) and not (current != real and sticky_root):
+            return '%s is group- or world-writable' % current
+        parent = os.path.dirname(current)
+        if parent == current:
+            return None
+        current = parent
+
+
+def settings_list(name, owners=(0,), directory=None):
+    """The absolute paths listed in the settings file ``name`` (empty when it is missing or not safe)."""
+    path = os.path.join(directory or SETTINGS_DIR, name)
+    if not os.path.isfile(path) or unsafe_reason(path, owners) is not None:
+        return []
+    out = []
+    try:
+        with open(path) as f:
+            text = f.read(65536)
+    except (OSError, UnicodeDecodeError):
+        return []
+    for line in text.splitlines():
+        line = line.split('#', 1)[0].strip()
+        if line and os.path.isabs(line):
+            out.append(os.path.normpath(line))
+    return out
+
+
+def within(path, folders):
+    """True when the resolved ``path`` lies inside one of the (resolved) ``folders``."""
+    real = os.path.realpath(path)
+    for folder in folders:
+        top = os.path.realpath(folder)
+        if real == top or real.startswith(top.rstrip(os.sep) + os.sep):
+            return True
+    return False

@@ -74,3 +74,35 @@ def within(path, folders):
         if real == top or real.startswith(top.rstrip(os.sep) + os.sep):
             return True
     return False
+
+
+def ros_home():
+    """Where ROS and the stack write their runs (``$ROS_HOME``, default ``~/.ros``)."""
+    return os.environ.get('ROS_HOME') or os.path.join(os.path.expanduser('~'), '.ros')
+
+
+def allowed_folders(package_folders, extra=(), directory=None):
+    """The folders a file parameter may name: ``package_folders`` (the package's config folders), ``extra``
+    (folders the stack itself writes to, given by the caller, never by a parameter) and the folders listed in
+    the root-owned settings file ``/etc/anafi_sim/data_folders``."""
+    return [f for f in list(package_folders) + list(extra) + settings_list(DATA_FOLDERS, directory=directory) if f]
+
+
+def file_parameter(value, folders, what, suffixes=('.yaml', '.yml')):
+    """The real path of the file a parameter names: ``value`` a name relative to ``folders[0]`` or an absolute
+    path, accepted only when it is a regular file with one of ``suffixes`` inside one of ``folders`` (real paths
+    compared: no ``..`` or link leads out). ValueError names the parameter and the folders, never the file's
+    content."""
+    if not isinstance(value, str) or not value or '\x00' in value:
+        raise ValueError('%s must name a file, got %r' % (what, repr(value)[:100]))
+    if not folders:
+        raise ValueError('%s: no folder to read files from' % what)
+    path = os.path.realpath(value if os.path.isabs(value) else os.path.join(folders[0], value))
+    shown = value if len(value) <= 200 else value[:200] + '...'
+    if not path.endswith(tuple(suffixes)) or not within(path, folders):
+        raise ValueError('%s: refused %r: only %s files in %s (more folders: %s)'
+                         % (what, shown, '/'.join(suffixes), ', '.join(folders),
+                            os.path.join(SETTINGS_DIR, DATA_FOLDERS)))
+    if not os.path.isfile(path):
+        raise ValueError('%s: no file %r' % (what, shown))
+    return path

@@ -44,7 +44,6 @@ import time
 
 import rosgraph
 import rospy
-import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
@@ -58,6 +57,7 @@ from anafi_sim import names
 from anafi_sim.ros.node import end_parent_launch, private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
 from anafi_sim.sim.conditions_profile import load_conditions
+from anafi_sim.safe_yaml import load_yaml_text
 
 try:
     import psutil
@@ -68,8 +68,8 @@ except ImportError:   # CPU figures are optional
 def _yaml(msg):
     """The YAML data of a std_msgs/String, None when unreadable."""
     try:
-        return yaml.safe_load(msg.data)
-    except yaml.YAMLError:
+        return load_yaml_text(msg.data, 'message')
+    except ValueError:
         return None
 
 

@@ -54,13 +54,9 @@ def load_conditions(name_or_path):
     unknown key or a bad value."""
     if name_or_path in (None, ''):
         return collections.OrderedDict()
-    import yaml
+    from anafi_sim.safe_yaml import load_yaml
     path = profile_path(name_or_path)
-    try:
-        with open(path) as stream:
-            data = yaml.safe_load(stream)
-    except (OSError, yaml.YAMLError) as error:
-        raise ValueError('cannot read the conditions %s: %s' % (path, error))
+    data = load_yaml(path, what='the conditions %s' % path)
     if not isinstance(data, dict):
         raise ValueError('%s: a conditions profile is a mapping of simulator settings' % path)
     unknown = sorted(str(k) for k in data if k not in PROFILE_KEYS)

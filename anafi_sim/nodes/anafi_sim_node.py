@@ -54,7 +54,7 @@ from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_p
 from anafi_sim.sim.simulator import SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, new_stream_id
-from anafi_sim.telemetry.server import TelemetryServer
+from anafi_sim.telemetry.server import TelemetryServer, checked_bind_host
 
 
 STATE_ENU_FRAME_ID = '/world'
@@ -85,7 +85,7 @@ class AnafiSimNode(object):
         seed = p.integer('seed', 0, minimum=0)
         telemetry_rate = p.positive('telemetry_rate', 100.0)
         estimate_rate = p.positive('estimate_publish_rate', 30.0)
-        host = p.string('telemetry_host', '127.0.0.1')
+        host = checked_bind_host(p.string('telemetry_host', '127.0.0.1'), p.flag('allow_remote_telemetry', False))
         port = p.integer('telemetry_port', 0, minimum=0, maximum=65535)   # 0 = any free port
         prefix = p.string('telemetry_prefix', DEFAULT_PREFIX)
         auto_takeoff = p.flag('auto_takeoff', True)

@@ -45,8 +45,14 @@ def profile_path(name_or_path):
         return path
     if not text.endswith('.yaml') or not os.path.isfile(text):
         raise ValueError('conditions must be a NAME (%s) or the path of a .yaml file, got %r'
-                         % (', '.join(list_conditions()) or 'none', text))
-    return text
+                         % (', '.join(list_conditions()) or 'none', text[:200]))
+    import tempfile
+    from anafi_sim import trusted
+    # a parameter anyone may set: a path only inside the package's config, $ROS_HOME, the temp folder (where
+    # the lab writes its profiles) or a folder of the root-owned /etc/anafi_sim/data_folders
+    return trusted.file_parameter(text, trusted.allowed_folders([paths.config_path()],
+                                                                [trusted.ros_home(), tempfile.gettempdir()]),
+                                  'conditions', suffixes=('.yaml',))
 
 
 def load_conditions(name_or_path):

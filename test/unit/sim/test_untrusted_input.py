@@ -100,3 +100,16 @@ def test_clip_keeps_a_few_hundred_characters_on_one_line():
     assert len(text) < 400 and text.endswith('more characters)')
     assert '\n' not in clip('a\nforged log line')
     assert clip('start') == "'start'"
+
+
+def test_telemetry_binds_loopback_unless_remote_is_allowed():
+    from anafi_sim.telemetry.server import checked_bind_host
+    for host in ('127.0.0.1', '127.0.0.2', '::1', 'localhost'):
+        assert checked_bind_host(host) == host
+    for host in ('0.0.0.0', '192.168.1.10', '::', 'example.com'):
+        with pytest.raises(ValueError):
+            checked_bind_host(host)
+    assert checked_bind_host('0.0.0.0', allow_remote=True) == '0.0.0.0'
+    assert checked_bind_host('sphinx-pc.local', allow_remote=True) == 'sphinx-pc.local'
+    with pytest.raises(ValueError, match='IP address'):
+        checked_bind_host('$(id)', allow_remote=True)

@@ -12,16 +12,14 @@ import math
 import os
 import re
 
+from anafi_sim.numeric import parse_integer, parse_number, range_problem
+
 _BASE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 _FILE_NAME = re.compile(r'^[A-Za-z0-9_.-]+$')
 
 
 def _number(value):
-    try:
-        out = float(value)
-    except ValueError:
-        return None
-    return out if math.isfinite(out) else None
+    return parse_number(value)     # the nodes' parser (anafi_sim/ros/params.py)
 
 
 def positive(value):
@@ -48,8 +46,13 @@ def flag(value):
     return None if value in ('true', 'false', 'True', 'False', '1', '0') else 'must be true or false'
 
 
+def _natural(value):
+    n = parse_integer(value)
+    return n if n is not None and n >= 0 and value.strip()[:1] != '-' else None
+
+
 def port(value):
-    if not value.isdigit() or not 0 <= int(value) <= 65535:
+    if _natural(value) is None or not 0 <= _natural(value) <= 65535:
         return 'must be an integer port in 0..65535 (0: any free port)'
     return None
 
@@ -141,13 +144,13 @@ def fleet_size_problem(count, max_drones=0, cores=None, layout=DEFAULT_LAYOUT):
 
 
 def drones(value):
-    if not value.isdigit():
+    if _natural(value) is None:
         return 'must be an integer >= 0 (0: the fleet file\'s list)'
     return None
 
 
 def max_drones(value):
-    return None if value.isdigit() else 'must be an integer >= 0 (0: the cap derived from the CPU cores)'
+    return None if _natural(value) is not None else 'must be an integer >= 0 (0: the cap derived from the CPU cores)'
 
 
 def layout(value):
@@ -189,10 +192,12 @@ def check(args):
         if name == 'scenario' and given.get('scenario_file'):
             continue
         problem = rule(value)
+        if problem is None and _number(value) is not None:
+            problem = range_problem(name, _number(value))
         if problem is None and name == 'drones' and int(value) > 0:
             limit = given.get('max_drones', '0')
             layout = given.get('layout') or DEFAULT_LAYOUT     # '' = the fleet file's: its launcher checks again
-            problem = fleet_size_problem(int(value), int(limit) if limit.isdigit() else 0,
+            problem = fleet_size_problem(int(value), _natural(limit) or 0,
                                          layout=layout if layout in CPU_PER_DRONE else DEFAULT_LAYOUT)
         if problem:
             errors.append('launch argument %s:=%s: %s' % (name, value, problem))

@@ -158,6 +158,21 @@ def layout(value):
         'must be %s, or empty (the fleet file\'s)' % ' or '.join(sorted(CPU_PER_DRONE))
 
 
+def fleet(value, given):
+    """None when the fleet file ``value`` (a name in config/fleets or a path) is good and its drones (or
+    drones:=N) fit the fleet cap of its layout (layout:= or the file's); else the fleet launcher's refusal."""
+    from anafi_sim.mission.fleet import load_fleet     # only when a fleet is checked (fleet.launch)
+    count = _natural(given.get('drones', '0')) or 0
+    try:
+        loaded = load_fleet(value, count)
+    except ValueError as error:
+        text = str(error).splitlines()[0] if str(error) else 'refused'
+        return text if len(text) <= 400 else text[:400] + '...'
+    layout = given.get('layout') or loaded.layout
+    return fleet_size_problem(len(loaded.drones), _natural(given.get('max_drones', '0')) or 0,
+                              layout=layout if layout in CPU_PER_DRONE else DEFAULT_LAYOUT)
+
+
 def controller(value):
     return None if value in ('mpc', 'pid', 'preview_mpc') else 'must be mpc, pid or preview_mpc'
 
@@ -174,8 +189,10 @@ RULES = {
     'pid_mode': pid_mode, 'mirror': flag, 'record': flag, 'plot': flag, 'rviz': flag, 'sync': flag,
     'sync_period': positive, 'sync_timeout': positive, 'progress_period': non_negative,
     'ready_timeout': positive, 'mirror_rate': positive, 'drones': drones, 'max_drones': max_drones,
-    'layout': layout,
+    'layout': layout, 'fleet': fleet,
 }
+#: rules that also read the other arguments: rule(value, {name: value})
+NEEDS_ALL = ('fleet',)
 
 
 def check(args):
@@ -191,10 +208,10 @@ def check(args):
                              % (name, ', '.join(sorted(RULES))))
         if name == 'scenario' and given.get('scenario_file'):
             continue
-        problem = rule(value)
-        if problem is None and _number(value) is not None:
+        problem = rule(value, given) if name in NEEDS_ALL else rule(value)
+        if problem is None and name not in NEEDS_ALL and _number(value) is not None:
             problem = range_problem(name, _number(value))
-        if problem is None and name == 'drones' and int(value) > 0:
+        if problem is None and name == 'drones' and int(value) > 0 and 'fleet' not in given:
             limit = given.get('max_drones', '0')
             layout = given.get('layout') or DEFAULT_LAYOUT     # '' = the fleet file's: its launcher checks again
             problem = fleet_size_problem(int(value), _natural(limit) or 0,

@@ -53,3 +53,16 @@ def test_check_and_node_agree_on_any_text(text):
         if name == 'initial_x' and text.strip() == '':
             continue    # '' = the launch file leaves the parameter unset (sim.yaml's)
         assert check_accepts(name, text) == node_accepts(name, text, positive)
+
+
+def test_fleet_launch_checks_the_fleet_file_before_anything_starts(tmp_path):
+    assert check([('fleet', 'three_circles'), ('drones', '0')]) == []
+    hostile = tmp_path / 'hostile.yaml'
+    hostile.write_text('drones:\n  - name: a\n    target: {model: "$(eval exec(\'import os\'))"}\n')
+    errors = check([('fleet', str(hostile)), ('drones', '0')])
+    assert len(errors) == 1 and 'target.model' in errors[0] and '\n' not in errors[0]
+    big = tmp_path / 'big.yaml'
+    big.write_text('layout: shared\ndefaults: {scenario: static_wp0}\n')
+    errors = check([('fleet', str(big)), ('drones', '50'), ('max_drones', '0'), ('layout', '')])
+    assert len(errors) == 1 and 'fleet cap' in errors[0]
+    assert check([('fleet', str(tmp_path / 'missing.yaml'))])[0].endswith('missing.yaml')

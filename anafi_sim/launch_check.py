@@ -158,21 +158,6 @@ def layout(value):
         'must be %s, or empty (the fleet file\'s)' % ' or '.join(sorted(CPU_PER_DRONE))
 
 
-def fleet(value, given):
-    """None when the fleet file ``value`` (a name in config/fleets or a path) is good and its drones (or
-    drones:=N) fit the fleet cap of its layout (layout:= or the file's); else the fleet launcher's refusal."""
-    from anafi_sim.mission.fleet import load_fleet     # only when a fleet is checked (fleet.launch)
-    count = _natural(given.get('drones', '0')) or 0
-    try:
-        loaded = load_fleet(value, count)
-    except ValueError as error:
-        text = str(error).splitlines()[0] if str(error) else 'refused'
-        return text if len(text) <= 400 else text[:400] + '...'
-    layout = given.get('layout') or loaded.layout
-    return fleet_size_problem(len(loaded.drones), _natural(given.get('max_drones', '0')) or 0,
-                              layout=layout if layout in CPU_PER_DRONE else DEFAULT_LAYOUT)
-
-
 def controller(value):
     return None if value in ('mpc', 'pid', 'preview_mpc') else 'must be mpc, pid or preview_mpc'
 
@@ -189,27 +174,28 @@ RULES = {
     'pid_mode': pid_mode, 'mirror': flag, 'record': flag, 'plot': flag, 'rviz': flag, 'sync': flag,
     'sync_period': positive, 'sync_timeout': positive, 'progress_period': non_negative,
     'ready_timeout': positive, 'mirror_rate': positive, 'drones': drones, 'max_drones': max_drones,
-    'layout': layout, 'fleet': fleet,
+    'layout': layout,
 }
-#: rules that also read the other arguments: rule(value, {name: value})
-NEEDS_ALL = ('fleet',)
 
 
-def check(args):
-    """``args``: (name, value text) pairs. Returns the error lines (empty when every argument is good);
+def check(args, context_rules=None):
+    """``args``: (name, value text) pairs; ``context_rules``: {name: rule(value, {name: value})}, rules that
+    read the other arguments too (the script adds the fleet file's: ``anafi_sim.mission.fleet.launch_problem``).
+    Returns the error lines (empty when every argument is good);
     ValueError for an argument name without a rule (a mistake in the launch file). A scenario is not
     checked when a scenario_file is given (the file wins)."""
     errors = []
     given = dict(args)
     for name, value in args:
-        rule = RULES.get(name)
+        context_rules = context_rules or {}
+        rule = RULES.get(name) or context_rules.get(name)
         if rule is None:
             raise ValueError('check_launch_args.py: no rule for the argument %r (known: %s)'
                              % (name, ', '.join(sorted(RULES))))
         if name == 'scenario' and given.get('scenario_file'):
             continue
-        problem = rule(value, given) if name in NEEDS_ALL else rule(value)
-        if problem is None and name not in NEEDS_ALL and _number(value) is not None:
+        problem = rule(value, given) if name in context_rules else rule(value)
+        if problem is None and name not in context_rules and _number(value) is not None:
             problem = range_problem(name, _number(value))
         if problem is None and name == 'drones' and int(value) > 0 and 'fleet' not in given:
             limit = given.get('max_drones', '0')

@@ -232,6 +232,23 @@ def fleet_from_dict(data, name='fleet', drones=0, what=None):
         raise ValueError('%s: %s' % (what, e))
 
 
+def launch_problem(value, given):
+    """The launch check's rule for ``fleet:=`` (anafi_sim/launch_check.py, fleet.launch): None when the fleet
+    file ``value`` is good and its drones (or ``drones:=N``) fit the fleet cap of its layout (``layout:=`` or
+    the file's); else the fleet launcher's refusal, one line."""
+    from anafi_sim.launch_check import CPU_PER_DRONE, DEFAULT_LAYOUT as CAP_LAYOUT, fleet_size_problem
+    from anafi_sim.numeric import parse_integer
+    count = parse_integer(given.get('drones', '0')) or 0
+    try:
+        loaded = load_fleet(value, max(count, 0))
+    except ValueError as error:
+        text = (str(error).splitlines() or ['refused'])[0]
+        return text if len(text) <= 400 else text[:400] + '...'
+    layout = given.get('layout') or loaded.layout
+    return fleet_size_problem(len(loaded.drones), max(parse_integer(given.get('max_drones', '0')) or 0, 0),
+                              layout=layout if layout in CPU_PER_DRONE else CAP_LAYOUT)
+
+
 def check_fleet(fleet, min_separation=MIN_SEPARATION):
     """ValueError when drones would clash: names / Gazebo models / ports taken twice, more than one Sphinx
     drone (Sphinx simulates one), take-off points closer than ``min_separation`` [m]."""

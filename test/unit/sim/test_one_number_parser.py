@@ -2,9 +2,14 @@
 import pytest
 from hypothesis import given, strategies as st
 
-from anafi_sim.launch_check import check
+from anafi_sim.launch_check import check as _check
+from anafi_sim.mission.fleet import launch_problem
 from anafi_sim.numeric import parse_integer, parse_number
 from anafi_sim.ros.params import ParamError, ParamReader
+
+
+def check(args):
+    return _check(args, {'fleet': launch_problem})
 
 
 def node_accepts(name, text, positive=False):

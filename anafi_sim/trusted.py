@@ -8,7 +8,9 @@ own. Symbolic links are resolved first; a link is as good as what it points to.
 
 Site settings (folders and tools beyond the package's own) come from files in ``SETTINGS_DIR``
 (``/etc/anafi_sim``), read only when the file itself is safe and owned by root: one absolute path per line,
-``#`` starts a comment (the cores take the folder as an argument, so tests use their own).
+``#`` starts a comment (the cores take the folder as an argument, so tests use their own). The environment
+variable ``ANAFI_SIM_SETTINGS_DIR`` (set by whoever starts the process, never by a ROS parameter) names another
+folder, whose files may then be owned by root or the user running the node (a test's own settings).
 """
 import os
 import stat
@@ -48,9 +50,18 @@ def unsafe_reason(path, owners=None):
         current = parent
 
 
-def settings_list(name, owners=(0,), directory=None):
-    """The absolute paths listed in the settings file ``name`` (empty when it is missing or not safe)."""
-    path = os.path.join(directory or SETTINGS_DIR, name)
+#: the environment variable that names another settings folder
+SETTINGS_ENV = 'ANAFI_SIM_SETTINGS_DIR'
+
+
+def settings_list(name, owners=None, directory=None):
+    """The absolute paths listed in the settings file ``name`` of ``directory`` (default: $ANAFI_SIM_SETTINGS_DIR,
+    else /etc/anafi_sim) (empty when it is missing or not safe). ``owners`` (default root, and the running user
+    for a folder other than /etc/anafi_sim): who may own the file."""
+    directory = directory or os.environ.get(SETTINGS_ENV) or SETTINGS_DIR
+    if owners is None:
+        owners = (0,) if directory == SETTINGS_DIR else default_owners()
+    path = os.path.join(directory, name)
     if not os.path.isfile(path) or unsafe_reason(path, owners) is not None:
         return []
     out = []

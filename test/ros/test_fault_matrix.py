@@ -332,6 +332,11 @@ class TestFaultMatrix(unittest.TestCase):
             f.write(FLOOD_TOOL.format(python=sys.executable, mb=FLOOD_MB,
                                       stand_in=paths.data_path('scripts', 'tlm_data_logger.py')))
         os.chmod(os.path.join(fake_bin, 'tlm-data-logger'), 0o755)
+        settings = os.path.join(cls.workdir, 'settings')    # the telemetry allow-list lists the test tool
+        os.makedirs(settings)
+        with open(os.path.join(settings, 'telemetry_tools'), 'w') as f:
+            f.write(os.path.join(fake_bin, 'tlm-data-logger') + '\n')
+        cls.env['ANAFI_SIM_SETTINGS_DIR'] = settings
         text = launch_text(port, garbage_port, fake_bin)
         if SHARED_LAYOUT:   # the same launch expanded by roslaunch and hosted as a fleet's (fleet.params.yaml)
             from anafi_sim.nodes.fleet_launcher import shared_launch

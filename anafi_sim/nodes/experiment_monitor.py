@@ -56,7 +56,7 @@ from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim import names
 from anafi_sim.ros.node import end_parent_launch, private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
-from anafi_sim.sim.conditions_profile import load_conditions
+from anafi_sim.sim.conditions_profile import load_conditions, parameter_folders
 from anafi_sim.safe_yaml import load_yaml_text
 
 try:
@@ -97,7 +97,7 @@ class ExperimentMonitorNode(object):
         # the flight conditions the simulator flies in (sim.launch conditions:=NAME): shown on the plot
         conditions = p.string('conditions', '')
         try:
-            self.wind = load_conditions(conditions) if conditions else None
+            self.wind = load_conditions(conditions, parameter_folders()) if conditions else None
         except ValueError as error:
             rospy.logwarn('conditions %r: %s (the plot will not show the wind)', conditions, error)
             self.wind = None

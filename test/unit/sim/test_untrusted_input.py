@@ -113,3 +113,15 @@ def test_telemetry_binds_loopback_unless_remote_is_allowed():
     assert checked_bind_host('sphinx-pc.local', allow_remote=True) == 'sphinx-pc.local'
     with pytest.raises(ValueError, match='IP address'):
         checked_bind_host('$(id)', allow_remote=True)
+
+
+def test_a_conditions_parameter_names_a_profile_only_in_the_allowed_folders(tmp_path):
+    from anafi_sim.sim.conditions_profile import load_conditions, parameter_folders
+    home = tmp_path / 'home'
+    home.mkdir()
+    profile = home / 'wind.yaml'
+    profile.write_text('{}\n')
+    assert load_conditions(str(profile)) == {}            # the lab's own command line: any path
+    with pytest.raises(ValueError, match='refused'):
+        load_conditions(str(profile), [str(tmp_path / 'elsewhere')])
+    assert load_conditions(str(profile), parameter_folders()) == {}     # under the temp folder

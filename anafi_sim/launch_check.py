@@ -67,8 +67,15 @@ def _config_dir(*parts):
 
 
 def model_file(value):
-    """A model YAML in anafi_sim/config (a file name) or an absolute path, that exists."""
+    """A model YAML in anafi_sim/config (a file name) or an absolute path inside the folders the simulator
+    reads a model from (the package's config, the root-owned /etc/anafi_sim/data_folders), that exists."""
+    from anafi_sim import trusted
     path = value if os.path.isabs(value) else _config_dir(value)
+    if os.path.isabs(value) and os.path.isfile(path):
+        try:
+            trusted.file_parameter(value, trusted.allowed_folders([_config_dir()]), 'model_file')
+        except ValueError as error:
+            return str(error).split(': ', 1)[-1]
     if not (os.path.isabs(value) or _FILE_NAME.match(value)) or not os.path.isfile(path):
         known = sorted(f for f in os.listdir(_config_dir()) if f.startswith('anafi_model') and f.endswith('.yaml'))
         return 'no model file %s (known: %s)' % (path, ', '.join(known))

@@ -204,7 +204,7 @@ def check(args, context_rules=None):
         problem = rule(value, given) if name in context_rules else rule(value)
         if problem is None and name not in context_rules and _number(value) is not None:
             problem = range_problem(name, _number(value))
-        if problem is None and name == 'drones' and int(value) > 0 and 'fleet' not in given:
+        if problem is None and name == 'drones' and int(value) > 0:
             limit = given.get('max_drones', '0')
             layout = given.get('layout') or DEFAULT_LAYOUT     # '' = the fleet file's: its launcher checks again
             problem = fleet_size_problem(int(value), _natural(limit) or 0,

@@ -234,8 +234,8 @@ def fleet_from_dict(data, name='fleet', drones=0, what=None):
 
 def launch_problem(value, given):
     """The launch check's rule for ``fleet:=`` (anafi_sim/launch_check.py, fleet.launch): None when the fleet
-    file ``value`` is good and its drones (or ``drones:=N``) fit the fleet cap of its layout (``layout:=`` or
-    the file's); else the fleet launcher's refusal, one line."""
+    file ``value`` is good and its drone list fits the fleet cap of its layout (``layout:=`` or the file's;
+    ``drones:=N`` is the drones rule's); else the fleet launcher's refusal, one line."""
     from anafi_sim.launch_check import CPU_PER_DRONE, DEFAULT_LAYOUT as CAP_LAYOUT, fleet_size_problem
     from anafi_sim.numeric import parse_integer
     count = parse_integer(given.get('drones', '0')) or 0
@@ -244,6 +244,8 @@ def launch_problem(value, given):
     except ValueError as error:
         text = (str(error).splitlines() or ['refused'])[0]
         return text if len(text) <= 400 else text[:400] + '...'
+    if count > 0:
+        return None      # drones:=N: the launch check's drones rule holds it to the cap
     layout = given.get('layout') or loaded.layout
     return fleet_size_problem(len(loaded.drones), max(parse_integer(given.get('max_drones', '0')) or 0, 0),
                               layout=layout if layout in CPU_PER_DRONE else CAP_LAYOUT)

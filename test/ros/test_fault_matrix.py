@@ -122,11 +122,12 @@ FAULTS = (
      'hears the commands and never commands (ERROR "second commander: ... also publishes ..."), the flying '
      'controller keeps tracking; the controller yields to the operator (ERROR naming it, no command) and '
      'tracks again once the operator is gone (quiet 2 s, no longer publishing)'),
-    ('hostile_command', 'the attack: the /garbage interface\'s ~telemetry_command set to "sh -c \'touch FILE\'" '
+    ('hostile_command', 'the attack: an executable EVIL/tlm-data-logger (it would create FILE) in a writable folder, '
+     'the /garbage interface\'s ~telemetry_command set to "EVIL/tlm-data-logger -r 0 inet:127.0.0.1:1" '
      '(rosparam), then its XML-RPC shutdown called (roslaunch respawns it with the new parameter)',
      'refused: the respawned interface runs nothing, stays up in ERROR "bad parameters: telemetry_command: '
-     'refused to run \'sh\' ..." (not respawned again), FILE never created; the parameter put back and the '
-     'node shut down again -> it reads the telemetry, OK'),
+     'refused to run \'EVIL/tlm-data-logger\': not one of the allowed tools ..." (not respawned again), FILE '
+     'never created; the parameter put back and the node shut down again -> it reads the telemetry, OK'),
     ('fleet_cap', 'roslaunch anafi_sim fleet.launch drones:=50 (305 processes, 11 GB, the master unresponsive '
      'for 150 s before)', 'refused before anything starts: one line naming drones and the cap (cores / the '
      'layout\'s measured core per drone, benchmarks/results/fleet.md), roslaunch exits non-zero, no node started'),
@@ -804,7 +805,12 @@ class TestFaultMatrix(unittest.TestCase):
                               lambda: self.procs.log_tail('roslaunch', 30))
         old = processes.node_pid(node, self.uri)
         self.assertIsNotNone(old, '%s is not running:\n%s' % (node, self.procs.log_tail('roslaunch', 30)))
-        rospy.set_param(name + '/telemetry_command', "sh -c 'touch %s'" % marker)
+        evil = os.path.join(self.workdir, 'EVIL')      # the file name of Sphinx's tool, anywhere else
+        os.makedirs(evil, exist_ok=True)
+        with open(os.path.join(evil, 'tlm-data-logger'), 'w') as f:
+            f.write('#!/bin/sh\ntouch %s\n' % marker)
+        os.chmod(os.path.join(evil, 'tlm-data-logger'), 0o755)
+        rospy.set_param(name + '/telemetry_command', '%s/tlm-data-logger -r 0 inet:127.0.0.1:1' % evil)
         t0 = time.time()
         shutdown()
         e, pid = [None], [None]
@@ -813,7 +819,8 @@ class TestFaultMatrix(unittest.TestCase):
             e[0], pid[0] = g.status(status, t0), processes.node_pid(node, self.uri)
             return e[0] is not None and e[0][1] == 2 and 'refused' in e[0][2] and pid[0] not in (None, old)
         processes.require(refused, 30.0, 'the respawned interface refusing the command', lambda: str(e[0]))
-        self.assertIn("telemetry_command: refused to run 'sh'", e[0][2])
+        self.assertIn("telemetry_command: refused to run '%s/tlm-data-logger': not one of the allowed tools" % evil,
+                      e[0][2])
         time.sleep(3.0)
         self.assertEqual(processes.node_pid(node, self.uri), pid[0], 'up in ERROR, not respawned again')
         self.assertFalse(os.path.exists(marker), 'the hostile command ran')

@@ -67,7 +67,8 @@ def test_fleet_launch_checks_the_fleet_file_before_anything_starts(tmp_path):
     errors = check([('fleet', str(hostile)), ('drones', '0')])
     assert len(errors) == 1 and 'target.model' in errors[0] and '\n' not in errors[0]
     big = tmp_path / 'big.yaml'
-    big.write_text('layout: shared\ndefaults: {scenario: static_wp0}\n')
-    errors = check([('fleet', str(big)), ('drones', '50'), ('max_drones', '0'), ('layout', '')])
-    assert len(errors) == 1 and 'fleet cap' in errors[0]
+    big.write_text('layout: shared\ndrones:\n' + ''.join('  - {name: a%d, scenario: static_wp0, start: [%d, 0]}\n'
+                                                       % (i, 2 * i) for i in range(200)))
+    errors = check([('fleet', str(big)), ('drones', '0'), ('max_drones', '0'), ('layout', '')])
+    assert len(errors) == 1 and 'fleet cap' in errors[0] and 'shared' in errors[0]
     assert check([('fleet', str(tmp_path / 'missing.yaml'))])[0].endswith('missing.yaml')

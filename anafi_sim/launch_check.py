@@ -13,16 +13,14 @@ import math
 import os
 import re
 
+from anafi_sim.numeric import parse_integer, parse_number, range_problem
+
 _BASE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 _FILE_NAME = re.compile(r'^[A-Za-z0-9_.-]+$')
 
 
 def _number(value):
-    try:
-        out = float(value)
-    except ValueError:
-        return None
-    return out if math.isfinite(out) else None
+    return parse_number(value)     # the nodes' parser (anafi_sim/ros/params.py)
 
 
 def positive(value):
@@ -49,8 +47,13 @@ def flag(value):
     return None if value in ('true', 'false', 'True', 'False', '1', '0') else 'must be true or false'
 
 
+def _natural(value):
+    n = parse_integer(value)
+    return n if n is not None and n >= 0 and value.strip()[:1] != '-' else None
+
+
 def port(value):
-    if not value.isdigit() or not 0 <= int(value) <= 65535:
+    if _natural(value) is None or not 0 <= _natural(value) <= 65535:
         return 'must be an integer port in 0..65535 (0: any free port)'
     return None
 
@@ -77,8 +80,15 @@ def _config_dir(*parts):
 
 
 def model_file(value):
-    """A model YAML in anafi_sim/config (a file name) or an absolute path, that exists."""
+    """A model YAML in anafi_sim/config (a file name) or an absolute path inside the folders the simulator
+    reads a model from (the package's config, the root-owned /etc/anafi_sim/data_folders), that exists."""
+    from anafi_sim import trusted
     path = value if os.path.isabs(value) else _config_dir(value)
+    if os.path.isabs(value) and os.path.isfile(path):
+        try:
+            trusted.file_parameter(value, trusted.allowed_folders([_config_dir()]), 'model_file')
+        except ValueError as error:
+            return str(error).split(': ', 1)[-1]
     if not (os.path.isabs(value) or _FILE_NAME.match(value)) or not os.path.isfile(path):
         known = sorted(f for f in os.listdir(_config_dir()) if f.startswith('anafi_model') and f.endswith('.yaml'))
         return 'no model file %s (known: %s)' % (path, ', '.join(known))
@@ -301,13 +311,13 @@ def fleet_size_problem(count, max_drones=0, cores=None, layout=DEFAULT_LAYOUT, c
 
 
 def drones(value):
-    if not value.isdigit():
+    if _natural(value) is None:
         return 'must be an integer >= 0 (0: the fleet file\'s list)'
     return None
 
 
 def max_drones(value):
-    return None if value.isdigit() else 'must be an integer >= 0 (0: the cap derived from the CPU cores)'
+    return None if _natural(value) is not None else 'must be an integer >= 0 (0: the cap derived from the CPU cores)'
 
 
 def layout(value):
@@ -337,26 +347,31 @@ RULES = {
 }
 
 
-def check(args, cap_cache=None):
-    """``args``: (name, value text) pairs. Returns the error lines (empty when every argument is good);
+def check(args, context_rules=None, cap_cache=None):
+    """``args``: (name, value text) pairs; ``context_rules``: {name: rule(value, {name: value})}, rules that
+    read the other arguments too (the script adds the fleet file's: ``anafi_sim.mission.fleet.launch_problem``);
+    ``cap_cache``: the fleet cap's cache file (default cap_cache_path()).
+    Returns the error lines (empty when every argument is good);
     ValueError for an argument name without a rule (a mistake in the launch file). A scenario is not
-    checked when a scenario_file is given (the file wins). ``cap_cache``: the fleet cap's cache file (default
-    cap_cache_path())."""
+    checked when a scenario_file is given (the file wins)."""
     errors = []
     given = dict(args)
     for name, value in args:
-        rule = RULES.get(name)
+        context_rules = context_rules or {}
+        rule = RULES.get(name) or context_rules.get(name)
         if rule is None:
             raise ValueError('check_launch_args.py: no rule for the argument %r (known: %s)'
                              % (name, ', '.join(sorted(RULES))))
         if name == 'scenario' and given.get('scenario_file'):
             continue
-        problem = rule(value)
+        problem = rule(value, given) if name in context_rules else rule(value)
+        if problem is None and name not in context_rules and _number(value) is not None:
+            problem = range_problem(name, _number(value))
         if problem is None and name == 'drones' and int(value) > 0:
             limit = given.get('max_drones', '0')
             layout = given.get('layout') or DEFAULT_LAYOUT     # '' = the fleet file's: its launcher checks again
             layout = layout if layout in CPU_PER_DRONE else DEFAULT_LAYOUT
-            problem = fleet_size_problem(int(value), int(limit) if limit.isdigit() else 0, layout=layout,
+            problem = fleet_size_problem(int(value), _natural(limit) or 0, layout=layout,
                                          cap=machine_cap(layout, cache_path=cap_cache))
         if problem:
             errors.append('launch argument %s:=%s: %s' % (name, value, problem))

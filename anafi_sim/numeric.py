@@ -2,9 +2,60 @@
 
 Used by the mission's cores (evaluation, monitor), the lab (runs, sweeps, reports) and the benchmarks, so that a
 mean, a standard deviation or a table cell is computed and written the same way everywhere.
+
+Numbers from text (``parse_number``, ``parse_integer``): the one parser of the launch check
+(anafi_sim/launch_check.py) and the nodes' parameters (anafi_sim/ros/params.py), so both accept the same
+values (``1e0``, ``-2.5``; ASCII digits only, finite) and both hold them to the same ``PARAMETER_RANGES``.
 """
 import collections
 import math
+import re
+
+_DECIMAL = re.compile(r'^[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?$')
+_INTEGER = re.compile(r'^[+-]?[0-9]+$')
+
+#: name -> (minimum, maximum): the physical range of a launch argument / node parameter of that name
+#: (the launch check and the nodes refuse a value outside it)
+PARAMETER_RANGES = {
+    'rtf': (0.0, 1000.0),              # real-time factor
+    'initial_x': (-10000.0, 10000.0),  # m, take-off point
+    'initial_y': (-10000.0, 10000.0),  # m
+    'initial_yaw': (-1000.0, 1000.0),  # rad
+}
+
+
+def parse_number(value):
+    """A finite float from a number (not a bool) or its text (decimal, ASCII digits, optional exponent);
+    None otherwise."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, (int, float)):
+        out = float(value) if not isinstance(value, int) or abs(value) < 1e308 else float('inf')
+    elif isinstance(value, str) and _DECIMAL.match(value.strip()):
+        out = float(value.strip())
+    else:
+        return None
+    return out if math.isfinite(out) else None
+
+
+def parse_integer(value):
+    """An int from an int (not a bool) or its text (ASCII digits, optional sign); None otherwise."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int):
+        return value
+    if isinstance(value, str) and _INTEGER.match(value.strip()):
+        return int(value.strip())
+    return None
+
+
+def range_problem(name, value):
+    """None when the number ``value`` lies in ``PARAMETER_RANGES[name]`` (or there is no range), else what
+    is wrong."""
+    bounds = PARAMETER_RANGES.get(name)
+    if bounds is None or bounds[0] <= value <= bounds[1]:
+        return None
+    return 'must lie in [%g, %g], got %g' % (bounds[0], bounds[1], value)
 
 
 def finite(values):

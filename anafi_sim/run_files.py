@@ -130,13 +130,28 @@ def failed_name(path):
     return os.path.join(directory, head + '.FAILED' + dot + tail if dot else name + '.FAILED')
 
 
-def mark_failed(paths):
-    """Rename every existing file of ``paths`` to its ``failed_name``; returns the new names."""
+def mark_failed(paths, state=None, reason=None):
+    """Rename every existing file of ``paths`` to its ``failed_name``; returns the new names. With ``state``, a
+    YAML mapping among them that has a ``state`` says it inside too: its state becomes ``state`` (and
+    ``reason``, when given, is added), written atomically under the FAILED name."""
     out = []
     for path in paths:
         if path and os.path.exists(path):
             target = failed_name(path)
-            os.replace(path, target)
+            data = None
+            if state is not None and path.endswith(('.yaml', '.yml')):
+                try:
+                    data = read_yaml(path, tolerant=True)
+                except (OSError, ValueError):
+                    data = None
+            if isinstance(data, dict) and 'state' in data:
+                data['state'] = state
+                if reason:
+                    data.setdefault('reason', reason)
+                write_yaml(target, data)
+                os.remove(path)
+            else:
+                os.replace(path, target)
             out.append(target)
     return out
 

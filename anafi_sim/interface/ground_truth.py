@@ -26,6 +26,7 @@ import math
 
 
 from anafi_control import frames
+from anafi_sim.telemetry.protocol import beyond_bounds
 
 OK, WARN, ERROR = 0, 1, 2  # same values as diagnostic_msgs/DiagnosticStatus levels
 
@@ -177,6 +178,8 @@ class GroundTruthInterface(object):
         self.published = 0         # samples returned for publishing
         self.decimated = 0         # finite, in-order samples skipped by the rate limit
         self.rejected_nonfinite = 0
+        self.rejected_beyond_bounds = 0
+        self.last_beyond_bounds = ''
         self.duplicates = 0        # same timestamp as the previous sample
         self.sim_restarts = 0      # timestamp jumped back
         self.restarted = False     # the last on_sample call detected a simulator restart
@@ -217,6 +220,10 @@ class GroundTruthInterface(object):
             return None
         if not _finite_sample(sample):
             self.rejected_nonfinite += 1
+            return None
+        if beyond_bounds(sample) is not None:     # malformed input (a position of 1e308 m), never ground truth
+            self.rejected_beyond_bounds += 1
+            self.last_beyond_bounds = beyond_bounds(sample)
             return None
         self.awaiting_samples = False
         ts = sample.timestamp
@@ -295,6 +302,8 @@ class GroundTruthInterface(object):
             ('samples published', str(self.published)),
             ('samples decimated', str(self.decimated)),
             ('rejected non-finite samples', str(self.rejected_nonfinite)),
+            ('rejected samples beyond physical bounds', '%d%s' % (
+                self.rejected_beyond_bounds, ' (last: %s)' % self.last_beyond_bounds if self.last_beyond_bounds else '')),
             ('duplicate samples', str(self.duplicates)),
             ('sim restarts', str(self.sim_restarts)),
             ('expected stream id', 'any' if self.expected_stream_id is None else str(self.expected_stream_id)),
@@ -313,6 +322,7 @@ class GroundTruthInterface(object):
             ('process restarts', process.get('restarts', 0)),
             ('partial samples', parser_counters.get('partial_samples', 0)),
             ('non-finite values', parser_counters.get('nonfinite', 0) + self.rejected_nonfinite),
+            ('samples beyond physical bounds', self.rejected_beyond_bounds),
         ]))
 
         down = bool(process) and not process.get('running', True)

@@ -22,12 +22,19 @@ Fleet file schema (every key optional except ``drones`` unless ``drones:=N`` is 
         start: {x: 0, y: 0, yaw: 0} # take-off point [m, deg]; default (offset x, offset y, 0)
         controller: mpc             # mpc | pid (the paper's 8 nodes) | pid_single | preview_mpc | none
         # exactly one of:
-        scenario: circle_r2_v1      # name in config/scenarios or a path, shifted by offset
+        scenario: circle_r2_v1      # a name in config/scenarios (sub/folder/name allowed), shifted by offset
         waypoint: [3, 2, 5, 0]      # a static target x, y, z [m], yaw [deg], shifted by offset
         target: {model: airship, offset_frame: heading, yaw_mode: heading}   # follow a Gazebo model
         offset: [0, 0, 0]           # scenario / waypoint: world shift [m]; target: the follower's offset
         telemetry_port: 9061        # default: a free port chosen at launch (Sphinx's own: 9060)
         telemetry_command: "tlm-data-logger -r 0 inet:127.0.0.1:9060"   # source sphinx only
+
+A fleet file is untrusted input that becomes a launch file, and roslaunch substitutes ``$(...)`` in every
+attribute value (XML quoting does not stop it). So every string field is checked against a strict pattern
+(``NAME_RE`` for names and models, ``FLEET_NAME_RE`` for the fleet's name, ``SCENARIO_RE`` for scenarios:
+package-relative names, no paths), the telemetry command against the allow-list, the description against
+``TEXT_RE`` (no ``$``, no XML specials); ``launch_xml`` refuses any value holding ``$(`` and escapes the text
+of its comments, so nothing a fleet file says is ever substituted or breaks out of the XML.
 """
 import collections
 import copy
@@ -39,8 +46,9 @@ from xml.sax.saxutils import quoteattr
 import yaml
 
 from anafi_sim import paths
+from anafi_sim.safe_yaml import load_yaml
 from anafi_sim.mission.model_following import OFFSET_FRAMES, YAW_MODES
-from anafi_sim.mission.trajectory import SCENARIO_DIR, airship_defaults, scenario_from_dict, scenario_path
+from anafi_sim.mission.trajectory import SCENARIO_DIR, airship_defaults, scenario_from_dict
 from anafi_sim.gazebo.mirror import model_names
 from anafi_sim.mission.fleet_layout import DEFAULT_LAYOUT, check_drones_per_host, check_layout
 from anafi_sim.interface.telemetry_command import allowed_argv
@@ -57,6 +65,9 @@ FLEET_KEYS = ('name', 'description', 'defaults', 'row', 'drones', 'layout', 'dro
 TARGET_KEYS = ('model', 'offset_frame', 'yaw_mode', 'yaw_offset')
 RESERVED_MODELS = ('ground_plane', 'airship')
 NAME_RE = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+FLEET_NAME_RE = re.compile(r'^[A-Za-z0-9_]{1,64}$')
+SCENARIO_RE = re.compile(r'^[A-Za-z0-9_]{1,64}(?:/[A-Za-z0-9_]{1,64}){0,4}(?:\.ya?ml)?$')
+TEXT_RE = re.compile(r'^[^$<>&\x00-\x1f\x7f]{0,500}$')
 WAYPOINT_DURATION = 3600.0   # s, the measured phase of a static waypoint target
 MIN_SEPARATION = 1.0         # m, closest allowed take-off points
 
@@ -70,6 +81,12 @@ Drone.__doc__ = ('One drone of a fleet: name, source (sim | sphinx), start (x, y
 
 Fleet = collections.namedtuple('Fleet', 'name description drones layout drones_per_host')
 Fleet.__new__.__defaults__ = ({},)
+
+
+def _short(value, limit=80):
+    """``repr(value)`` cut to ``limit`` characters (a refused field is named, never copied whole)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + '...'
 
 
 def _number(value, what):
@@ -109,7 +126,7 @@ def drone_from_dict(d, what='drone'):
     _check_keys(d, DRONE_KEYS, what)
     name = d.get('name')
     if not isinstance(name, str) or not NAME_RE.match(name):
-        raise ValueError('%s: name must be a ROS name ([A-Za-z][A-Za-z0-9_]*), got %r' % (what, name))
+        raise ValueError('%s: name must be a ROS name ([A-Za-z][A-Za-z0-9_]*), got %s' % (what, _short(name)))
     what = 'drone %s' % name
     source = d.get('source', 'sim')
     if source not in SOURCES:
@@ -125,8 +142,9 @@ def drone_from_dict(d, what='drone'):
     scenario = waypoint = target = None
     if kinds[0] == 'scenario':
         scenario = d['scenario']
-        if not isinstance(scenario, str) or not scenario:
-            raise ValueError('%s: scenario must be a scenario name or a path, got %r' % (what, scenario))
+        if not isinstance(scenario, str) or not SCENARIO_RE.match(scenario):
+            raise ValueError('%s: scenario must be the name of a scenario of the package (config/scenarios, '
+                             '[A-Za-z0-9_] words joined by /), got %s' % (what, _short(scenario)))
     elif kinds[0] == 'waypoint':
         w = d['waypoint']
         if not isinstance(w, (list, tuple)) or len(w) not in (3, 4):
@@ -137,8 +155,9 @@ def drone_from_dict(d, what='drone'):
         t = d['target']
         _check_keys(t, TARGET_KEYS, what + ': target')
         model = t.get('model')
-        if not isinstance(model, str) or not model:
-            raise ValueError('%s: target.model must be a model name, got %r' % (what, model))
+        if not isinstance(model, str) or not NAME_RE.match(model):
+            raise ValueError('%s: target.model must be a Gazebo model name ([A-Za-z][A-Za-z0-9_]*), got %s'
+                             % (what, _short(model)))
         frame = t.get('offset_frame', 'heading')
         yaw_mode = t.get('yaw_mode', 'heading')
         if frame not in OFFSET_FRAMES:
@@ -151,13 +170,13 @@ def drone_from_dict(d, what='drone'):
     if port is not None and (isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535):
         raise ValueError('%s: telemetry_port must be an integer in [1, 65535], got %r' % (what, port))
     command = d.get('telemetry_command', '')
-    if not isinstance(command, str):
-        raise ValueError('%s: telemetry_command must be a string, got %r' % (what, command))
+    if not isinstance(command, str) or '$' in command:
+        raise ValueError('%s: telemetry_command must be a string without $, got %s' % (what, _short(command)))
     if command and source != 'sphinx':
         raise ValueError('%s: telemetry_command is for source sphinx only (the stand-in gets its own)' % what)
     if command:
         try:
-            allowed_argv(command)   # one of the known tools with its own arguments
+            allowed_argv(command, resolve_names=False)   # an allowed tool with its own arguments
         except ValueError as error:
             raise ValueError('%s: %s' % (what, error))
     start = _start(d.get('start'), offset, what + ': start')
@@ -201,14 +220,39 @@ def fleet_from_dict(data, name='fleet', drones=0, what=None):
                 raise ValueError('drones must be a non-empty list (or give drones:=N)')
             entries = [dict(copy.deepcopy(defaults), **e) if isinstance(e, dict) else e for e in entries]
         layout = data.get('layout', DEFAULT_LAYOUT)
-        fleet = Fleet(str(data.get('name', name)), str(data.get('description', '')),
+        fleet_name, description = data.get('name', name), data.get('description', '')
+        if not isinstance(fleet_name, str) or not FLEET_NAME_RE.match(fleet_name):
+            raise ValueError('name must be [A-Za-z0-9_]+ (at most 64), got %s' % _short(fleet_name))
+        if not isinstance(description, str) or not TEXT_RE.match(description):
+            raise ValueError('description must be text of at most 500 characters without $ < > & or '
+                             'control characters, got %s' % _short(description))
+        fleet = Fleet(fleet_name, description,
                       tuple(drone_from_dict(e, 'drone %d' % (i + 1)) for i, e in enumerate(entries)),
-                      check_layout(layout) if isinstance(layout, str) else check_layout(repr(layout)),
+                      check_layout(layout) if isinstance(layout, str) else check_layout(_short(layout)),
                       check_drones_per_host(data.get('drones_per_host')))
         check_fleet(fleet)
         return fleet
     except ValueError as e:
         raise ValueError('%s: %s' % (what, e))
+
+
+def launch_problem(value, given):
+    """The launch check's rule for ``fleet:=`` (anafi_sim/launch_check.py, fleet.launch): None when the fleet
+    file ``value`` is good and its drone list fits the fleet cap of its layout (``layout:=`` or the file's;
+    ``drones:=N`` is the drones rule's); else the fleet launcher's refusal, one line."""
+    from anafi_sim.launch_check import CPU_PER_DRONE, DEFAULT_LAYOUT as CAP_LAYOUT, fleet_size_problem
+    from anafi_sim.numeric import parse_integer
+    count = parse_integer(given.get('drones', '0')) or 0
+    try:
+        loaded = load_fleet(value, max(count, 0))
+    except ValueError as error:
+        text = (str(error).splitlines() or ['refused'])[0]
+        return text if len(text) <= 400 else text[:400] + '...'
+    if count > 0:
+        return None      # drones:=N: the launch check's drones rule holds it to the cap
+    layout = given.get('layout') or loaded.layout
+    return fleet_size_problem(len(loaded.drones), max(parse_integer(given.get('max_drones', '0')) or 0, 0),
+                              layout=layout if layout in CPU_PER_DRONE else CAP_LAYOUT)
 
 
 def check_fleet(fleet, min_separation=MIN_SEPARATION):
@@ -248,12 +292,9 @@ def load_fleet(name_or_path, drones=0):
     path = fleet_path(name_or_path)
     if not os.path.isfile(path):
         raise ValueError('no fleet file %s' % path)
-    with open(path) as f:
-        try:
-            data = yaml.safe_load(f)
-        except yaml.YAMLError as e:
-            raise ValueError('%s: not valid YAML: %s' % (path, e))
-    return fleet_from_dict(data, os.path.splitext(os.path.basename(path))[0], drones, what=path)
+    data = load_yaml(path)
+    name = re.sub(r'[^A-Za-z0-9_]', '_', os.path.splitext(os.path.basename(path))[0])[:64] or 'fleet'
+    return fleet_from_dict(data, name, drones, what=path)
 
 
 # ---------------------------------------------------------------------------------------- scenarios
@@ -309,11 +350,15 @@ def drone_scenario(drone, scenario_dir=None):
     if drone.target is not None:
         return None
     if drone.scenario is not None:
-        path = scenario_path(drone.scenario, scenario_dir or SCENARIO_DIR)
+        if not SCENARIO_RE.match(drone.scenario):
+            raise ValueError('drone %s: scenario must be a name of the package\'s scenarios' % drone.name)
+        name = drone.scenario if drone.scenario.endswith(('.yaml', '.yml')) else drone.scenario + '.yaml'
+        path = os.path.join(scenario_dir or SCENARIO_DIR, name)
         if not os.path.isfile(path):
             raise ValueError('drone %s: no scenario file %s' % (drone.name, path))
-        with open(path) as f:
-            data = yaml.safe_load(f)
+        data = load_yaml(path, what='drone %s: scenario %s' % (drone.name, drone.scenario))
+        if not isinstance(data, dict):
+            raise ValueError('drone %s: scenario %s is not a mapping' % (drone.name, drone.scenario))
         data.setdefault('name', os.path.splitext(os.path.basename(path))[0])
     else:
         x, y, z, yaw = drone.waypoint
@@ -335,16 +380,32 @@ def drone_scenario(drone, scenario_dir=None):
 LAUNCH = '$(find anafi_sim)/anafi_sim/launch/'
 
 
+def _value(value):
+    """An attribute value, quoted; ValueError when it holds ``$(`` (roslaunch would substitute it)."""
+    text = str(value)
+    if '$(' in text or '$ (' in text:
+        raise ValueError('refused to write %s into the launch file: roslaunch would substitute it' % _short(text))
+    return quoteattr(text)
+
+
+def comment_text(text):
+    """``text`` safe inside an XML comment: no ``--`` (so no ``-->``), no trailing ``-``, printable."""
+    text = ''.join(c if c.isprintable() else ' ' for c in str(text))
+    while '--' in text:
+        text = text.replace('--', '- -')
+    return text + ' ' if text.endswith('-') else text
+
+
 def _arg(name, value):
-    return '    <arg name=%s value=%s/>' % (quoteattr(name), quoteattr(str(value)))
+    return '    <arg name=%s value=%s/>' % (quoteattr(name), _value(value))
 
 
 def _param(name, value, indent='      '):
-    return '%s<param name=%s value=%s/>' % (indent, quoteattr(name), quoteattr(str(value)))
+    return '%s<param name=%s value=%s/>' % (indent, quoteattr(name), _value(value))
 
 
 def _include(launch, args, comment=None):
-    lines = ['  <!-- %s -->' % comment] if comment else []
+    lines = ['  <!-- %s -->' % comment_text(comment)] if comment else []
     path = launch if os.path.isabs(launch) or launch.startswith('$(') else LAUNCH + launch
     lines.append('  <include file=%s>' % quoteattr(path))
     lines += [_arg(k, v) for k, v in args]
@@ -368,9 +429,8 @@ def _fmt(v):
 def drone_launch_lines(drone, port, scenario_file, options):
     """The launch XML lines of one drone (see ``launch_xml`` for ``options``)."""
     n = drone.name
-    out = ['', '  <!-- ======== %s: %s, controller %s, %s -->'
-           % (n, 'real Sphinx drone' if drone.source == 'sphinx' else 'simulated Anafi (stand-in)',
-              drone.controller, describe_task(drone))]
+    out = ['', '  <!-- ======== %s -->' % comment_text('%s: %s, controller %s, %s' % (n, 'real Sphinx drone' if drone.source == 'sphinx' else 'simulated Anafi (stand-in)',
+              drone.controller, describe_task(drone)))]
     if drone.source == 'sim':
         out += _include('sim.launch', [('drone_name', n), ('telemetry_port', port), ('use_sim_time', 'false'),
                                        ('initial_x', _fmt(drone.start[0])), ('initial_y', _fmt(drone.start[1])),
@@ -459,8 +519,9 @@ def launch_xml(fleet, ports, scenario_files, out_dir, evaluate=True, mirror=True
     if output not in ('screen', 'log'):
         raise ValueError('output must be screen or log, got %r' % (output,))
     lines = ['<?xml version="1.0"?>',
-             '<!-- Generated by fleet_launcher.py%s: fleet %s, %d drone(s). Do not edit; edit the fleet file. -->'
-             % (' from ' + source if source else '', fleet.name, len(fleet.drones)),
+             '<!-- %s -->' % comment_text('Generated by fleet_launcher.py%s: fleet %s, %d drone(s). Do not edit; '
+                                          'edit the fleet file.' % (' from ' + source if source else '', fleet.name,
+                                                                    len(fleet.drones))),
              '<launch>']
     if world:
         lines += _include('world.launch', [('drone', 'false')], 'the kinematic world (our Gazebo stand-in)')
@@ -473,11 +534,11 @@ def launch_xml(fleet, ports, scenario_files, out_dir, evaluate=True, mirror=True
                   '  <node pkg="diagnostic_aggregator" type="aggregator_node" name="diagnostic_aggregator">',
                   '    <rosparam command="load" file=%s/>'
                   % quoteattr('$(find anafi_sim)/anafi_sim/config/diagnostics_aggregator.yaml'),
-                  '    <rosparam command="load" file=%s ns="analyzers"/>' % quoteattr(aggregator_file),
+                  '    <rosparam command="load" file=%s ns="analyzers"/>' % _value(aggregator_file),
                   '  </node>']
     if rviz and rviz_file:
         lines += ['', '  <!-- rviz on the fleet\'s generated view: a model and markers per drone, the fleet framed -->',
-                  '  <node pkg="rviz" type="rviz" name="rviz" args=%s output="log"/>' % quoteattr('-d ' + rviz_file)]
+                  '  <node pkg="rviz" type="rviz" name="rviz" args=%s output="log"/>' % _value('-d ' + rviz_file)]
     lines.append('</launch>')
     return '\n'.join(lines) + '\n'
 

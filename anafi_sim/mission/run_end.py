@@ -89,7 +89,7 @@ def finish_run(ok, info, files, plot, problem=None):
             pass
     if not ok:      # every file this run leaves says so in its name (the recorder renames the bag)
         try:
-            marked = run_files.mark_failed([files[k] for k in MARKED_FILES])
+            marked = run_files.mark_failed([files[k] for k in MARKED_FILES], FAILED, info.get('reason'))
         except OSError as e:
             marked = []
             errors.append('cannot mark the files of the failed run: %s' % e)

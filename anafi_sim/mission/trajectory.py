@@ -696,11 +696,8 @@ def load_scenario(name_or_path, directory=None):
     if not os.path.isfile(path):
         known = list_scenarios(directory) if os.sep not in name_or_path else []
         raise ValueError('no scenario file %s%s' % (path, (' (known: %s)' % ', '.join(known)) if known else ''))
-    with open(path) as stream:
-        try:
-            data = yaml.safe_load(stream)
-        except yaml.YAMLError as e:
-            raise ValueError('%s: not valid YAML: %s' % (path, e))
+    from anafi_sim.safe_yaml import load_yaml
+    data = load_yaml(path)
     base = os.path.splitext(os.path.basename(path))[0]
     return scenario_from_dict(data, name=base, what=path)
 
@@ -722,8 +719,19 @@ def scenario_in_folders(name_or_path, folders):
     if os.path.splitext(path)[1] not in ('.yaml', '.yml') or not any(
             os.path.dirname(path) == f or path.startswith(f + os.sep) for f in folders):
         raise ValueError('refused: %r is not a scenario file in the scenario folders (%s)'
-                         % (name_or_path, ', '.join(folders)))
+                         % (name_or_path[:200], ', '.join(folders)))
     return path
+
+
+def scenario_folders(settings_dir=None):
+    """The folders a scenario parameter (``~scenario_file``, ``~scenario_dir``, a 'switch' command) may name:
+    the package's config folder (its scenarios), the package's test data, ``$ROS_HOME`` and the system's temp
+    folder (where the fleet launcher and the tests write generated scenarios), and the folders of the
+    root-owned settings file /etc/anafi_sim/data_folders."""
+    import tempfile
+    from anafi_sim import trusted
+    return trusted.allowed_folders([SCENARIO_DIR, paths.config_path(), paths.data_path('..', 'test')],
+                                   [trusted.ros_home(), tempfile.gettempdir()], directory=settings_dir)
 
 
 # ---------------------------------------------------------------- generator state machine

@@ -34,7 +34,6 @@ most ~sync_timeout s wall, counted on /diagnostics); a command with header.stamp
 implementation's controllers) counts at its time of arrival (counted and named on /diagnostics).
 Bad parameters: logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 """
-import os
 import time
 
 import rospy
@@ -45,7 +44,6 @@ from std_msgs.msg import Empty, Float32, String
 
 import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.frames import euler_to_quaternion
-from anafi_sim import paths
 from anafi_sim import names
 from anafi_sim.ros import conversions
 from anafi_sim.ros.context import NodeContext
@@ -54,11 +52,11 @@ from anafi_sim.ros.node import (OK, WARN, diagnostic_status, diagnostics_publish
 from anafi_sim.ros.wire_types import paper_state_class, piloting_command_class
 from anafi_sim.sim.bridge import CAMERA_FRAME_ID, WORLD_FRAME_ID, MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.sim.clock import SYNC_DEFAULTS, Lockstep, SimClock, StartHold
-from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
+from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params, model_file_path
 from anafi_sim.sim.simulator import SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
 from anafi_sim.telemetry.protocol import DEFAULT_PREFIX, new_stream_id
-from anafi_sim.telemetry.server import TelemetryServer
+from anafi_sim.telemetry.server import TelemetryServer, checked_bind_host
 
 
 
@@ -87,7 +85,7 @@ class AnafiSimNode(object):
         seed = p.integer('seed', 0, minimum=0)
         telemetry_rate = p.positive('telemetry_rate', 100.0)
         estimate_rate = p.positive('estimate_publish_rate', 30.0)
-        host = p.string('telemetry_host', '127.0.0.1')
+        host = checked_bind_host(p.string('telemetry_host', '127.0.0.1'), p.flag('allow_remote_telemetry', False))
         port = p.integer('telemetry_port', 0, minimum=0, maximum=65535)   # 0 = any free port
         prefix = p.string('telemetry_prefix', DEFAULT_PREFIX)
         auto_takeoff = p.flag('auto_takeoff', True)
@@ -141,7 +139,7 @@ class AnafiSimNode(object):
         model_params = p.mapping('model')
         model_file = p.string('model_file', 'anafi_model.yaml', allow_empty=False)
         if model_params is None:     # a name in anafi_sim/config (e.g. anafi_model_fitted.yaml) or a path
-            model_path = model_file if os.path.isabs(model_file) else paths.config_path(model_file)
+            model_path = model_file_path(model_file)     # a parameter: only files in the config folders
             model_params = load_model_params(model_path)
             self.ctx.loginfo('anafi_sim: model parameters from %s', model_path)
         return AnafiModel(model_params, mapping=mapping, seed=seed, settings=settings)

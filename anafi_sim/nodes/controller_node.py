@@ -72,7 +72,7 @@ from anafi_control.contract import ReferenceSample
 from anafi_control.frames import yaw_from_quaternion
 from anafi_sim.cfg import MpcConfig
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG
-from anafi_sim.sim.drone_model import DEFAULT_MODEL_FILE, load_model_params
+from anafi_sim.sim.drone_model import DEFAULT_MODEL_FILE, load_model_params, model_file_path
 from anafi_sim.msg import MpcStats
 from anafi_sim.ros.reconfigure import TracedServer
 from anafi_sim import names
@@ -289,7 +289,7 @@ class PreviewAdapter(MpcAdapter):
         params = dict((k, ctx.get_param(k)) for k in PREVIEW_DEFAULTS if ctx.has_param(k))
         for k in LIMIT_DEFAULTS:    # the flight envelope: waypoint_limits(p) below
             params.pop(k, None)
-        model = PredictionModel.from_params(load_model_params(p.string('model_file', '') or DEFAULT_MODEL_FILE),
+        model = PredictionModel.from_params(load_model_params(model_file_path(p.string('model_file', '') or DEFAULT_MODEL_FILE)),
                                             p.positive('max_tilt_deg', MAX_TILT_DEG),
                                             p.positive('max_vertical_speed', MAX_VERTICAL_SPEED),
                                             p.positive('max_yaw_rate_deg', MAX_YAW_RATE_DEG))

@@ -48,7 +48,6 @@ import time
 
 import rosgraph
 import rospy
-import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
@@ -61,7 +60,8 @@ from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim import names
 from anafi_sim.ros.node import end_parent_launch, private_params, run_node
 from anafi_sim.ros.wire_types import piloting_command_class
-from anafi_sim.sim.conditions_profile import load_conditions
+from anafi_sim.sim.conditions_profile import load_conditions, parameter_folders
+from anafi_sim.safe_yaml import load_yaml_text
 
 try:
     import psutil
@@ -72,8 +72,8 @@ except ImportError:   # CPU figures are optional
 def _yaml(msg):
     """The YAML data of a std_msgs/String, None when unreadable."""
     try:
-        return yaml.safe_load(msg.data)
-    except yaml.YAMLError:
+        return load_yaml_text(msg.data, 'message')
+    except ValueError:
         return None
 
 
@@ -101,7 +101,7 @@ class ExperimentMonitorNode(object):
         # the flight conditions the simulator flies in (sim.launch conditions:=NAME): shown on the plot
         conditions = p.string('conditions', '')
         try:
-            self.wind = load_conditions(conditions) if conditions else None
+            self.wind = load_conditions(conditions, parameter_folders()) if conditions else None
         except ValueError as error:
             rospy.logwarn('conditions %r: %s (the plot will not show the wind)', conditions, error)
             self.wind = None

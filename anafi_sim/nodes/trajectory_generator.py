@@ -51,7 +51,10 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectory
 import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.frames import euler_to_quaternion
 
-from anafi_sim.mission.trajectory import SCENARIO_DIR, list_scenarios, load_scenario, scenario_in_folders
+from anafi_sim.mission.trajectory import (SCENARIO_DIR, list_scenarios, load_scenario, scenario_folders,
+                                          scenario_in_folders)
+from anafi_sim.trusted import within
+from anafi_sim.untrusted import clip
 from anafi_sim.mission.generator import DONE, IDLE, RUNNING, TrajectoryGenerator
 from anafi_sim import names
 from anafi_sim.ros.context import NodeContext
@@ -82,11 +85,15 @@ class TrajectoryGeneratorNode(object):
         self.start_timeout = p.number('start_timeout', 0.0, minimum=0.0)
         self.exit_delay = p.number('exit_delay', 1.0, minimum=0.0)
         self.frame_id = p.string('frame_id', 'world')
+        allowed = scenario_folders()     # parameters anyone may set: only files in these folders are read
         self.scenario_dir = p.string('scenario_dir', '') or SCENARIO_DIR
+        if not within(self.scenario_dir, allowed):
+            raise ValueError('scenario_dir %r: not inside the scenario folders (%s)'
+                             % (self.scenario_dir[:200], ', '.join(allowed)))
         scenario_file = p.string('scenario_file', '')
         try:
-            scenario = load_scenario(scenario_file or p.string('scenario', 'circle_r2_v1'),
-                                     self.scenario_dir)           # ValueError with the file and field
+            scenario = load_scenario(scenario_in_folders(scenario_file or p.string('scenario', 'circle_r2_v1'),
+                                                         [self.scenario_dir] + allowed))
         except ValueError as e:
             raise ValueError('%s (scenarios in %s: %s)'
                              % (e, self.scenario_dir, ', '.join(list_scenarios(self.scenario_dir))))
@@ -139,8 +146,9 @@ class TrajectoryGeneratorNode(object):
         return TriggerResponse(success=ok, message=text)
 
     def _on_command(self, msg):
-        ok, text = self.command(msg.data)
-        (self.ctx.loginfo if ok else self.ctx.logwarn)('command %r: %s', msg.data, text)
+        ok, text = self.command(msg.data)     # a topic anyone may publish on: its text clipped, the lines throttled
+        (self.ctx.loginfo_throttle if ok else self.ctx.logwarn_throttle)(1.0, 'command %s: %s', clip(msg.data),
+                                                                         clip(text))
 
     def command(self, text):
         """Apply 'start' | 'stop' | 'restart' | 'switch NAME'; returns (ok, message)."""

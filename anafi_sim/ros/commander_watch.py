@@ -1,8 +1,10 @@
 """ROS glue of ``anafi_control.commanders.CommanderGuard``: a commanding node watches its own command topic.
 
 ``CommandTopicWatch(topic, msg_class)`` subscribes to the node's command topic and feeds the guard with
-the commands of OTHER nodes (the ``callerid`` of each message's connection header; the node's own commands
-come back too and are ignored). ``check()`` (every control cycle) says DOWN / RESUMED / CLEAR and logs an
+the commands of OTHER nodes. A command's sender is the publisher its connection was made to: the XML-RPC URI
+the master listed for the topic (rospy's ``endpoint_id`` of the connection), not the ``callerid`` its header
+claims (``commander_label``): a node that claims this node's name in its header but is another process is a
+second commander like any other (the node's own commands come back too and are ignored). ``check()`` (every control cycle) says DOWN / RESUMED / CLEAR and logs an
 ERROR once per episode naming the other nodes; ``check_presence()`` (from the 1 Hz wall-clock diagnostics
 thread) asks the master whether each other node still publishes the topic and still answers (getPid, 1 s
 timeout): a node killed without unregistering, or one that stopped publishing, no longer keeps this one
@@ -29,6 +31,24 @@ from anafi_sim.ros.context import NodeContext
 PRESENCE_TIMEOUT = 1.0
 
 
+def commander_label(claimed, endpoint, my_uri, my_name):
+    """Who sent a command (pure): None when it is this node's own, else the name to report.
+
+    ``claimed``: the connection header's callerid (anyone may write anything there); ``endpoint``: the XML-RPC
+    URI of the publisher the connection was made to (from the master's publisher list; None or 'unknown'
+    when the connection is not known); ``my_uri`` / ``my_name``: this node's. A known endpoint decides: this
+    node's URI is its own command whatever the header says, any other URI is another node, named by its
+    header unless that claims this node's name (then by its URI)."""
+    known = bool(endpoint) and endpoint != 'unknown' and bool(my_uri)
+    if known:
+        if endpoint == my_uri:
+            return None
+        if not claimed or claimed == my_name:
+            return '%s (claims to be %s)' % (endpoint, my_name)
+        return claimed
+    return claimed if claimed and claimed != my_name else None
+
+
 def _answers(uri, caller, timeout=PRESENCE_TIMEOUT):
     try:
         code = xmlrpc_proxy(uri, timeout).getPid(caller)[0]
@@ -47,6 +67,7 @@ class CommandTopicWatch(object):
         self.guard = CommanderGuard(quiet_time)
         self.lock = threading.Lock()
         self._others = []
+        self._endpoints = {}     # reported name -> the publisher URI its commands came from
         self.silent = True       # the last check said DOWN or LISTEN: publish nothing
         self.sub = ctx.subscriber(self.topic, msg_class, self._on_command, queue_size=20)
 
@@ -57,24 +78,43 @@ class CommandTopicWatch(object):
             with self.lock:
                 self._sent.append(msg)
 
+    def _connections(self):
+        try:
+            sub = getattr(self.sub, 'sub', self.sub)     # hosted: the rospy subscriber of the bus's subscription
+            return list(sub.impl.connections)
+        except Exception:     # rospy internals changed: the commands heard still work (by their header)
+            return []
+
+    def _my_uri(self):
+        try:
+            import rospy
+            return rospy.get_node_uri()
+        except Exception:
+            return None
+
     def publishers(self):
         """The other nodes connected to this node as publishers of the command topic (from the subscriber's
         connections: no master call), sorted; they may be idle (a controller that stood down)."""
-        try:
-            sub = getattr(self.sub, 'sub', self.sub)     # hosted: the rospy subscriber of the bus's subscription
-            callers = [c.header.get('callerid', '') for c in sub.impl.connections if c.header]
-        except Exception:     # rospy internals changed: the commands heard still work
-            return []
-        return sorted(set(c for c in callers if c and c not in (self.me, self.host)))
+        my_uri = self._my_uri()
+        names = [commander_label((c.header or {}).get('callerid', ''), getattr(c, 'endpoint_id', None), my_uri,
+                                 self.me) for c in self._connections() if c.header]
+        return sorted(set(n for n in names if n and n != self.host))
 
     def _on_command(self, msg):
         header = getattr(msg, '_connection_header', None) or {}
-        caller = header.get('callerid', '')
-        if not caller and self.host is not None:       # hosted: from an instance of this host
+        claimed = header.get('callerid', '')
+        if not claimed and self.host is not None and not header:       # hosted: from an instance of this host
             with self.lock:
                 if any(m is msg for m in self._sent):
                     return
             caller = '%s (an instance of this host)' % self.host
+        else:
+            endpoint = next((getattr(c, 'endpoint_id', None) for c in self._connections() if c.header is header),
+                            None)
+            caller = commander_label(claimed, endpoint, self._my_uri(), self.me)
+            if caller and endpoint and endpoint != 'unknown':
+                with self.lock:
+                    self._endpoints[caller] = endpoint
         if caller and caller != self.me:
             with self.lock:
                 self.guard.on_command(caller, time.monotonic())
@@ -105,13 +145,18 @@ class CommandTopicWatch(object):
             publishers = dict(master.getSystemState()[0]).get(self.topic, [])
         except Exception:     # master unreachable: keep what is known (the quiet time still applies)
             return
+        with self.lock:
+            endpoints = dict(self._endpoints)
         for caller in callers:
             present = False
-            if caller in publishers:
-                try:
+            try:
+                if caller in endpoints:     # identified by its URI: one of the topic's publishers still has it
+                    uri = endpoints[caller]
+                    present = any(master.lookupNode(p) == uri for p in publishers) and _answers(uri, self.me)
+                elif caller in publishers:
                     present = _answers(master.lookupNode(caller), self.me)
-                except Exception:
-                    present = False
+            except Exception:
+                present = False
             with self.lock:
                 self.guard.set_present(caller, present)
 

@@ -296,12 +296,21 @@ class LocalBus(object):
             else:
                 self._call(topic, (entry,), latched)
         own = self.caller_id
+        holder = []
 
         def from_elsewhere(msg):
+            # the host's own publications arrived locally already: known by the publisher URI of the message's
+            # connection (the master's publisher list), the header's callerid only when the connection is unknown
             header = getattr(msg, '_connection_header', None) or {}
-            if header.get('callerid') != own:      # the host's own publications arrived locally already
+            impl = getattr(holder[0], 'impl', None) if holder else None
+            endpoint = next((getattr(c, 'endpoint_id', None) for c in getattr(impl, 'connections', ())
+                             if c.header is header), None)
+            mine = endpoint == rospy.get_node_uri() if endpoint not in (None, 'unknown') else \
+                header.get('callerid') == own
+            if not mine:
                 callback(msg)
         sub = rospy.Subscriber(topic, data_class, from_elsewhere, **kwargs)
+        holder.append(sub)
         return LocalSubscription(self, topic, entry, sub)
 
     def remove(self, topic, entry):

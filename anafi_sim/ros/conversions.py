@@ -50,6 +50,10 @@ def waypoint_numbers(msg):
     return waypoints.waypoint_numbers(msg)
 
 
+#: the waypoint source of the messages of an instance of this host (the shared layout's bus: no connection)
+LOCAL_SOURCE = 'this host process'
+
+
 def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=waypoints.DEFAULT_WAYPOINT_TYPE,
                      admission=None, ctx=None):
     """Feed ``target.on_state`` / ``target.on_waypoint`` (an ``anafi_control.contract`` Controller or
@@ -67,11 +71,30 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=wa
         resolve, subscribe, me, log = ctx.resolve, ctx.subscriber, ctx.name, ctx
         deferred = {'deferred': True}
     resolved = resolve(state_topic), resolve(waypoint_topic)
+    subscription = {}
+
+    def source_of(msg):
+        """(the XML-RPC URI of the publisher the message's connection was made to, the URIs of every current
+        connection): from the master's publisher list, never the header; (LOCAL_SOURCE, None) for a message of
+        an instance of this host (no connection), (None, None) when unknown."""
+        header = getattr(msg, '_connection_header', None)
+        if not header:
+            return (LOCAL_SOURCE, None) if ctx is not None else (None, None)
+        try:
+            sub = subscription['sub']
+            connections = list(getattr(sub, 'sub', sub).impl.connections)
+        except Exception:     # rospy internals changed: no source check
+            return None, None
+        endpoint = next((c.endpoint_id for c in connections if c.header is header), None)
+        return endpoint, set(c.endpoint_id for c in connections)
 
     def on_waypoint(msg):
         if admission is not None and hasattr(msg, 'header'):
+            source, live = source_of(msg)
             with lock:
-                ok, why = admission.admit(rospy.get_time(), msg.header.stamp.to_sec(), msg.header.frame_id)
+                if live is not None and admission.source not in (None, LOCAL_SOURCE) and admission.source not in live:
+                    admission.release_source()      # the source left the topic: the next publisher takes over
+                ok, why = admission.admit(rospy.get_time(), msg.header.stamp.to_sec(), msg.header.frame_id, source)
                 dropped = admission.dropped
             if not ok:
                 log.logwarn_throttle(5.0, '%s: waypoint on %s dropped (%d so far): %s'
@@ -90,8 +113,8 @@ def subscribe_inputs(target, lock, state_topic, waypoint_topic, waypoint_type=wa
 
     subscribe(state_topic, Odometry, lambda m: feed('state', odometry_numbers(m), resolved[0]),
               queue_size=5, tcp_nodelay=True, **deferred)
-    subscribe(waypoint_topic, waypoints.waypoint_class(waypoint_type), on_waypoint, queue_size=5,
-              tcp_nodelay=True, **deferred)
+    subscription['sub'] = subscribe(waypoint_topic, waypoints.waypoint_class(waypoint_type), on_waypoint,
+                                    queue_size=5, tcp_nodelay=True, **deferred)
     return resolved
 
 

@@ -12,6 +12,8 @@ line and a non-zero exit at start-up.
 import math
 import re
 
+from anafi_sim.numeric import parse_integer, parse_number, range_problem
+
 _BASE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 
 
@@ -30,9 +32,14 @@ class ParamReader(object):
         self._get = getter
 
     def number(self, name, default, minimum=None, maximum=None, strict=False):
-        """A finite float; ``minimum``/``maximum`` bound it (exclusive when ``strict``)."""
-        value = self._get(name, default)
-        ok = _is_number(value)
+        """A finite float (a number or its text, ``anafi_sim.numeric.parse_number``: the launch check's parser);
+        ``minimum``/``maximum`` bound it (exclusive when ``strict``), and so does the physical range of a
+        parameter of that name (``anafi_sim.numeric.PARAMETER_RANGES``)."""
+        raw = self._get(name, default)
+        value = parse_number(raw)
+        ok = value is not None
+        if ok and range_problem(name, value):
+            raise ParamError('~%s %s' % (name, range_problem(name, value)))
         if ok and minimum is not None:
             ok = value > minimum if strict else value >= minimum
         if ok and maximum is not None:
@@ -43,8 +50,8 @@ class ParamReader(object):
                 bounds.append('%s %g' % ('>' if strict else '>=', minimum))
             if maximum is not None:
                 bounds.append('%s %g' % ('<' if strict else '<=', maximum))
-            raise ParamError('~%s must be a finite number%s, got %r'
-                             % (name, (' ' + ' and '.join(bounds)) if bounds else '', value))
+            raise ParamError('~%s must be a finite number%s, got %s'
+                             % (name, (' ' + ' and '.join(bounds)) if bounds else '', repr(raw)[:100]))
         return float(value)
 
     def positive(self, name, default):
@@ -53,16 +60,16 @@ class ParamReader(object):
 
     def integer(self, name, default, minimum=None, maximum=None):
         """An int (not a bool), optionally >= ``minimum`` and <= ``maximum``."""
-        value = self._get(name, default)
-        if isinstance(value, bool) or not isinstance(value, int) or (minimum is not None and value < minimum) \
-                or (maximum is not None and value > maximum):
+        raw = self._get(name, default)
+        value = parse_integer(raw)
+        if value is None or (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
             bounds = []
             if minimum is not None:
                 bounds.append('>= %d' % minimum)
             if maximum is not None:
                 bounds.append('<= %d' % maximum)
-            raise ParamError('~%s must be an integer%s, got %r'
-                             % (name, (' ' + ' and '.join(bounds)) if bounds else '', value))
+            raise ParamError('~%s must be an integer%s, got %s'
+                             % (name, (' ' + ' and '.join(bounds)) if bounds else '', repr(raw)[:100]))
         return value
 
     def flag(self, name, default):

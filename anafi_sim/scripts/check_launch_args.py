@@ -4,7 +4,8 @@
 Called by the launch files from ``<param name="launch_args_checked" command="...">`` (roslaunch runs it
 while reading the file). Every argument good: prints ``ok`` (the parameter's value), exit 0. Otherwise one
 line per bad argument on stderr (``launch argument rtf:=-1: must be a finite number > 0``), exit 2, and
-roslaunch stops with a non-zero status before starting anything. Rules: anafi_sim.launch_check.
+roslaunch stops with a non-zero status before starting anything. Rules: anafi_sim.launch_check (and
+the fleet file's: anafi_sim.mission.fleet.launch_problem).
 """
 import sys
 
@@ -13,7 +14,12 @@ from anafi_sim.launch_check import check, parse
 
 def main(argv):
     try:
-        errors = check(parse(argv))
+        args = parse(argv)
+        context = {}
+        if any(name == 'fleet' for name, _ in args):     # fleet.launch: the fleet file too
+            from anafi_sim.mission.fleet import launch_problem
+            context['fleet'] = launch_problem
+        errors = check(args, context)
     except ValueError as error:
         errors = [str(error)]
     if errors:

@@ -35,8 +35,9 @@ def list_conditions():
     return sorted(f[:-5] for f in os.listdir(directory) if f.endswith('.yaml') and NAME.match(f[:-5]))
 
 
-def profile_path(name_or_path):
-    """The file of a profile NAME or PATH; ValueError when there is none."""
+def profile_path(name_or_path, folders=None):
+    """The file of a profile NAME or PATH (with ``folders``, a PATH only inside one of them: a parameter);
+    ValueError when there is none."""
     text = str(name_or_path)
     if NAME.match(text):
         path = os.path.join(conditions_dir(), text + '.yaml')
@@ -45,22 +46,29 @@ def profile_path(name_or_path):
         return path
     if not text.endswith('.yaml') or not os.path.isfile(text):
         raise ValueError('conditions must be a NAME (%s) or the path of a .yaml file, got %r'
-                         % (', '.join(list_conditions()) or 'none', text))
+                         % (', '.join(list_conditions()) or 'none', text[:200]))
+    if folders is not None:
+        from anafi_sim import trusted
+        return trusted.file_parameter(text, folders, 'conditions', suffixes=('.yaml',))
     return text
 
 
-def load_conditions(name_or_path):
+def parameter_folders():
+    """The folders a ``~conditions`` parameter (anyone may set it) may name a profile in: the package's config,
+    $ROS_HOME, the temp folder (where the lab writes its profiles) and the root-owned /etc/anafi_sim/data_folders."""
+    import tempfile
+    from anafi_sim import trusted
+    return trusted.allowed_folders([paths.config_path()], [trusted.ros_home(), tempfile.gettempdir()])
+
+
+def load_conditions(name_or_path, folders=None):
     """{setting: value} of a profile (NAME or PATH; None or '' -> {}); ValueError on an unreadable file, an
     unknown key or a bad value."""
     if name_or_path in (None, ''):
         return collections.OrderedDict()
-    import yaml
-    path = profile_path(name_or_path)
-    try:
-        with open(path) as stream:
-            data = yaml.safe_load(stream)
-    except (OSError, yaml.YAMLError) as error:
-        raise ValueError('cannot read the conditions %s: %s' % (path, error))
+    from anafi_sim.safe_yaml import load_yaml
+    path = profile_path(name_or_path, folders)
+    data = load_yaml(path, what='the conditions %s' % path)
     if not isinstance(data, dict):
         raise ValueError('%s: a conditions profile is a mapping of simulator settings' % path)
     unknown = sorted(str(k) for k in data if k not in PROFILE_KEYS)

@@ -88,6 +88,7 @@ first-order discretisation of the loops.
 """
 import collections
 import math
+import os
 
 import numpy as np
 
@@ -267,15 +268,19 @@ def validate_settings(settings=None):
     return clean
 
 
+def model_file_path(value, settings_dir=None):
+    """The model file a parameter names (``~model_file``: a name in anafi_sim/config or a path): only YAML files
+    in the package's config folder or a folder of the root-owned /etc/anafi_sim/data_folders (ValueError)."""
+    from anafi_sim import trusted
+    folders = trusted.allowed_folders([os.path.dirname(DEFAULT_MODEL_FILE)], directory=settings_dir)
+    return trusted.file_parameter(value, folders, 'model_file')
+
+
 def load_model_params(path=DEFAULT_MODEL_FILE):
     """Read and validate a model YAML file (default: anafi_sim/config/anafi_model.yaml); ValueError when it
     cannot be read or is not a valid model."""
-    import yaml
-    try:
-        with open(path) as stream:
-            params = yaml.safe_load(stream)
-    except (OSError, yaml.YAMLError) as error:
-        raise ValueError('cannot read the model file %s: %s' % (path, error))
+    from anafi_sim.safe_yaml import load_yaml
+    params = load_yaml(path, what='the model file %s' % path)
     try:
         return validate_model_params(params)
     except ValueError as error:

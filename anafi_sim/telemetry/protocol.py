@@ -52,6 +52,25 @@ FIELDS = tuple(f for _, f in DRONE_KEYS) + tuple(f for _, f in GIMBAL_KEYS)
 
 TelemetrySample = collections.namedtuple('TelemetrySample', FIELDS)
 
+#: field -> largest magnitude a real (or simulated) Anafi can show: a sample beyond it is malformed input,
+#: never ground truth (positions [m] 100 km, speeds [m/s], angles [rad] (unwrapped yaw allowed), rates
+#: [rad/s], accelerations [m/s^2, rad/s^2], timestamp [s] of simulation time, >= 0)
+PHYSICAL_BOUNDS = dict(
+    [(f, 1e5) for f in ('x', 'y', 'z')]
+    + [(f, 1e3) for f in ('vx', 'vy', 'vz', 'body_vx', 'body_vy', 'body_vz')]
+    + [(f, 1e4) for f in ('roll', 'pitch', 'yaw', 'gimbal_roll', 'gimbal_pitch')]
+    + [(f, 1e3) for f in ('body_wx', 'body_wy', 'body_wz')]
+    + [(f, 1e5) for f in ('body_ax', 'body_ay', 'body_az', 'body_alpha_x', 'body_alpha_y', 'body_alpha_z')]
+    + [('timestamp', 1e10)])
+
+
+def beyond_bounds(sample):
+    """The first field of ``sample`` beyond ``PHYSICAL_BOUNDS`` (or a negative timestamp), None when none."""
+    for field, value in zip(FIELDS, sample):
+        if abs(value) > PHYSICAL_BOUNDS[field]:
+            return field
+    return 'timestamp' if sample.timestamp < 0.0 else None
+
 
 def key_map(prefix=DEFAULT_PREFIX):
     """Ordered {full key: sample field} for a drone named by ``prefix``."""

@@ -18,6 +18,7 @@ connect (message on stderr) or stdout is closed, 2 for bad arguments.
 """
 import argparse
 import errno
+import re
 import select
 import socket
 import threading
@@ -286,3 +287,23 @@ def run_logger(argv, out, err, connect_timeout=5.0):
         return 130
     finally:
         sock.close()
+
+
+def checked_bind_host(host, allow_remote=False):
+    """The address the telemetry server may bind: a loopback address (127.0.0.0/8, ::1, ``localhost``) unless
+    ``allow_remote`` (``~allow_remote_telemetry``: the two-host layout); ValueError otherwise. The telemetry is
+    plain text without authentication, so it stays on the host unless asked for."""
+    import ipaddress
+    text = str(host).strip()
+    if text == 'localhost':
+        return text
+    try:
+        address = ipaddress.ip_address(text)
+    except ValueError:
+        if allow_remote and re.match(r'^[A-Za-z0-9](?:[A-Za-z0-9.-]{0,252})$', text):
+            return text
+        raise ValueError('telemetry_host must be an IP address or localhost, got %r' % text[:100])
+    if address.is_loopback or allow_remote:
+        return text
+    raise ValueError('telemetry_host %s is not a loopback address: the telemetry would be readable from the '
+                     'network (set ~allow_remote_telemetry true to allow it)' % text)

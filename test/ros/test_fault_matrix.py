@@ -122,11 +122,12 @@ FAULTS = (
      'hears the commands and never commands (ERROR "second commander: ... also publishes ..."), the flying '
      'controller keeps tracking; the controller yields to the operator (ERROR naming it, no command) and '
      'tracks again once the operator is gone (quiet 2 s, no longer publishing)'),
-    ('hostile_command', 'the attack: the /garbage interface\'s ~telemetry_command set to "sh -c \'touch FILE\'" '
+    ('hostile_command', 'the attack: an executable EVIL/tlm-data-logger (it would create FILE) in a writable folder, '
+     'the /garbage interface\'s ~telemetry_command set to "EVIL/tlm-data-logger -r 0 inet:127.0.0.1:1" '
      '(rosparam), then its XML-RPC shutdown called (roslaunch respawns it with the new parameter)',
      'refused: the respawned interface runs nothing, stays up in ERROR "bad parameters: telemetry_command: '
-     'refused to run \'sh\' ..." (not respawned again), FILE never created; the parameter put back and the '
-     'node shut down again -> it reads the telemetry, OK'),
+     'refused to run \'EVIL/tlm-data-logger\': not one of the allowed tools ..." (not respawned again), FILE '
+     'never created; the parameter put back and the node shut down again -> it reads the telemetry, OK'),
     ('fleet_cap', 'roslaunch anafi_sim fleet.launch drones:=50 (305 processes, 11 GB, the master unresponsive '
      'for 150 s before)', 'refused before anything starts: one line naming drones and the cap (this machine\'s '
      'own measured figure from the ROS home\'s cache, else the conservative default: which, and where it came '
@@ -333,6 +334,11 @@ class TestFaultMatrix(unittest.TestCase):
             f.write(FLOOD_TOOL.format(python=sys.executable, mb=FLOOD_MB,
                                       stand_in=paths.data_path('scripts', 'tlm_data_logger.py')))
         os.chmod(os.path.join(fake_bin, 'tlm-data-logger'), 0o755)
+        settings = os.path.join(cls.workdir, 'settings')    # the telemetry allow-list lists the test tool
+        os.makedirs(settings)
+        with open(os.path.join(settings, 'telemetry_tools'), 'w') as f:
+            f.write(os.path.join(fake_bin, 'tlm-data-logger') + '\n')
+        cls.env['ANAFI_SIM_SETTINGS_DIR'] = settings
         text = launch_text(port, garbage_port, fake_bin)
         if SHARED_LAYOUT:   # the same launch expanded by roslaunch and hosted as a fleet's (fleet.params.yaml)
             from anafi_sim.nodes.fleet_launcher import shared_launch
@@ -819,7 +825,12 @@ class TestFaultMatrix(unittest.TestCase):
                               lambda: self.procs.log_tail('roslaunch', 30))
         old = processes.node_pid(node, self.uri)
         self.assertIsNotNone(old, '%s is not running:\n%s' % (node, self.procs.log_tail('roslaunch', 30)))
-        rospy.set_param(name + '/telemetry_command', "sh -c 'touch %s'" % marker)
+        evil = os.path.join(self.workdir, 'EVIL')      # the file name of Sphinx's tool, anywhere else
+        os.makedirs(evil, exist_ok=True)
+        with open(os.path.join(evil, 'tlm-data-logger'), 'w') as f:
+            f.write('#!/bin/sh\ntouch %s\n' % marker)
+        os.chmod(os.path.join(evil, 'tlm-data-logger'), 0o755)
+        rospy.set_param(name + '/telemetry_command', '%s/tlm-data-logger -r 0 inet:127.0.0.1:1' % evil)
         t0 = time.time()
         shutdown()
         e, pid = [None], [None]
@@ -828,7 +839,8 @@ class TestFaultMatrix(unittest.TestCase):
             e[0], pid[0] = g.status(status, t0), processes.node_pid(node, self.uri)
             return e[0] is not None and e[0][1] == 2 and 'refused' in e[0][2] and pid[0] not in (None, old)
         processes.require(refused, 30.0, 'the respawned interface refusing the command', lambda: str(e[0]))
-        self.assertIn("telemetry_command: refused to run 'sh'", e[0][2])
+        self.assertIn("telemetry_command: refused to run '%s/tlm-data-logger': not one of the allowed tools" % evil,
+                      e[0][2])
         time.sleep(3.0)
         self.assertEqual(processes.node_pid(node, self.uri), pid[0], 'up in ERROR, not respawned again')
         self.assertFalse(os.path.exists(marker), 'the hostile command ran')

@@ -76,3 +76,23 @@ def test_amend_health_warns_with_the_drops():
     amended = conversions.amend_health(h, a)
     assert amended.level == LEVEL_WARN and 'tracking; dropped waypoints: 1 stale stamp' in amended.message
     assert ('x', 1) in amended.values
+
+
+A, B = 'http://127.0.0.1:40001/', 'http://127.0.0.1:40002/'
+
+
+def test_one_waypoint_source_the_first_publisher_heard():
+    a = WaypointAdmission()
+    assert a.admit(10.0, 9.95, 'world', A) == (True, '')
+    ok, why = a.admit(10.05, 0.0, '', B)              # a second stream stamped 0, frame ''
+    assert not ok and 'another publisher' in why
+    ok, why = a.admit(10.1, 11.0, 'world', B)         # stamped 0.9 s ahead: cannot displace the source
+    assert not ok and 'another publisher' in why
+    assert a.admit(10.15, 10.1, 'world', A) == (True, '')   # the legitimate stream is never out of order
+    ok, why = a.admit(10.2, 0.0, 'world', A)          # stamp 0 from a stamped stream
+    assert not ok and 'unstamped' in why
+    assert a.counters['other_source'] == 2 and a.counters['unstamped'] == 1
+    a.release_source()                                # the source left the topic: hand-over
+    assert a.admit(10.3, 0.0, 'world', B) == (True, '') and a.source == B
+    assert a.admit(10.4, 0.0, 'world', B) == (True, '')     # unstamped from its start: accepted
+    assert dict(a.values())['waypoint sources taken'] == 2

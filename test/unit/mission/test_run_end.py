@@ -155,10 +155,23 @@ def test_the_result_block_of_a_failed_run(tmp_path):
 
 
 def test_files_that_cannot_be_renamed_are_reported_not_raised(tmp_path, monkeypatch):
-    def refuse(paths):
+    def refuse(paths, *state_and_reason):
         raise OSError('read-only file system')
     monkeypatch.setattr(run_files, 'mark_failed', refuse)
     files = run_folder(tmp_path)
     done = run_end.finish_run(False, info_of(FAILED, 'x'), files, draw)
     assert done.errors == ['cannot mark the files of the failed run: read-only file system']
     assert done.files['csv'] == files['csv'] and done.files['bag'] == run_files.failed_name(files['bag'])
+
+
+def test_a_failed_run_file_says_failed_inside(tmp_path):
+    from anafi_sim import run_files
+    summary = tmp_path / 'run.yaml'
+    run_files.write_yaml(str(summary), {'state': 'final', 'rmse': 0.1})
+    csv = tmp_path / 'run.csv'
+    csv.write_text('t,x\n')
+    marked = run_files.mark_failed([str(summary), str(csv)], 'failed', 'the drone never flew')
+    assert marked == [str(tmp_path / 'run.FAILED.yaml'), str(tmp_path / 'run.FAILED.csv')]
+    data = run_files.read_yaml(marked[0])
+    assert data['state'] == 'failed' and data['reason'] == 'the drone never flew' and data['rmse'] == 0.1
+    assert not summary.exists() and not csv.exists()

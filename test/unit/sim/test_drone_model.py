@@ -613,11 +613,11 @@ def test_fitted_config_file_is_valid_and_has_every_effect_on():
 
 
 def test_unreadable_model_file_is_a_value_error(tmp_path):
-    with pytest.raises(ValueError, match='cannot read'):
+    with pytest.raises(ValueError, match='cannot be read'):
         load_model_params(str(tmp_path / 'missing.yaml'))
     bad = tmp_path / 'bad.yaml'
     bad.write_text('gravity: [1, 2\n')
-    with pytest.raises(ValueError, match='cannot read'):
+    with pytest.raises(ValueError, match='not valid YAML at line'):
         load_model_params(str(bad))
     wrong = tmp_path / 'wrong.yaml'
     wrong.write_text(yaml.safe_dump(dict(PARAMS, tilt_attenuation=1.5)))

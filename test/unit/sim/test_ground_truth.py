@@ -6,7 +6,8 @@ import pytest
 
 from anafi_control import frames
 from anafi_sim.interface import ground_truth as gt
-from anafi_sim.telemetry.protocol import FIELDS, TelemetrySample
+from anafi_sim.telemetry.protocol import FIELDS, PHYSICAL_BOUNDS, TelemetrySample
+from hypothesis import given, strategies as st
 
 
 def sample_at(ts, **values):
@@ -346,3 +347,23 @@ def test_rate_window_and_new_counts():
     assert n.news({'stale samples': 0, 'restarts': 2}) == ['2 new restarts']
     assert n.news({'stale samples': 3, 'restarts': 2}) == ['3 new stale samples']
     assert n.news({'stale samples': 3, 'restarts': 2}) == []
+
+
+@pytest.mark.parametrize('field, bad', [('x', 1e308), ('z', -2e5), ('vx', 5e3), ('body_wz', 1e6), ('timestamp', -1.0)])
+def test_a_sample_beyond_physical_bounds_is_malformed_not_ground_truth(field, bad):
+    core = gt.GroundTruthInterface(stale_timeout=0.5)
+    assert core.on_sample(sample_at(1.0), 10.0) is not None
+    s = sample_at(bad if field == 'timestamp' else 1.01, **({field: bad} if field != 'timestamp' else {}))
+    assert core.on_sample(s, 10.4) is None
+    assert core.rejected_beyond_bounds == 1 and core.last_timestamp == 1.0
+    values = dict(core.health(10.45).values)
+    assert values['rejected samples beyond physical bounds'] == '1 (last: %s)' % field
+
+
+@given(st.sampled_from(FIELDS), st.floats(allow_nan=False, allow_infinity=False))
+def test_published_ground_truth_stays_within_physical_bounds(field, value):
+    core = gt.GroundTruthInterface()
+    out = core.on_sample(sample_at(1.0, **({field: value} if field != 'timestamp' else {})) if field != 'timestamp'
+                         else sample_at(value), 10.0)
+    if out is not None:
+        assert all(abs(v) <= PHYSICAL_BOUNDS[f] for f, v in zip(FIELDS, out)) and out.timestamp >= 0.0

@@ -41,7 +41,9 @@ _SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN, _LAB = (
     'anafi_sim.sim', 'anafi_sim.telemetry', 'anafi_sim.interface', 'anafi_sim.gazebo', 'anafi_sim.mission',
     'anafi_control', 'anafi_sim.paths', 'anafi_sim.names', 'anafi_sim.processes', 'anafi_sim.numeric',
     'anafi_sim.run_files', 'anafi_lab')
-_FLIGHT_CORES = {_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN, 'anafi_sim.launch_check'}
+_TRUST, _YAML, _UNTR = 'anafi_sim.trusted', 'anafi_sim.safe_yaml', 'anafi_sim.untrusted'
+_FLIGHT_CORES = {_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN, 'anafi_sim.launch_check',
+                 _TRUST, _YAML, _UNTR}
 #: the one direction of the data flow: what each stage may import (besides itself). Simulated drone ->
 #: telemetry -> interface -> gazebo mirror | controllers; the mission (scenarios, evaluation) on top;
 #: ros/ (node glue) above all cores, nodes/ (the nodes) above ros/, scripts/ (their mains) on top; anafi_control stands alone; the lab (anafi_lab)
@@ -54,12 +56,15 @@ ALLOWED_IMPORTS = {
     _PROC: set(),
     _NUM: set(),
     _RUN: set(),
-    'anafi_sim.launch_check': {_PATHS},
+    _TRUST: set(),
+    _YAML: set(),
+    _UNTR: set(),
+    'anafi_sim.launch_check': {_PATHS, _NUM, _TRUST},
     _TLM: {_PATHS, _NUM},
-    _SIM: {_TLM, _CTL, _PATHS, _NUM},
-    _IF: {_TLM, _CTL, _PATHS, _NUM},
+    _SIM: {_TLM, _CTL, _PATHS, _NUM, _TRUST, _YAML},
+    _IF: {_TLM, _CTL, _PATHS, _NUM, _TRUST},
     _GZ: {_IF, _TLM, _CTL, _PATHS, _NUM},
-    _MIS: {_SIM, _TLM, _IF, _GZ, _CTL, _PATHS, _NAMES, _NUM, _RUN, 'anafi_sim.launch_check'},
+    _MIS: {_SIM, _TLM, _IF, _GZ, _CTL, _PATHS, _NAMES, _NUM, _RUN, 'anafi_sim.launch_check', _TRUST, _YAML},
     _LAB: _FLIGHT_CORES,
 }
 

@@ -353,6 +353,9 @@ def main(argv=None):
     if args.settle is None:
         args.settle = 5.0 if args.calibrate_cap else 10.0
     if args.calibrate_cap:
+        from anafi_sim import launch_check
+        # the user's cache, taken before the private master points this process's ROS_HOME at the bench's folder
+        args.cap_cache = args.cap_cache or launch_check.cap_cache_path()
         layouts = args.layouts or ([args.layout] if args.layout else list(fleet_report.LAYOUTS))
         with tempfile.TemporaryDirectory(prefix='bench_fleet_') as workdir:
             bench = Bench(workdir)

@@ -15,7 +15,9 @@ header (``anafi_sim/Waypoint``: stamp, frame_id); ``WaypointAdmission.admit`` dr
   publisher list, never the header), the first publisher heard becomes the drone's one waypoint source;
   the others are refused and counted. Hand-over: ``release_source`` (the glue calls it when the source's
   publisher has left the topic: it unregistered or its connection closed), then the next publisher heard
-  is the source;
+  is the source; and a source silent for more than ``SOURCE_SILENCE`` s hands over to the next publisher heard
+  (e.g. the experiment monitor's hold of the start, then the trajectory generator: a live 10 Hz stream is
+  never displaced);
 - ``unstamped``: a stamp of 0 from a source whose stream was stamped from the start.
 
 A stamp of 0 (a publisher that does not stamp, such as the paper's own nodes) skips the time checks (only
@@ -32,6 +34,8 @@ REASONS = ('stale', 'future', 'out_of_order', 'foreign_frame', 'other_source', '
 TEXT = {'stale': 'stale stamp', 'future': 'stamp in the future', 'out_of_order': 'out of order',
         'foreign_frame': 'foreign frame', 'other_source': 'another publisher than the waypoint source',
         'unstamped': 'unstamped in a stamped stream'}
+#: [s] a waypoint source silent for longer hands over to the next publisher heard (3 periods of a 10 Hz stream)
+SOURCE_SILENCE = 0.3
 DEFAULTS = {'waypoint_max_age': 1.0, 'waypoint_frame': 'world'}
 
 
@@ -51,6 +55,7 @@ class WaypointAdmission(object):
         self.source = None           # the waypoint source (a publisher's URI), None until one is heard
         self.source_unstamped = None  # the source's first waypoint had stamp 0
         self.sources = 0             # sources taken (1 + hand-overs)
+        self.source_heard = None     # receipt time of the source's newest admitted waypoint [s]
         self.last_receipt = None
         self.counters = collections.OrderedDict((r, 0) for r in REASONS)
         self.last_drop = ''          # text of the last drop
@@ -65,6 +70,7 @@ class WaypointAdmission(object):
         if self.source is not None:
             self.source = None
             self.source_unstamped = None
+            self.source_heard = None
             self.newest = None
 
     def admit(self, receipt, stamp, frame_id, source=None):
@@ -90,12 +96,18 @@ class WaypointAdmission(object):
             if self.source is None:
                 self.source, self.source_unstamped = source, not stamped
                 self.sources += 1
+            elif source != self.source and self.source_heard is not None \
+                    and receipt - self.source_heard > SOURCE_SILENCE:
+                self.source, self.source_unstamped = source, not stamped     # the source fell silent: hand-over
+                self.sources += 1
             elif source != self.source:
                 return self._drop('other_source', '%s, the source is %s' % (str(source)[:120], self.source))
             if not stamped and not self.source_unstamped:
                 return self._drop('unstamped', 'stamp 0 from %s, whose stream is stamped' % str(source)[:120])
         if stamped:
             self.newest = stamp
+        if source is not None:
+            self.source_heard = receipt
         return True, ''
 
     def _drop(self, reason, detail):

@@ -3,7 +3,7 @@ counted; unstamped / frameless waypoints (the paper's nodes) pass; a clock jumpi
 import pytest
 
 from anafi_control.contract import LEVEL_OK, LEVEL_WARN, Health
-from anafi_control.waypoint_admission import WaypointAdmission
+from anafi_control.waypoint_admission import WaypointAdmission, SOURCE_SILENCE
 
 
 def test_a_fresh_waypoint_in_the_world_frame_passes():
@@ -95,4 +95,18 @@ def test_one_waypoint_source_the_first_publisher_heard():
     a.release_source()                                # the source left the topic: hand-over
     assert a.admit(10.3, 0.0, 'world', B) == (True, '') and a.source == B
     assert a.admit(10.4, 0.0, 'world', B) == (True, '')     # unstamped from its start: accepted
+    assert dict(a.values())['waypoint sources taken'] == 2
+
+
+def test_a_source_that_falls_silent_hands_over_to_the_next_publisher():
+    a = WaypointAdmission()
+    for k in range(10):                                   # the monitor's hold of the start at 10 Hz
+        assert a.admit(10.0 + 0.1 * k, 10.0 + 0.1 * k, 'world', A) == (True, '')
+    last = 10.9
+    ok, why = a.admit(last + 0.1, last + 0.1, 'world', B)     # while the source is live: refused
+    assert not ok and 'another publisher' in why
+    t = last + SOURCE_SILENCE + 0.05                        # the source silent for longer: hand-over
+    assert a.admit(t, t, 'world', B) == (True, '') and a.source == B
+    ok, why = a.admit(t + 0.05, t + 0.05, 'world', A)       # the old source is now the other publisher
+    assert not ok and 'another publisher' in why
     assert dict(a.values())['waypoint sources taken'] == 2

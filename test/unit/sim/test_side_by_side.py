@@ -19,7 +19,7 @@ TEST_FILES = sorted(glob.glob(os.path.join(ROOT, 'test', 'ros', '*.test')))
 TEST_SCRIPTS = sorted(glob.glob(os.path.join(ROOT, 'test', 'ros', '*.py')))
 LAUNCH_FILES = sorted(glob.glob(os.path.join(ROOT, 'anafi_sim', 'launch', '*.launch')))
 LITERAL_ENDPOINT = re.compile(r'inet:[\w.\-]+:\d+')
-REFUSED_ATTACK = re.compile(r'refus|reject|hostile|EVIL|--exec')
+REFUSED_ATTACK = re.compile(r'refus|reject|hostile|evil|--exec', re.I)
 LITERAL_BIND = re.compile(r"""bind\(\(\s*['"][\w.]*['"]\s*,\s*[1-9]\d*\s*\)\)""")
 
 

@@ -135,9 +135,12 @@ import json, os, sys
 import rospkg, roslaunch.config, roslib.packages
 out = {}
 share = rospkg.RosPack().get_path(sys.argv[1])
+# the arguments a launch file requires (no default, by design: real_anafi.launch's fence)
+required = {'real_anafi.launch': ['fence_radius:=10.0', 'fence_min_altitude:=0.5', 'fence_max_altitude:=8.0']}
 for name in sys.argv[2:]:
     try:
-        config = roslaunch.config.load_config_default([os.path.join(share, sys.argv[1], 'launch', name)], None)
+        config = roslaunch.config.load_config_default(
+            [(os.path.join(share, sys.argv[1], 'launch', name), required.get(name, []))], None)
     except rospkg.ResourceNotFound as exc:
         out[name] = {'missing': str(exc.args[0]) if exc.args else str(exc)}
         continue

@@ -14,6 +14,7 @@ import os
 import re
 
 from anafi_sim.numeric import parse_integer, parse_number, range_problem
+from anafi_sim.untrusted import LOG_CHARS, clip
 
 _BASE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 _FILE_NAME = re.compile(r'^[A-Za-z0-9_.-]+$')
@@ -374,12 +375,17 @@ def check(args, context_rules=None, cap_cache=None):
             problem = fleet_size_problem(int(value), _natural(limit) or 0, layout=layout,
                                          cap=machine_cap(layout, cache_path=cap_cache))
         if problem:
-            errors.append('launch argument %s:=%s: %s' % (name, value, problem))
+            errors.append('launch argument %s:=%s: %s' % (name, _shown(value), problem))
     low, high = _number(given.get('fence_min_altitude', '')), _number(given.get('fence_max_altitude', ''))
     if low is not None and high is not None and not low < high:
         errors.append('launch argument fence_max_altitude:=%s: must be above fence_min_altitude:=%s'
                       % (given['fence_max_altitude'], given['fence_min_altitude']))
     return errors
+
+
+def _shown(value):
+    """The argument's text for a one-line message: as typed when printable and short, else clipped (a repr)."""
+    return value if value.isprintable() and len(value) <= LOG_CHARS else clip(value)
 
 
 def parse(argv):

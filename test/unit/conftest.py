@@ -4,12 +4,21 @@ The tests are grouped by what they test: control/ (anafi_control), sim/ (the fli
 package as a whole), mission/ (anafi_sim.mission), lab/ (anafi_lab). Tests import ``ROOT`` and ``cfg_defaults``
 from here (``from conftest import ROOT``); pytest puts this directory on ``sys.path``. They compare rotations
 with ``rotation_angle`` / ``quaternion_angle`` and bounds in units of ``EPS`` (see there), never with an arccos.
+
+Property tests (hypothesis) run the same examples on every run and machine (profile ``repeatable``: a red CI
+is reproducible, and no wall-clock deadline, so they pass under load); ``HYPOTHESIS_PROFILE=explore`` draws new
+examples each run (random seed, more of them) to search for new failures.
 """
 import ast
 import math
 import os
 
 import numpy as np
+from hypothesis import settings
+
+settings.register_profile('repeatable', derandomize=True, deadline=None, database=None)
+settings.register_profile('explore', deadline=None, max_examples=1000)
+settings.load_profile(os.environ.get('HYPOTHESIS_PROFILE', 'repeatable'))
 
 #: the repository root (the catkin package's directory)
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

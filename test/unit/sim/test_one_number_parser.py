@@ -31,7 +31,7 @@ def check_accepts(name, text):
 @pytest.mark.parametrize('name, text, accepted', [
     ('rtf', '1e0', True), ('rtf', '2.0', True), ('rtf', '1e308', False), ('rtf', 'inf', False),
     ('rtf', 'nan', False), ('rtf', '0', False), ('initial_x', '1e300', False), ('initial_x', '-2.5', True),
-    ('initial_x', '١', False), ('initial_y', '²', False),
+    ('initial_x', '١', False), ('initial_y', '²', False), ('rtf', '\n', False), ('initial_x', '1\n2', False),
 ])
 def test_the_repro_values_get_the_same_answer(name, text, accepted):
     assert check_accepts(name, text) == accepted

@@ -116,7 +116,8 @@ def test_interface_core_publishes_only_finite_samples_and_counts_rejects(items):
             assert all(math.isfinite(v) for v in out)
     assert core.rejected_nonfinite == nonfinite
     assert core.received == len(items)
-    assert core.published + core.decimated + core.duplicates + core.rejected_nonfinite == len(items)
+    assert (core.published + core.decimated + core.duplicates + core.rejected_nonfinite
+            + core.rejected_beyond_bounds) == len(items)
     health = core.health(wall, protocol.TelemetryParser().counters, {'running': True, 'restarts': 0})
     assert health.level in (gt.OK, gt.WARN, gt.ERROR)
     if nonfinite and core.published:

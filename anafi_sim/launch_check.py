@@ -111,8 +111,12 @@ def scenario(value):
     return 'no such scenario (known: %s; or scenario_file:=PATH)' % ', '.join(known)
 
 
+#: the values of scenario_file that name no file (experiment.launch's default: none)
+NO_SCENARIO_FILE = ('', 'none')
+
+
 def scenario_file(value):
-    if value == '' or os.path.isfile(os.path.expanduser(value)):
+    if value in NO_SCENARIO_FILE or os.path.isfile(os.path.expanduser(value)):
         return None
     return 'no such file'
 
@@ -369,7 +373,7 @@ def check(args, context_rules=None, cap_cache=None):
         if rule is None:
             raise ValueError('check_launch_args.py: no rule for the argument %r (known: %s)'
                              % (name, ', '.join(sorted(RULES))))
-        if name == 'scenario' and given.get('scenario_file'):
+        if name == 'scenario' and given.get('scenario_file', '') not in NO_SCENARIO_FILE:
             continue
         problem = rule(value, given) if name in context_rules else rule(value)
         if problem is None and name not in context_rules and _number(value) is not None:

@@ -38,6 +38,9 @@ def test_a_scenario_file_wins_over_the_scenario_name(tmp_path):
     path = tmp_path / 'mine.yaml'
     path.write_text('x: 1\n')
     assert check(parse(['scenario=unknown', 'scenario_file=%s' % path])) == []
+    assert check(parse(['scenario=circle_r2_v1', 'scenario_file=none'])) == []     # none: no file
+    [line] = check(parse(['scenario=unknown', 'scenario_file=none']))
+    assert line.startswith('launch argument scenario:=unknown')
 
 
 def test_an_argument_without_a_rule_is_a_launch_file_error():
@@ -237,8 +240,8 @@ def _roslaunch(tmp_path, *args):
     from anafi_sim import processes
     env = dict(os.environ, ROS_HOME=str(tmp_path), ROS_LOG_DIR=str(tmp_path / 'log'),
                ROS_MASTER_URI='http://127.0.0.1:%d' % processes.free_port())   # no master there: none is needed
-    return subprocess.run(['roslaunch', '--skip-log-check'] + list(args), env=env, cwd=str(tmp_path), stdin=subprocess.DEVNULL,
-                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, universal_newlines=True, timeout=120)
+    return subprocess.run(['roslaunch', '--skip-log-check'] + list(args), env=env, cwd=str(tmp_path),
+                          stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, universal_newlines=True, timeout=120)
 
 
 def _roslaunch_finds_the_package():

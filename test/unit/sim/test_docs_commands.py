@@ -171,3 +171,21 @@ def test_the_checks_pass_what_is_right():
                  'rosrun anafi_sim echo.py /anafi/drone/rpyt', 'python anafi_lab/cli/measure_fidelity.py',
                  'rosbag play ~/.ros/anafi_demo/latest/circle_r2_v1_mpc.bag', 'anafi_sim/config/NAME.yaml'):
         assert roslaunch_problems('x', text) + rosrun_problems('x', text) + path_problems('x', text) == [], text
+
+
+def test_the_launch_file_table_names_each_files_own_arguments():
+    """docs/launch.md's table: an argument name of some launch file, in a file's row, is one of that file's."""
+    every = set()
+    for path in glob.glob(os.path.join(ROOT, 'anafi_sim', 'launch', '*.launch')):
+        every |= launch_args(os.path.basename(path))
+    problems, rows = [], 0
+    with open(os.path.join(ROOT, 'docs', 'launch.md')) as f:
+        for line in f:
+            m = re.match(r'^\| `([a-z_]+\.launch)` \| (.*)\|\s*$', line)
+            if not m:
+                continue
+            rows += 1
+            own = launch_args(m.group(1))
+            problems += ['%s: %s' % (m.group(1), name) for name in re.findall(r'`([a-z_]+)`', m.group(2))
+                         if name in every and name not in own]
+    assert rows == len(glob.glob(os.path.join(ROOT, 'anafi_sim', 'launch', '*.launch'))) and problems == []

@@ -241,7 +241,8 @@ def _roslaunch(tmp_path, *args):
     env = dict(os.environ, ROS_HOME=str(tmp_path), ROS_LOG_DIR=str(tmp_path / 'log'),
                ROS_MASTER_URI='http://127.0.0.1:%d' % processes.free_port())   # no master there: none is needed
     return subprocess.run(['roslaunch', '--skip-log-check'] + list(args), env=env, cwd=str(tmp_path),
-                          stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, universal_newlines=True, timeout=120)
+                          stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                          universal_newlines=True, timeout=120)
 
 
 def _roslaunch_finds_the_package():

@@ -7,8 +7,14 @@ roslaunch then stops at once with a non-zero exit status, instead of a node dyin
 respawned again and again (``sim.launch rtf:=-1``) or an experiment failing 90 s later without naming the
 argument. ``check(args)`` holds the rules, one per argument name (``RULES``); unknown names are an error
 of the launch file itself.
+
+roslaunch ignores a command-line argument the launch file does not declare (``contoller:=pid`` would fly the
+default controller). The script also reads the command line of roslaunch (its parent) and refuses such an
+argument with one line naming it and the nearest declared one (``unknown_arguments``), when the launch file
+that runs the check is the one the user started (the arguments reach only that file, not the files it includes).
 """
 import collections
+import difflib
 import math
 import os
 import re
@@ -105,8 +111,12 @@ def scenario(value):
     return 'no such scenario (known: %s; or scenario_file:=PATH)' % ', '.join(known)
 
 
+#: the values of scenario_file that name no file (experiment.launch's default: none)
+NO_SCENARIO_FILE = ('', 'none')
+
+
 def scenario_file(value):
-    if value == '' or os.path.isfile(os.path.expanduser(value)):
+    if value in NO_SCENARIO_FILE or os.path.isfile(os.path.expanduser(value)):
         return None
     return 'no such file'
 
@@ -363,7 +373,7 @@ def check(args, context_rules=None, cap_cache=None):
         if rule is None:
             raise ValueError('check_launch_args.py: no rule for the argument %r (known: %s)'
                              % (name, ', '.join(sorted(RULES))))
-        if name == 'scenario' and given.get('scenario_file'):
+        if name == 'scenario' and given.get('scenario_file', '') not in NO_SCENARIO_FILE:
             continue
         problem = rule(value, given) if name in context_rules else rule(value)
         if problem is None and name not in context_rules and _number(value) is not None:
@@ -386,6 +396,72 @@ def check(args, context_rules=None, cap_cache=None):
 def _shown(value):
     """The argument's text for a one-line message: as typed when printable and short, else clipped (a repr)."""
     return value if value.isprintable() and len(value) <= LOG_CHARS else clip(value)
+
+
+#: the programs whose command line is roslaunch's: the roslaunch script, run by a python interpreter or directly
+_PYTHON = re.compile(r'^python[0-9.]*$')
+
+
+def roslaunch_argv(cmdline):
+    """The arguments of a roslaunch command line (``cmdline``: a process's argv, e.g. from /proc/PID/cmdline),
+    or None when it is not ``roslaunch ARGS`` or ``pythonX /path/roslaunch ARGS`` (a test runner, a program
+    using roslaunch's API: their arguments are not a user's launch arguments)."""
+    words = list(cmdline)
+    if words and os.path.basename(words[0]) == 'roslaunch':
+        return words[1:]
+    if len(words) >= 2 and _PYTHON.match(os.path.basename(words[0])) and os.path.basename(words[1]) == 'roslaunch':
+        return words[2:]
+    return None
+
+
+def command_line_arguments(argv):
+    """The launch arguments of roslaunch's ``argv`` as roslaunch reads them (rosgraph.names.load_mappings):
+    [(name, value)] of the words NAME:=VALUE with both sides non-empty (spaces stripped), without private
+    parameters (_name:=) and special keys (__name:=, __ns:=, ...)."""
+    out = []
+    for word in argv:
+        parts = word.split(':=')
+        if len(parts) != 2:
+            continue
+        name, value = parts[0].strip(), parts[1].strip()
+        if name and value and not name.startswith('_'):
+            out.append((name, value))
+    return out
+
+
+def declared_arguments(launch_xml):
+    """The argument names a launch file (its XML text) declares: every <arg name=...> but those inside an
+    <include> (the arguments it passes to the included file). ValueError when the text is not a launch file."""
+    import xml.etree.ElementTree as ElementTree
+    try:
+        root = ElementTree.fromstring(launch_xml)
+    except ElementTree.ParseError as error:
+        raise ValueError('not a launch file: %s' % error)
+    names = []
+
+    def walk(element):
+        for child in element:
+            if child.tag == 'arg' and child.get('name'):
+                names.append(child.get('name'))
+            elif child.tag != 'include':
+                walk(child)
+    walk(root)
+    return names
+
+
+def unknown_arguments(given, declared, launch_name):
+    """One line per argument of ``given`` ([(name, value)]) that ``declared`` (names) does not hold, naming it
+    and the nearest declared name (difflib), else how to list them."""
+    errors = []
+    for name, value in given:
+        if name in declared:
+            continue
+        near = difflib.get_close_matches(name, sorted(set(declared)), n=1, cutoff=0.6)
+        hint = 'did you mean %s?' % near[0] if near else \
+            'its arguments: roslaunch anafi_sim %s --ros-args' % launch_name
+        errors.append('launch argument %s:=%s: not an argument of %s (%s)'
+                      % (_shown(name), _shown(value), launch_name, hint))
+    return errors
 
 
 def parse(argv):

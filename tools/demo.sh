@@ -6,7 +6,8 @@
 # A run that ended well: the experiment monitor (the required node) ends roslaunch as Ctrl-C would and
 # says "finished: ending the launch" -> a green "[demo] finished". A run that failed: the monitor exits
 # non-zero, roslaunch prints a red "REQUIRED process [...] has died!" -> a red line naming the node and
-# how it died (exit status 1). A bad launch argument: roslaunch's one line naming it, exit status 1.
+# how it died (exit status 1). A bad or undeclared launch argument: the check's one line naming it, then it
+# ends roslaunch (exit status 143).
 set -euo pipefail
 port=$(python -c 'from anafi_sim.processes import free_port; print(free_port())')
 export ROS_MASTER_URI="http://127.0.0.1:$port"

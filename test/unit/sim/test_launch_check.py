@@ -38,6 +38,9 @@ def test_a_scenario_file_wins_over_the_scenario_name(tmp_path):
     path = tmp_path / 'mine.yaml'
     path.write_text('x: 1\n')
     assert check(parse(['scenario=unknown', 'scenario_file=%s' % path])) == []
+    assert check(parse(['scenario=circle_r2_v1', 'scenario_file=none'])) == []     # none: no file
+    [line] = check(parse(['scenario=unknown', 'scenario_file=none']))
+    assert line.startswith('launch argument scenario:=unknown')
 
 
 def test_an_argument_without_a_rule_is_a_launch_file_error():
@@ -185,3 +188,95 @@ def test_the_fence_altitudes_must_be_in_order():
     assert check(parse(['fence_radius=5', 'fence_min_altitude=1', 'fence_max_altitude=4', 'max_reach='])) == []
     [line] = check(parse(['fence_min_altitude=4', 'fence_max_altitude=1']))
     assert 'fence_max_altitude:=1' in line and 'above' in line
+
+
+def test_roslaunch_command_lines_are_recognised_strictly():
+    from anafi_sim.launch_check import roslaunch_argv
+    assert roslaunch_argv(['/usr/bin/python3', '/usr/bin/roslaunch', 'anafi_sim', 'x.launch', 'a:=1']) == \
+        ['anafi_sim', 'x.launch', 'a:=1']
+    assert roslaunch_argv(['/opt/ros/bin/roslaunch', '-p', '0', 'f.launch']) == ['-p', '0', 'f.launch']
+    assert roslaunch_argv(['python3.8', 'roslaunch']) == []
+    for other in (['/usr/bin/rostest', 'anafi_sim', 'x.test'], ['/usr/bin/python3', '-m', 'pytest'],
+                  ['/usr/bin/python3', '/usr/bin/roslaunch-deps'], ['bash', 'roslaunch'], [], ['roslaunchx']):
+        assert roslaunch_argv(other) is None, other
+
+
+def test_command_line_arguments_are_read_as_roslaunch_reads_them():
+    from anafi_sim.launch_check import command_line_arguments
+    argv = ['-p', '11311', 'anafi_sim', 'experiment.launch', 'rtf:=2', ' controller := pid ', 'empty:=',
+            '_private:=1', '__ns:=/x', 'a:=b:=c', 'plain', ':=x']
+    assert command_line_arguments(argv) == [('rtf', '2'), ('controller', 'pid')]
+
+
+def test_declared_arguments_are_the_files_own_not_those_it_passes_on():
+    from anafi_sim.launch_check import declared_arguments
+    xml = ('<launch><arg name="a" default="1"/><group if="true"><arg name="b" value="2"/></group>'
+           '<include file="x.launch"><arg name="c" value="3"/></include><arg name="d"/></launch>')
+    assert declared_arguments(xml) == ['a', 'b', 'd']
+    with pytest.raises(ValueError, match='not a launch file'):
+        declared_arguments('<launch>')
+
+
+def test_an_unknown_argument_is_one_line_naming_it_and_the_nearest_known_one():
+    from anafi_sim.launch_check import unknown_arguments
+    declared = ['controller', 'scenario', 'rtf']
+    assert unknown_arguments([('controller', 'pid'), ('rtf', '2')], declared, 'experiment.launch') == []
+    assert unknown_arguments([('contoller', 'pid')], declared, 'experiment.launch') == [
+        'launch argument contoller:=pid: not an argument of experiment.launch (did you mean controller?)']
+    [line] = unknown_arguments([('zzz', '1')], declared, 'experiment.launch')
+    assert line == ('launch argument zzz:=1: not an argument of experiment.launch '
+                    '(its arguments: roslaunch anafi_sim experiment.launch --ros-args)')
+
+
+def test_the_script_checks_only_under_a_roslaunch_parent():
+    """Under pytest (not roslaunch) the parent is neither read as roslaunch's arguments nor signalled."""
+    good = subprocess.run([sys.executable, SCRIPT, '--launch', os.path.join(ROOT, 'anafi_sim', 'launch',
+                                                                             'sim.launch'), 'rtf=2'],
+                          capture_output=True, text=True)
+    assert good.returncode == 0 and good.stdout == 'ok'
+
+
+def _roslaunch(tmp_path, *args):
+    from anafi_sim import processes
+    env = dict(os.environ, ROS_HOME=str(tmp_path), ROS_LOG_DIR=str(tmp_path / 'log'),
+               ROS_MASTER_URI='http://127.0.0.1:%d' % processes.free_port())   # no master there: none is needed
+    return subprocess.run(['roslaunch', '--skip-log-check'] + list(args), env=env, cwd=str(tmp_path),
+                          stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                          universal_newlines=True, timeout=120)
+
+
+def _roslaunch_finds_the_package():
+    import shutil
+    if not shutil.which('roslaunch'):
+        return False
+    try:
+        import rospkg
+        return os.path.samefile(os.path.join(rospkg.RosPack().get_path('anafi_sim'), 'anafi_sim'),
+                               os.path.join(ROOT, 'anafi_sim'))
+    except Exception:
+        return False
+
+
+@pytest.mark.skipif(not _roslaunch_finds_the_package(), reason='roslaunch or this anafi_sim not on the ROS path')
+@pytest.mark.parametrize('args, line', [
+    (['experiment.launch', 'contoller:=pid'],
+     'launch argument contoller:=pid: not an argument of experiment.launch (did you mean controller?)'),
+    (['demo.launch', 'sceanrio:=straight_3'],
+     'launch argument sceanrio:=straight_3: not an argument of demo.launch (did you mean scenario?)'),
+    (['experiment.launch', 'rtf:=-1'], 'launch argument rtf:=-1: must be a finite number > 0'),
+])
+def test_roslaunch_ends_with_the_one_line_and_no_exception_dump(tmp_path, args, line):
+    out = _roslaunch(tmp_path, 'anafi_sim', *args)
+    plain = [text.split('\x07')[-1] for text in out.stdout.strip().splitlines()]   # after the window title
+    assert out.returncode != 0 and plain[-1] == line, out.stdout[-3000:]
+    assert 'RLException' not in out.stdout and 'Traceback' not in out.stdout, out.stdout[-3000:]
+    assert 'started with pid' not in out.stdout and 'auto-starting new master' not in out.stdout
+
+
+@pytest.mark.skipif(not _roslaunch_finds_the_package(), reason='roslaunch or this anafi_sim not on the ROS path')
+def test_an_included_file_does_not_refuse_the_arguments_of_the_file_that_includes_it(tmp_path):
+    """experiment.launch includes sim.launch, whose check sees roslaunch's controller:=pid and must not refuse
+    it: --nodes loads every file (running the checks) and starts nothing."""
+    out = _roslaunch(tmp_path, '--nodes', 'anafi_sim', 'experiment.launch', 'controller:=pid', 'mirror:=false')
+    assert out.returncode == 0 and 'not an argument' not in out.stdout, out.stdout[-3000:]
+    assert '/anafi/experiment_monitor' in out.stdout.split(), out.stdout[-3000:]

@@ -28,10 +28,17 @@ def test_shipped_models_have_gravity_off_and_no_collision(name):
     assert model.gravity_links == []
     assert model.collision_links == []
     assert not model.has_gravity and not model.has_collisions
-    for link in model.links.values():
-        assert link.visuals, 'link %s has nothing to show' % link.name
-        assert link.mass is not None and 0 < link.mass <= 0.01
-        assert all(abs(v) <= 1e-4 for v in link.inertia)
+    massive = [link for link in model.links.values() if link.mass is not None]
+    assert massive and all(0 < link.mass <= 0.01 and all(abs(v) <= 1e-4 for v in link.inertia) for link in massive)
+    for link in model.links.values():     # a link shows something, or only holds the inertia of its parent
+        assert link.visuals or (link.mass is not None and not link.collisions), link.name
+
+
+def test_the_anafi_root_link_has_no_inertia_for_robot_state_publisher():
+    """KDL (robot_state_publisher, rviz.launch) warns about a root link with an inertia: it is on a fixed child."""
+    model = urdf_model.parse_urdf(_read('anafi.urdf'))
+    assert model.root_link == 'base_link' and model.links['base_link'].mass is None
+    assert model.links['base_link_inertia'].mass == 0.001 and not model.links['base_link_inertia'].visuals
 
 
 def test_anafi_body_envelope_is_about_018_by_024_by_007():

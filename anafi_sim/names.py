@@ -1,4 +1,4 @@
-"""Default topic and service names, in one place for every node (ROS glue, no rospy needed).
+"""Default topic and service names and the tf frame names, in one place for every node (ROS glue, no rospy needed).
 
 Names without a leading '/' are relative to the node's namespace, the drone's (/<drone>/, default
 /anafi/); nodes take most of them as ~params with these defaults. Gazebo's names are relative to its

@@ -13,7 +13,8 @@ topics are put under /<~drone_name>/). Subscribes: drone/rpyt
 Publishes: drone/odom (nav_msgs/Odometry of the estimate, <drone>/odom ->
 <drone>/base_link, twist in the child frame; angular twist not estimated:
 zero), with ~publish_tf (true) the same pose on /tf (<drone>/odom -> <drone>/base_link) and on /tf_static
-the identities world -> map -> <drone>/odom (REP-105: docs/nodes.md#frames), drone/pose_enu (ENU), drone/attitude and drone/speed (as the real bridge: frame_id "/world",
+the identities world -> map -> <drone>/odom (REP-105: docs/nodes.md#frames), drone/pose_enu (ENU),
+drone/attitude and drone/speed (as the real bridge: frame_id "/world",
 north-west-up referenced), drone/altitude,
 drone/rpy (deg), camera/attitude and camera/base/attitude (as the real bridge: frame_id "/body",
 north-west-up referenced, anafi_sim.sim.bridge), drone/state (latched), sim/truth (ground

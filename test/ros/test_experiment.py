@@ -90,6 +90,10 @@ class TestExperiment(unittest.TestCase):
         self.assertLessEqual(info['achieved_rtf'], 2.0 * 1.05)
 
         self.check_tuning(info)
+        # the run names its conditions (none here) and keeps its measured window (ROS time) for the RESULT line
+        self.assertEqual(info.get('conditions'), {'name': 'none', 'settings': {}}, info)
+        window = info.get('measured_window')
+        self.assertTrue(isinstance(window, list) and len(window) == 2 and window[0] < window[1], window)
 
         summary = self.load_yaml(base + '.yaml')
         self.assertEqual(summary.get('state'), 'final')

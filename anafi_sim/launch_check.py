@@ -20,6 +20,7 @@ import os
 import re
 
 from anafi_sim.numeric import parse_integer, parse_number, range_problem
+from anafi_sim.run_files import FIGURE_FORMATS
 from anafi_sim.untrusted import LOG_CHARS, clip
 
 _BASE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
@@ -340,6 +341,10 @@ def controller(value):
     return None if value in ('mpc', 'pid', 'preview_mpc') else 'must be mpc, pid or preview_mpc'
 
 
+def plot_format(value):
+    return None if value in FIGURE_FORMATS else 'must be %s' % ' or '.join(FIGURE_FORMATS)
+
+
 def pid_mode(value):
     return None if value in ('distributed', 'single') else 'must be distributed or single'
 
@@ -349,7 +354,8 @@ RULES = {
     'rtf': positive, 'use_sim_time': flag, 'telemetry_port': port, 'drone_name': base_name,
     'initial_x': optional_number, 'initial_y': optional_number, 'initial_yaw': optional_number,
     'model_file': model_file, 'scenario': scenario, 'scenario_file': scenario_file, 'controller': controller,
-    'pid_mode': pid_mode, 'mirror': flag, 'record': flag, 'plot': flag, 'rviz': flag, 'sync': flag,
+    'pid_mode': pid_mode, 'mirror': flag, 'record': flag, 'plot': flag, 'plot_format': plot_format,
+    'plot_dpi': positive, 'rviz': flag, 'sync': flag,
     'sync_period': positive, 'sync_timeout': positive, 'progress_period': non_negative,
     'ready_timeout': positive, 'mirror_rate': positive, 'drones': drones, 'max_drones': max_drones,
     'layout': layout,

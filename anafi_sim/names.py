@@ -1,4 +1,4 @@
-"""Default topic and service names, in one place for every node (ROS glue, no rospy needed).
+"""Default topic and service names and the tf frame names, in one place for every node (ROS glue, no rospy needed).
 
 Names without a leading '/' are relative to the node's namespace, the drone's (/<drone>/, default
 /anafi/); nodes take most of them as ~params with these defaults. Gazebo's names are relative to its
@@ -43,6 +43,28 @@ PID_ENABLE = 'pid_enable'               # std_msgs/Bool (latched), under PID_NAM
 CLOCK = '/clock'
 DIAGNOSTICS = '/diagnostics'
 TF = '/tf'                              # tf2_msgs/TFMessage
+
+# --- tf frames (REP-105; docs/nodes.md#frames) ------------------------------------------------------------
+# the drone's estimate: map -> <drone>/odom -> <drone>/base_link (the simulator); the ground truth:
+# world -> <drone>/stability_axes -> <drone>/base_link_gt -> <drone>/camera (the interface). world -> map is
+# the identity: the simulated estimate is expressed in the simulation's world frame.
+WORLD_FRAME = 'world'                   # the simulation's world (Sphinx, Gazebo), ENU (REP-103)
+MAP_FRAME = 'map'                       # REP-105's world-fixed frame of the drones' estimates
+
+
+def odom_frame(drone):
+    """REP-105's odom frame of ``drone``: the parent of its estimated base_link."""
+    return drone + '/odom'
+
+
+def base_link_frame(drone):
+    """The body frame (FLU) of ``drone`` as its own estimate places it."""
+    return drone + '/base_link'
+
+
+def ground_truth_frame(drone):
+    """The body frame (FLU) of ``drone`` as the ground truth places it (never the estimate's base_link)."""
+    return drone + '/base_link_gt'
 
 # --- Gazebo's ROS API (gazebo_ros, or the kinematic world), relative to GAZEBO_NAMESPACE ----------------
 GAZEBO_NAMESPACE = '/gazebo'

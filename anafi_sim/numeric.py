@@ -21,6 +21,7 @@ PARAMETER_RANGES = {
     'initial_x': (-10000.0, 10000.0),  # m, take-off point
     'initial_y': (-10000.0, 10000.0),  # m
     'initial_yaw': (-1000.0, 1000.0),  # rad
+    'plot_dpi': (10.0, 1200.0),        # dots per inch of a run's figure
 }
 
 

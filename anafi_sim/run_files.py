@@ -14,12 +14,18 @@ writer of the package (pure, no ROS).
   with a valid measurement; ``mark_failed(paths)`` renames the ones that exist.
 - ``remove_previous(paths)``: a rerun into the same names first removes the previous run's files, so a
   killed rerun can never leave them next to its own partial files.
+- ``FIGURE_FORMATS``, ``FIGURE_DPI``: the formats a run's figure is written in (its file's extension), its dpi.
 """
 import contextlib
 import os
 import time
 
 import yaml
+
+FIGURE_FORMATS = ('png', 'svg', 'pdf')
+"""A run's figure: PNG (the default), SVG or PDF (anafi_sim.mission.plots.save; launch argument plot_format)."""
+FIGURE_DPI = 80
+"""Dots per inch of a run's figure by default (small PNGs; launch argument plot_dpi, range numeric.PARAMETER_RANGES)."""
 
 LATEST = 'latest'
 

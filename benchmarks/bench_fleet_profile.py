@@ -386,10 +386,10 @@ def core_costs():
     # simulator's ROS outputs: sim/truth (100 Hz) and the 9 estimate topics (30 Hz), no subscribers
     node_mod = _script('anafi_sim_node')
     fake = object.__new__(node_mod.AnafiSimNode)
-    fake.child_frame = 'anafi1/base_link'
+    fake.child_frame, fake.odom_frame, fake.truth_frame = 'anafi1/base_link', 'anafi1/odom', 'anafi1/base_link_gt'
     fake.sim_stamps = False
     for name in ('pub_odom', 'pub_pose', 'pub_attitude', 'pub_speed', 'pub_altitude', 'pub_rpy', 'pub_camera',
-                 'pub_camera_base', 'pub_state_enu', 'pub_truth'):
+                 'pub_camera_base', 'pub_state_enu', 'pub_truth', 'pub_tf'):
         setattr(fake, name, None)
     from geometry_msgs.msg import PoseStamped, QuaternionStamped, Vector3Stamped
     from std_msgs.msg import Float32

@@ -18,13 +18,13 @@ if [ -f /opt/ros/noetic/setup.bash ]; then
         python3-catkin-lint python3-pytest python3-venv python3-pip python3-numpy python3-scipy python3-yaml
         python3-matplotlib python3-psutil python3-tqdm python3-distributed python3-jinja2 cmake g++
         ros-noetic-trajectory-msgs python3-hypothesis ros-noetic-rviz ros-noetic-robot-state-publisher
-        ros-noetic-rosdiagnostic xvfb"
+        ros-noetic-rosdiagnostic ros-noetic-tf xvfb"
 else
   PKGS="ros-base-python-dev rosbash python3-rostest python3-tf2-ros python3-tf2-geometry-msgs
         python3-dynamic-reconfigure libdynamic-reconfigure-config-init-mutex-dev catkin-lint python3-pytest
         python3-venv python3-pip python3-numpy python3-scipy python3-yaml python3-matplotlib python3-psutil
         python3-tqdm python3-distributed python3-jinja2 cmake g++ python3-trajectory-msgs python3-hypothesis rviz
-        ros-robot-state-publisher rosdiagnostic xvfb"
+        ros-robot-state-publisher rosdiagnostic tf-tools xvfb"
 fi
 missing=$(dpkg-query -W -f='${Package} ${db:Status-Status}\n' $PKGS 2>/dev/null | awk '$2=="installed"{print $1}' \
   | sort | comm -13 - <(echo $PKGS | tr ' ' '\n' | sort) || true)

@@ -5,8 +5,10 @@
                       [--wind X,Y[,Z]] [--gust STD] [--gust-vertical STD] [--gust-tau S]
                       [--conditions NAME|PATH] [--param KEY=VALUE ...] [--schedule KEY=VALUE ...] [--sync-schedule]
                       [--state-source estimate|truth]
-                      [--engine inprocess|ros [--sync] [--rtf R]] [--no-plot] --out DIR
-        -> DIR/<scenario>_<controller>.yaml (the evaluator's summary), .csv (reference log), .png; one
+                      [--engine inprocess|ros [--sync] [--rtf R]] [--no-plot] [--format png|svg|pdf] [--dpi N]
+                      --out DIR
+        -> DIR/<scenario>_<controller>[_<conditions>].yaml (the evaluator's summary), .csv (reference log), the
+           figure (.png, --format svg / pdf, --dpi; a failed run's title says FAILED); one
            'RESULT ...' line on stdout, then one line per file written (exit 0 when the summary is final).
            --engine ros: in a new folder DIR/<scenario>_<controller>-<date>-<time>-<pid> per run (DIR/latest links to it).
     experiment.py batch [--engine inprocess|ros [--sync] [--rtf R]] [--workers N] [--scheduler ADDRESS] [--conditions C]
@@ -38,12 +40,13 @@ import sys
 import yaml
 
 from anafi_sim import paths, run_files
+from anafi_sim.run_files import FIGURE_DPI, FIGURE_FORMATS
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import CONTROLLERS, make_schedule, wind_settings
 from anafi_lab.engine.runs import SYNC_SCHEDULE, batch, make_task, result_line, run_task, task_name
 from anafi_lab.engine.sweep import GROUPS, load_spec, run_sweep, unflatten
 from anafi_sim.mission.trajectory import list_scenarios
-from anafi_sim.sim.conditions_profile import load_conditions
+from anafi_sim.sim.conditions_profile import conditions_label, load_conditions
 
 
 #: the batch's controllers by engine (the ROS batch runs the paper's two); README's run counts come from these
@@ -97,9 +100,14 @@ def cmd_run(args):
         schedule = dict(SYNC_SCHEDULE, **schedule)
     make_schedule(schedule)
     os.makedirs(args.out, exist_ok=True)
+    from anafi_sim.mission import plots
+    plots.check_dpi(args.dpi)
     task = make_task(args.scenario, args.controller, seed=args.seed, wind=wind, params=params or None,
                      schedule=schedule or None, state_source=args.state_source, name=args.name,
-                     out_dir=args.out, plot=not args.no_plot, conditions=args.conditions)
+                     out_dir=args.out, plot=not args.no_plot, conditions=args.conditions, plot_format=args.format,
+                     plot_dpi=args.dpi)
+    if args.conditions and not args.name:       # a windy run's name says so (files, title)
+        task['name'] = '%s_%s' % (task_name(task), conditions_label(args.conditions))
     load_conditions(args.conditions)
     name = task_name(task)
     if args.engine == 'ros':
@@ -125,10 +133,11 @@ def cmd_run(args):
                                                'achieved_rtf': monitor.get('achieved_rtf')}}
         csv_path = os.path.join(args.out, name + '.csv')
         if not args.no_plot and os.path.isfile(csv_path):
-            from anafi_sim.mission.plots import plot_run
-            plot_run(csv_path, os.path.join(args.out, name + '.png'), summary=summary, title=name)
+            plots.plot_run(csv_path, os.path.join(args.out, name + '.' + args.format), summary=summary, title=name,
+                           dpi=args.dpi, failed=None if record['ok'] else record['error'] or True)
         record['files'] = dict((key, os.path.join(args.out, name + ext)) for key, ext in (
-            ('summary', '.yaml'), ('csv', '.csv'), ('plot', '.png'), ('bag', '.bag'), ('info', '.run.yaml')))
+            ('summary', '.yaml'), ('csv', '.csv'), ('plot', '.' + args.format), ('bag', '.bag'),
+            ('info', '.run.yaml')))
     else:
         _in_process_only(args)
         record = run_task(task)
@@ -234,6 +243,9 @@ def parser():
                      help='--engine ros: lockstep (experiment.launch sync:=true), results independent of the load')
     run.add_argument('--rtf', type=float, default=2.0, help='--engine ros: requested real-time factor')
     run.add_argument('--no-plot', action='store_true')
+    run.add_argument('--format', default=FIGURE_FORMATS[0], choices=FIGURE_FORMATS,
+                     help='the run\'s figure: png (default), svg or pdf')
+    run.add_argument('--dpi', type=float, default=FIGURE_DPI, help='the figure\'s dots per inch (default %(default)s)')
     run.add_argument('--out', required=True, help='output folder')
     run.set_defaults(func=cmd_run)
 

@@ -44,7 +44,7 @@ command latency in simulation time: mpc_latency 0)."""
 TASK_DEFAULTS = collections.OrderedDict([
     ('scenario', None), ('controller', 'mpc'), ('seed', None), ('wind', None), ('params', None),
     ('schedule', None), ('state_source', 'estimate'), ('name', None), ('out_dir', None), ('plot', False),
-    ('detail', True), ('conditions', None),
+    ('detail', True), ('conditions', None), ('plot_format', None), ('plot_dpi', None),
 ])
 
 
@@ -118,12 +118,13 @@ def run_task(task):
     record['plot'] = ''
     if task.get('plot') and files.get('csv'):
         plot_dir = task['plot'] if isinstance(task['plot'], str) else out_dir
-        path = os.path.join(plot_dir, name + '.png')
+        path = os.path.join(plot_dir, name + '.' + (task.get('plot_format') or run_files.FIGURE_FORMATS[0]))
         try:
             from anafi_sim.mission.plots import plot_run
-            plot_run(files['csv'], path, summary=result.summary,
-                     title='%s, %s' % (scenario.name, report.LABELS.get(task['controller'], task['controller'])),
-                     wind=engine.settings)
+            from anafi_sim.mission.run_end import run_title
+            title = '%s, %s' % (scenario.name, report.LABELS.get(task['controller'], task['controller']))
+            plot_run(files['csv'], path, summary=result.summary, title=run_title(title, task.get('conditions') or ''),
+                     wind=engine.settings, dpi=task.get('plot_dpi') or run_files.FIGURE_DPI)
             files['plot'] = path
         except (IOError, OSError, ValueError) as error:
             record['error'] = record['error'] or 'plot: %s' % error

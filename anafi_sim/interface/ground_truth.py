@@ -14,9 +14,10 @@ counters grew since the previous health report).
 The conversion helpers turn a sample into poses, all in SI units:
 positions [m] in the world ENU frame, quaternions (x, y, z, w), angles [rad]
 with R = Rz(yaw) Ry(pitch) Rx(roll) (see ``anafi_control.frames``), body
-frame FLU. Frames (REP-105 names, drone ``anafi``): ``world`` ->
+frame FLU. The ground truth's frames (drone ``anafi``; the estimate's REP-105 frames are the
+simulator's, ``anafi_sim.names``): ``world`` ->
 ``anafi/stability_axes`` (drone position, heading only) ->
-``anafi/base_link`` (roll and pitch only) -> ``anafi/camera`` (fixed offset,
+``anafi/base_link_gt`` (roll and pitch only) -> ``anafi/camera`` (fixed offset,
 then the gimbal roll and pitch motor angles, which are relative to the body;
 camera x axis = viewing direction, FLU like the body, positive gimbal pitch
 looks down).

@@ -439,17 +439,58 @@ class ExperimentMonitor(object):
             'controller_cpu_per_sim_s': r(cpu / sim_s, 4) if cpu is not None and sim_s else None,
             'drone_travel_m': r(self.drone_travel, 3),
             'target_travel_m': r(self.target_travel, 3),
+            'measured_window': [r(self.ros_begin, 6), r(self.ros_end, 6)] if self.ros_begin is not None
+            and self.ros_end is not None else None,
         }
         return info
+
+
+MAX_TUNING_NAMED = 3
+"""The RESULT line names at most this many tuning changes of the measured window (then '+N more')."""
+
+
+def tuning_in_window(info):
+    """The live tuning changes of the run info (``tuning``: anafi_sim/ros/reconfigure.py's records) stamped
+    inside its ``measured_window`` [begin, end] (ROS time) that changed a value (new != old), in time order,
+    each a copy with ``t`` = its seconds since the window's begin; [] without a window."""
+    window = info.get('measured_window')
+    if not isinstance(window, (list, tuple)) or len(window) != 2 or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in window):
+        return []
+    out = []
+    for record in info.get('tuning') or []:
+        stamp = record.get('stamp') if isinstance(record, dict) else None
+        if not isinstance(stamp, (int, float)) or isinstance(stamp, bool) or not window[0] <= stamp <= window[1]:
+            continue
+        if record.get('new') == record.get('old'):
+            continue
+        out.append(dict(record, t=round(float(stamp) - float(window[0]), 6)))
+    return sorted(out, key=lambda c: c['t'])
+
+
+def tuning_clause(info):
+    """'tuning changed at t=12.3 s: mpc_controller r 0.1 -> 0.5' for the measured window's tuning changes
+    (``tuning_in_window``; t since the window's begin, several joined by '; '), '' without any."""
+    changes = tuning_in_window(info)
+    if not changes:
+        return ''
+    named = ['t=%.1f s: %s%s %s -> %s' % (c['t'], '%s ' % c['node'] if c.get('node') else '', c.get('parameter'),
+                                          c.get('old'), c.get('new')) for c in changes[:MAX_TUNING_NAMED]]
+    more = len(changes) - MAX_TUNING_NAMED
+    return 'tuning changed at ' + '; '.join(named) + (' (+%d more)' % more if more > 0 else '')
 
 
 def result_status(ok, info):
     """The RESULT line's verdict: 'ok' (measured, undisturbed), 'disturbed: <what, with its figure>' (measured
     while the machine's load disturbed the run: anafi_sim.mission.monitor.ExperimentMonitor.disturbed) or
-    'FAILED: <reason>' (could not measure)."""
+    'FAILED: <reason>' (could not measure); a live tuning change inside the measured window is said after it
+    (``tuning_clause``: 'ok, tuning changed at t=12.3 s: ...'): its figures are not those of one tuning."""
     if not ok:
-        return 'FAILED: ' + str(info.get('reason') or 'unknown')
-    return 'disturbed: ' + info['disturbed'] if info.get('disturbed') else 'ok'
+        status = 'FAILED: ' + str(info.get('reason') or 'unknown')
+    else:
+        status = 'disturbed: ' + info['disturbed'] if info.get('disturbed') else 'ok'
+    clause = tuning_clause(info)
+    return status + ('%s %s' % (',' if status == 'ok' else ';', clause) if clause else '')
 
 
 def reader_line(info):

@@ -9,23 +9,34 @@ evaluator's summary 'window') is shaded.
 - ``run_figure`` / ``plot_run``: one run: x, y, z of the drone's estimate (solid), ground truth
   (dotted) and the waypoint (dashed) over time; the xy path (when the waypoint moves in x and y,
   e.g. circles) or yaw over time; the tracking error e = |waypoint - position| against the estimate
-  (the paper's metric) and ground truth, with its mean over the measured window.
+  (the paper's metric) and ground truth, with its mean over the measured window: that panel shows the
+  measured window only, its error axis scaled to the errors there (``error_limits``: the take-off's metres do
+  not flatten a 0.4 m error); a failed run says FAILED and why in its title.
 - ``comparison_figure`` / ``plot_comparison``: several runs overlaid (x, y, z, yaw against time
   since a per-run offset), e.g. PID and MPC to WP0 / WP1 as in Fig. 6.
 
 Figures are built on ``matplotlib.figure.Figure`` with the Agg canvas (no global pyplot state, no
-display needed) and saved small (PNG, default 80 dpi).
+display needed), legends outside the axes (above the x, y, z panels and under the error panel), and saved
+(``save``) as PNG (default, ``DEFAULT_DPI``), SVG or PDF (``FORMATS``; by the file's extension or ``fmt``),
+cropped to what is drawn; SVG and PDF carry no creation date, so the same run gives the same file.
 """
 import math
 import os
 
 import numpy as np
+from matplotlib import rc_context
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from anafi_sim.mission.reference_log import read_log, tracking_error
+from anafi_sim.numeric import parse_number, range_problem
+from anafi_sim.run_files import FIGURE_DPI as DEFAULT_DPI, FIGURE_FORMATS as FORMATS
 
-DEFAULT_DPI = 80
+DEFAULT_FORMAT = 'png'
+#: metadata that would make two renderings of one figure differ (a date), left out
+_NO_DATE = {'svg': {'Date': None}, 'pdf': {'CreationDate': None}, 'png': {}}
+ERROR_MIN_SPAN = 0.05
+"""m; the error axis shows at least this much (a perfect run does not get a 1e-16 m scale)."""
 COLORS = {'estimate': '#1f77b4', 'truth': '#2ca02c', 'waypoint': '#d62728'}
 RUN_COLORS = ('#1f77b4', '#9467bd', '#ff7f0e', '#808000', '#2ca02c', '#d62728', '#8c564b', '#17becf')
 
@@ -79,25 +90,53 @@ def _decimate(n, max_points=1500):
     return max(1, int(math.ceil(n / float(max_points))))
 
 
+def error_limits(t, errors, window):
+    """(x limits, y limits) of the error panel: the measured ``window`` (t0, t1) [s] (the whole log when None or
+    when no sample falls in it) and 0 .. 1.1 x the largest finite error of ``errors`` (arrays over ``t``) in
+    it, at least ``ERROR_MIN_SPAN``."""
+    t = np.asarray(t, dtype=np.float64)
+    m = window_mask(t, window)
+    if window is None or not m.any():
+        m = np.ones(len(t), dtype=bool)
+        x = (float(t[0]), float(t[-1])) if len(t) else (0.0, 1.0)
+    else:
+        x = (float(window[0]), float(window[1]))
+    if x[1] <= x[0]:
+        x = (x[0] - 0.5, x[0] + 0.5)
+    peak = 0.0
+    for e in errors:
+        e = np.asarray(e, dtype=np.float64)[m]
+        e = e[np.isfinite(e)]
+        if len(e):
+            peak = max(peak, float(e.max()))
+    return x, (0.0, max(1.1 * peak, ERROR_MIN_SPAN))
+
+
 def _error_panel(bottom, log, window, truth, k):
-    """The tracking error over time (vs the estimate, and vs ground truth when ``truth``), e_mu over the window."""
+    """The tracking error over the measured window (vs the estimate, and vs ground truth when ``truth``), e_mu
+    over it; the axes' limits from ``error_limits``, the legend under the panel."""
     t = log.t
     _shade(bottom, window)
     e_est = tracking_error(log, 'anafi').e
     bottom.plot(t[::k], e_est[::k], '-', color=COLORS['estimate'], lw=1.2, label='vs estimate')
     m = window_mask(t, window)
+    shown = [e_est]
     if truth:
         e_tr = tracking_error(log, 'sphinx').e
+        shown.append(e_tr)
         bottom.plot(t[::k], e_tr[::k], ':', color=COLORS['truth'], lw=1.2, label='vs ground truth')
     valid = m & np.isfinite(e_est)
     if valid.any():
         mu = float(np.mean(e_est[valid]))
         x0, x1 = (window if window is not None else (t[0], t[-1]))
         bottom.hlines(mu, x0, x1, colors='k', linestyles='-.', lw=1.0, label='e_mu %.2f m' % mu)
-    bottom.set_xlabel('time [s]')
+    xlim, ylim = error_limits(t, shown, window)
+    bottom.set_xlim(*xlim)
+    bottom.set_ylim(*ylim)
+    bottom.set_xlabel('time [s]' + (' (measured window)' if window is not None else ''))
     bottom.set_ylabel('e [m]')
     bottom.grid(True, lw=0.3)
-    bottom.legend(loc='best', fontsize=7, framealpha=0.7)
+    bottom.legend(loc='upper center', bbox_to_anchor=(0.5, -0.32), ncol=3, fontsize=7, frameon=False)
 
 
 def _wind_arrow(top, wind):
@@ -113,18 +152,35 @@ def _wind_arrow(top, wind):
                  fontsize=7, color='tab:purple')
 
 
-def run_figure(log, window=None, title='', show_truth=True, wind=None):
+def figure_title(title='', wind_line='', failed=None):
+    """The title of a run's figure: ``title``, 'FAILED: <reason>' when ``failed`` (a reason, True or '' for none
+    given; None = the run did not fail) and the wind's line, one per line."""
+    lines = [title] if title else []
+    if failed is not None and failed is not False:
+        reason = '' if failed is True else ' '.join(str(failed).split())
+        if len(reason) > 90:
+            reason = reason[:87] + '...'
+        lines.append('FAILED' + (': ' + reason if reason else ''))
+    if wind_line:
+        lines.append(wind_line)
+    return '\n'.join(lines)
+
+
+def run_figure(log, window=None, title='', show_truth=True, wind=None, failed=None):
     """Figure of one run (see the module doc); ``window`` = (t0, t1) s since the first sample or None;
     ``wind``: the run's simulator settings (wind_x, wind_y, gust_std_horizontal, wind_compensation) -> an arrow
-    on the xy path and a line under the title (none without wind)."""
+    on the xy path and a line under the title (none without wind); ``failed``: the reason of a failed run (True:
+    none given): FAILED in the title, in red."""
     text = ''
     if wind:
         from anafi_sim.sim.conditions_profile import wind_text
         text = wind_text(wind)
+    heading = figure_title(title, text, failed)
     fig = Figure(figsize=(9.0, 6.0))
     FigureCanvasAgg(fig)
     gs = fig.add_gridspec(3, 2, width_ratios=(1.35, 1.0), hspace=0.12, wspace=0.28,
-                          left=0.08, right=0.98, top=0.86 if text else 0.92, bottom=0.09)
+                          left=0.08, right=0.98, top=0.92 - 0.035 * heading.count('\n') - (0.04 if heading else 0.0),
+                          bottom=0.12)
     t = log.t
     k = _decimate(len(t))
     truth = show_truth and has_truth(log)
@@ -144,7 +200,8 @@ def run_figure(log, window=None, title='', show_truth=True, wind=None):
         if row < 2:
             ax.tick_params(labelbottom=False)
         axes.append(ax)
-    axes[0].legend(loc='best', fontsize=7, ncol=3, framealpha=0.7)
+    axes[0].legend(loc='lower left', bbox_to_anchor=(0.0, 1.02), ncol=3, fontsize=7, frameon=False,
+                   borderaxespad=0.0)
     axes[-1].set_xlabel('time [s]')
 
     top = fig.add_subplot(gs[0:2, 1])
@@ -178,8 +235,9 @@ def run_figure(log, window=None, title='', show_truth=True, wind=None):
     _error_panel(fig.add_subplot(gs[2, 1]), log, window, truth, k)
     if text:
         _wind_arrow(top, wind)
-    if title or text:
-        fig.suptitle(title + (('\n' if title else '') + text if text else ''), fontsize=10 if not text else 9)
+    if heading:
+        fig.suptitle(heading, fontsize=10 if heading.count('\n') == 0 else 9,
+                     color='#b00000' if failed is not None and failed is not False else 'black')
     return fig
 
 
@@ -188,7 +246,7 @@ def comparison_figure(runs, title=''):
     fig = Figure(figsize=(9.0, 5.5))
     FigureCanvasAgg(fig)
     axes = [fig.add_subplot(2, 2, i + 1) for i in range(4)]
-    fig.subplots_adjust(left=0.08, right=0.98, top=0.9, bottom=0.1, hspace=0.3, wspace=0.25)
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.9, bottom=0.16, hspace=0.3, wspace=0.25)
     names = (('x', 'x [m]'), ('y', 'y [m]'), ('z', 'z [m]'), ('yaw', 'yaw [deg]'))
     for i, (label, log, offset) in enumerate(runs):
         color = RUN_COLORS[i % len(RUN_COLORS)]
@@ -206,18 +264,45 @@ def comparison_figure(runs, title=''):
         ax.set_ylabel(ylabel)
         ax.grid(True, lw=0.3)
         ax.set_xlabel('time [s]')
-    axes[0].legend(loc='best', fontsize=7, framealpha=0.7)
+    fig.legend(*axes[0].get_legend_handles_labels(), loc='lower center', bbox_to_anchor=(0.5, 0.0),
+               ncol=min(4, max(1, len(runs))), fontsize=7, frameon=False)
     if title:
         fig.suptitle(title, fontsize=10)
     return fig
 
 
-def save(fig, path, dpi=DEFAULT_DPI):
-    """Save ``fig`` as PNG at ``path`` (directories created); returns the path."""
+def figure_format(path, fmt=None):
+    """The format to save ``path`` in: ``fmt`` when given, else the file's extension, else PNG; ValueError for
+    one not in ``FORMATS``."""
+    if not fmt:
+        ext = os.path.splitext(path)[1].lstrip('.').lower()
+        fmt = ext if ext in FORMATS else DEFAULT_FORMAT
+    fmt = str(fmt).lower()
+    if fmt not in FORMATS:
+        raise ValueError('figure format %r: one of %s' % (fmt, ', '.join(FORMATS)))
+    return fmt
+
+
+def check_dpi(dpi):
+    """``dpi`` as a float when it is a number in ``PARAMETER_RANGES['plot_dpi']``, else ValueError."""
+    value = parse_number(dpi)
+    problem = 'is not a number' if value is None else range_problem('plot_dpi', value)
+    if problem:
+        raise ValueError('dpi %r: %s' % (dpi, problem))
+    return value
+
+
+def save(fig, path, dpi=DEFAULT_DPI, fmt=None):
+    """Save ``fig`` at ``path`` (directories created) as ``figure_format(path, fmt)``, cropped to what is drawn
+    (the legends outside the axes included), ``dpi`` for PNG (and the raster parts of SVG / PDF); returns the
+    path."""
+    fmt = figure_format(path, fmt)
+    dpi = check_dpi(dpi)
     directory = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(directory):
         os.makedirs(directory)
-    fig.savefig(path, dpi=dpi, format='png')
+    with rc_context({'svg.hashsalt': 'anafi_sim'}):      # SVG ids from the content, not random
+        fig.savefig(path, dpi=dpi, format=fmt, bbox_inches='tight', pad_inches=0.05, metadata=_NO_DATE[fmt])
     return path
 
 
@@ -232,9 +317,10 @@ def summary_window(summary):
     return None
 
 
-def plot_run(csv_path, png_path, window=None, title='', summary=None, dpi=DEFAULT_DPI, wind=None):
-    """Read ``csv_path``, draw ``run_figure`` (``wind``: see there) and save it to ``png_path``; ``window``
-    defaults to the summary's. Returns the PNG path."""
+def plot_run(csv_path, out_path, window=None, title='', summary=None, dpi=DEFAULT_DPI, wind=None, fmt=None,
+             failed=None):
+    """Read ``csv_path``, draw ``run_figure`` (``wind``, ``failed``: see there) and save it to ``out_path``
+    (``save``: ``fmt`` or the path's extension); ``window`` defaults to the summary's. Returns the path."""
     log = load(csv_path)
     if len(log) == 0:
         raise ValueError('%s has no samples to plot' % csv_path)
@@ -242,10 +328,10 @@ def plot_run(csv_path, png_path, window=None, title='', summary=None, dpi=DEFAUL
         window = summary_window(summary)
     if not title and isinstance(summary, dict):
         title = str(summary.get('name') or '')
-    return save(run_figure(log, window=window, title=title, wind=wind), png_path, dpi)
+    return save(run_figure(log, window=window, title=title, wind=wind, failed=failed), out_path, dpi, fmt)
 
 
-def plot_comparison(runs, png_path, title='', dpi=DEFAULT_DPI):
+def plot_comparison(runs, out_path, title='', dpi=DEFAULT_DPI, fmt=None):
     """``runs`` = [(label, csv_path, t_offset)]: read each CSV, overlay (``comparison_figure``), save."""
     loaded = [(label, load(path), offset) for label, path, offset in runs]
-    return save(comparison_figure(loaded, title=title), png_path, dpi)
+    return save(comparison_figure(loaded, title=title), out_path, dpi, fmt)

@@ -8,14 +8,17 @@ A run's files are given as ``{key: path}`` for the keys of ``RUN_FILES`` ('' = n
   writes the run file (``info``, YAML), and when the run failed renames every file it left to its FAILED name
   (anafi_sim.run_files.failed_name; the bag's recorder renames the bag itself). A run that reached its end
   but whose files are missing or not final fails here, with the reason;
-- ``result_lines`` is the RESULT block printed at the end (the label, ok or FAILED with the reason, the
-  errors, the simulation and MPC figures, the files).
+- ``result_lines`` is the RESULT block printed at the end (the label, ok or FAILED with the reason, a live
+  tuning change inside the measured window, the errors, the simulation and MPC figures, the files);
+- ``conditions_info`` / ``run_title``: the flight conditions a run flew in, for its run file and its figure's
+  title (a windy run never reads as a calm one).
 """
 import collections
 import os
 
 from anafi_sim import run_files
 from anafi_sim.mission.monitor import FAILED, reader_line, result_status, summary_lines
+from anafi_sim.sim.conditions_profile import conditions_label
 
 #: a run's files, in the order the RESULT block names them
 RUN_FILES = ('bag', 'csv', 'summary', 'plot', 'info')
@@ -27,6 +30,21 @@ FinishedRun = collections.namedtuple('FinishedRun', 'ok info files problems erro
 data: state and reason FAILED when it failed here), ``files`` (every key of the input, FAILED names for the
 renamed files and the bag of a failed run), ``problems`` (why a run that reached its end failed: files
 missing, not final, the plot not drawn), ``errors`` (file operations that failed, for the node's log)."""
+
+
+def conditions_info(name, settings=None):
+    """The run file's ``conditions``: the profile's ``name`` ('none' without one; a path's file name) and the
+    simulator ``settings`` it set (wind_x, ..., {} when none or unreadable)."""
+    return {'name': conditions_label(name), 'settings': dict((str(k), v) for k, v in (settings or {}).items())}
+
+
+def run_title(label, conditions=''):
+    """The run's title: ``label``, with its conditions' name appended in parentheses unless ``label`` already
+    names them (experiment.launch's default run name ends with them)."""
+    name = conditions_label(conditions)
+    if not conditions or name in str(label):
+        return str(label)
+    return '%s (%s)' % (label, name)
 
 
 def evaluator_file_problems(files):
@@ -54,8 +72,10 @@ def finish_run(ok, info, files, plot, problem=None):
     ``ok``: the run reached its end (the evaluator's summary is final); ``info``: the run file's data
     (ExperimentMonitor.run_info() and what the node adds; 'reason' says why a failed run failed);
     ``files``: {key of RUN_FILES: path or ''}; ``problem``: why the measurement is no measurement
-    (ExperimentMonitor.result_problem(), None when it is one); ``plot(csv_path, out_path)`` draws the run's
-    plot from its CSV (when there is a plot file and a CSV). Neither ``info`` nor ``files`` is changed.
+    (ExperimentMonitor.result_problem(), None when it is one); ``plot(csv_path, out_path, failed)`` draws the
+    run's plot from its CSV (when there is a plot file and a CSV) into ``out_path`` (a temporary name with the
+    plot file's extension: the format), ``failed`` = why the run failed (its title says FAILED) or None. Neither
+    ``info`` nor ``files`` is changed.
     """
     info, files = dict(info), dict((k, files.get(k) or '') for k in RUN_FILES)
     problems, errors = [], []
@@ -63,9 +83,11 @@ def finish_run(ok, info, files, plot, problem=None):
         problems += [problem] if problem else []
         problems += evaluator_file_problems(files)
     if files['plot'] and files['csv'] and os.path.isfile(files['csv']):
+        failed = None if ok and not problems else (
+            '; '.join(problems) if ok else str(info.get('reason') or 'unknown'))
         try:
-            with run_files.atomic_path(files['plot'], '.png') as tmp:
-                plot(files['csv'], tmp)
+            with run_files.atomic_path(files['plot'], os.path.splitext(files['plot'])[1] or '.png') as tmp:
+                plot(files['csv'], tmp, failed)
             info['plot'] = files['plot']
         except Exception as e:    # a plot that cannot be written: the run's files are not complete
             problems.append('plot %s not written: %s' % (files['plot'], e))

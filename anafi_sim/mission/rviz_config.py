@@ -9,7 +9,7 @@ its single RobotModel (``/anafi/robot_description``, TF prefix ``anafi``) and sh
 one ``rviz/Group`` per drone NAME holding a RobotModel (``/NAME/robot_description``, TF prefix NAME) and a
 MarkerArray on ``/NAME/visualisation/markers`` (that drone's trail, reference, predicted path and waypoint, as
 ``visualisation_node.py ~markers_topic: visualisation/markers`` publishes them); the view stops orbiting
-``anafi/base_link`` and looks at the fleet from the world frame (``fleet_view``).
+``anafi/base_link`` (the estimate's) and looks at the fleet from the world frame (``fleet_view``).
 
 Camera model (rviz's Orbit view): the eye sits at focal point + distance * (cos(yaw) cos(pitch), sin(yaw)
 cos(pitch), sin(pitch)) in the fixed frame and looks at the focal point; rviz keeps Ogre's vertical field of

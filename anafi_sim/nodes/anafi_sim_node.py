@@ -10,13 +10,15 @@ own estimate (``anafi_sim.sim.state_estimate``) and the Sphinx-like ground truth
 Namespace /<drone> (default /anafi; if started in the root namespace the
 topics are put under /<~drone_name>/). Subscribes: drone/rpyt
 (olympe_bridge/PilotingCommand), drone/takeoff, drone/land (std_msgs/Empty).
-Publishes: drone/odom (nav_msgs/Odometry of the estimate, world ->
+Publishes: drone/odom (nav_msgs/Odometry of the estimate, <drone>/odom ->
 <drone>/base_link, twist in the child frame; angular twist not estimated:
-zero), drone/pose_enu (ENU), drone/attitude and drone/speed (as the real bridge: frame_id "/world",
+zero), with ~publish_tf (true) the same pose on /tf (<drone>/odom -> <drone>/base_link) and on /tf_static
+the identities world -> map -> <drone>/odom (REP-105: docs/nodes.md#frames), drone/pose_enu (ENU),
+drone/attitude and drone/speed (as the real bridge: frame_id "/world",
 north-west-up referenced), drone/altitude,
 drone/rpy (deg), camera/attitude and camera/base/attitude (as the real bridge: frame_id "/body",
 north-west-up referenced, anafi_sim.sim.bridge), drone/state (latched), sim/truth (ground
-truth Odometry stamped at its sample's time), /diagnostics (1 Hz wall),
+truth Odometry stamped at its sample's time, world -> <drone>/base_link_gt), /diagnostics (1 Hz wall),
 /clock when ~publish_clock; with ~publish_state_enu (true) also position_control/state_enu
 (anafi_control/State, the reference implementation's bridge fork: frame ids "/world",
 pose = drone/pose_enu, twist.linear = the ENU velocity (drone/speed turned to east, north, up), twist.angular = 0;
@@ -40,6 +42,7 @@ import rospy
 from geometry_msgs.msg import PoseStamped, Quaternion, QuaternionStamped, Vector3, Vector3Stamped
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
+from tf2_msgs.msg import TFMessage
 from std_msgs.msg import Empty, Float32, String
 
 import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
@@ -90,13 +93,16 @@ class AnafiSimNode(object):
         prefix = p.string('telemetry_prefix', DEFAULT_PREFIX)
         auto_takeoff = p.flag('auto_takeoff', True)
         publish_state_enu = p.flag('publish_state_enu', True)
+        publish_tf = p.flag('publish_tf', True)
         sync = self._sync_settings(p, publish_clock)
         model = self._model(p, seed)
 
         ns = ctx.namespace
         self.drone = p.string('drone_name', ns.strip('/') or 'anafi')
         base = '/%s/' % self.drone if ns == '/' else ''
-        self.child_frame = '%s/base_link' % self.drone
+        self.odom_frame = names.odom_frame(self.drone)
+        self.child_frame = names.base_link_frame(self.drone)
+        self.truth_frame = names.ground_truth_frame(self.drone)
         self._time_base(publish_clock)
         self._serve_telemetry(host, port, prefix)
         # lockstep: no catching up after a late step (it would squeeze the graph's hops into less sim time)
@@ -107,7 +113,7 @@ class AnafiSimNode(object):
                                   auto_takeoff=auto_takeoff, lockstep=lockstep)
         if lockstep is not None:
             rospy.on_shutdown(lockstep.close)
-        self._connect(base, publish_clock, publish_state_enu)
+        self._connect(base, publish_clock, publish_state_enu, publish_tf)
         self.ctx.loginfo('anafi_sim: drone %s, physics %.0f Hz, rtf %.2f, telemetry on %s:%d (%.0f Hz, stream id '
                          '%d)%s%s', self.drone, rate, rtf, host, self.server.port, telemetry_rate, self.stream_id,
                          ', publishing /clock' if publish_clock else '',
@@ -171,10 +177,16 @@ class AnafiSimNode(object):
         self.ctx.set_param('telemetry_stream_id', self.stream_id)
         self.ctx.set_param('telemetry_bound_port', self.server.port)
 
-    def _connect(self, base, publish_clock, publish_state_enu):
+    def _connect(self, base, publish_clock, publish_state_enu, publish_tf):
         """The anafi_ros-like topics (under ``base``; with ``publish_state_enu`` also position_control/state_enu),
-        /clock, /diagnostics and the command subscriptions."""
+        /clock, /diagnostics, the estimate's tf (``publish_tf``) and the command subscriptions."""
         pub = self.ctx.publisher
+        self.pub_tf = pub(names.TF, TFMessage, queue_size=100) if publish_tf else None
+        if publish_tf:
+            identity = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+            self.ctx.send_static_transforms([
+                conversions.transform(rospy.Time(0), names.WORLD_FRAME, names.MAP_FRAME, *identity),
+                conversions.transform(rospy.Time(0), names.MAP_FRAME, self.odom_frame, *identity)])
         self.pub_clock = pub(names.CLOCK, Clock, queue_size=10) if publish_clock else None
         self.pub_odom = pub(base + names.ESTIMATE, Odometry, queue_size=10)
         self.pub_pose = pub(base + names.POSE_ENU, PoseStamped, queue_size=10)
@@ -204,7 +216,7 @@ class AnafiSimNode(object):
     def _stamp(self, t):
         return sim_time(t) if self.sim_stamps else rospy.Time.now()
 
-    def _header(self, msg, stamp, frame_id='world'):
+    def _header(self, msg, stamp, frame_id):
         msg.header.stamp = stamp
         msg.header.frame_id = frame_id
         return msg
@@ -212,8 +224,8 @@ class AnafiSimNode(object):
     def _publish_truth(self, s, stamp):
         if not self.pub_truth.get_num_connections():
             return
-        msg = self._header(Odometry(), stamp)
-        msg.child_frame_id = self.child_frame
+        msg = self._header(Odometry(), stamp, names.WORLD_FRAME)
+        msg.child_frame_id = self.truth_frame
         msg.pose.pose = conversions.pose((s.x, s.y, s.z), euler_to_quaternion(s.roll, s.pitch, s.yaw))
         msg.twist.twist = conversions.twist((s.body_vx, s.body_vy, s.body_vz), (s.body_wx, s.body_wy, s.body_wz))
         self.pub_truth.publish(msg)
@@ -224,11 +236,14 @@ class AnafiSimNode(object):
             return pub is not None and pub.get_num_connections() > 0
         pose = conversions.pose(e.position, e.orientation)
         if wanted(self.pub_odom):
-            odom = self._header(Odometry(), stamp)
+            odom = self._header(Odometry(), stamp, self.odom_frame)
             odom.child_frame_id = self.child_frame
             odom.pose.pose = pose
             odom.twist.twist = conversions.twist(e.body_velocity, (0.0, 0.0, 0.0))
             self.pub_odom.publish(odom)
+        if wanted(self.pub_tf):
+            self.pub_tf.publish(TFMessage(transforms=[
+                conversions.transform(stamp, self.odom_frame, self.child_frame, e.position, e.orientation)]))
         if wanted(self.pub_pose):
             self.pub_pose.publish(self._header(PoseStamped(pose=pose), stamp, WORLD_FRAME_ID))
         if wanted(self.pub_attitude):
@@ -239,7 +254,7 @@ class AnafiSimNode(object):
         if wanted(self.pub_altitude):
             self.pub_altitude.publish(Float32(e.position[2]))
         if wanted(self.pub_rpy):
-            self.pub_rpy.publish(self._header(Vector3Stamped(vector=Vector3(*e.rpy_deg)), stamp))
+            self.pub_rpy.publish(self._header(Vector3Stamped(vector=Vector3(*e.rpy_deg)), stamp, names.WORLD_FRAME))
         if wanted(self.pub_camera):
             self.pub_camera.publish(self._header(QuaternionStamped(quaternion=Quaternion(*e.camera_orientation)),
                                                  stamp, CAMERA_FRAME_ID))

@@ -24,7 +24,8 @@ relative to the node's namespace (/<drone>/):
 Every ~progress_period s of wall time (1.0; 0 = quiet) one progress line on stdout. When the
 evaluator's summary is final, the node waits (<= ~evaluator_exit_timeout s wall, 15) for
 ~evaluator_node to exit (it writes ~csv_file and ~summary_file), draws ~plot_file from the CSV
-(anafi_sim.mission.plots; '' = no plot), writes ~info_file (YAML: anafi_sim.mission.monitor run_info:
+(anafi_sim.mission.plots; '' = no plot; its extension .png, .svg or .pdf the format, ~plot_dpi its dpi;
+FAILED and the reason in the title of a failed run), writes ~info_file (YAML: anafi_sim.mission.monitor run_info:
 durations, achieved real-time factor, simulator overruns, MPC solve times, controller CPU time of the
 nodes matching ~controller_nodes, fnmatch patterns of absolute node names), prints the summary and
 shuts down: the RESULT line says "ok", "disturbed: <what, with the measured figure>" (a run that measured
@@ -53,8 +54,9 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Header, String
 
 from anafi_sim import processes, run_files
+from anafi_sim.numeric import PARAMETER_RANGES
 from anafi_sim.mission.monitor import FAILED, FINAL, INTERFACE_STATUS_SUFFIX, ExperimentMonitor
-from anafi_sim.mission.run_end import finish_run, result_lines
+from anafi_sim.mission.run_end import conditions_info, finish_run, result_lines, run_title
 from anafi_sim.mission.trajectory import SCENARIO_DIR, load_scenario
 from anafi_sim.msg import MpcStats, Waypoint
 from anafi_sim import names
@@ -97,9 +99,10 @@ class ExperimentMonitorNode(object):
         self.evaluator_node = rospy.resolve_name(p.string('evaluator_node', 'evaluator'))
         self.files = dict((k, p.string('%s_file' % k, '')) for k in ('summary', 'csv', 'plot', 'info', 'bag'))
         self.hold = p.flag('hold', True)
+        self.plot_dpi = p.number('plot_dpi', run_files.FIGURE_DPI, *PARAMETER_RANGES['plot_dpi'])
         self.end_launch = p.flag('end_launch', False)
         # the flight conditions the simulator flies in (sim.launch conditions:=NAME): shown on the plot
-        conditions = p.string('conditions', '')
+        self.conditions = conditions = p.string('conditions', '')
         try:
             self.wind = load_conditions(conditions, parameter_folders()) if conditions else None
         except ValueError as error:
@@ -272,6 +275,7 @@ class ExperimentMonitorNode(object):
             summary = self.core.summary
         info['label'] = self.label
         info['scenario'] = self.scenario.name
+        info['conditions'] = conditions_info(self.conditions, self.wind)
         with self.lock:
             info['tuning'] = sorted((c for changes in self.tuning.values() for c in changes),
                                     key=lambda c: c.get('wall', 0.0))      # [] = no live tuning
@@ -283,9 +287,10 @@ class ExperimentMonitorNode(object):
             with self.lock:
                 problem = self.core.result_problem(self.require_truth)
 
-        def plot(csv, out):
+        def plot(csv, out, failed):
             from anafi_sim.mission.plots import plot_run
-            plot_run(csv, out, summary=summary, title=self.label, wind=self.wind)
+            plot_run(csv, out, summary=summary, title=run_title(self.label, self.conditions), wind=self.wind,
+                     dpi=self.plot_dpi, failed=failed)
 
         finished = finish_run(ok, info, self.files, plot, problem)
         if ok and finished.problems:

@@ -14,10 +14,10 @@ queued, so ROS I/O never blocks the reader):
   run time by anafi_sim.ros.wire_types unless installed; no header): every telemetry value, so the
   reference implementation's nodes (its Gazebo mirror, its controllers) read ours unchanged;
 - ground_truth/drone_data (anafi_sim/DroneData): the same values with a header (stamp, frame_id);
-- ground_truth/odom (nav_msgs/Odometry): ~frame_id -> <drone>/base_link,
+- ground_truth/odom (nav_msgs/Odometry): ~frame_id -> <drone>/base_link_gt,
   twist in the body frame;
 - /tf, one TFMessage per sample: ~frame_id -> <drone>/stability_axes
-  (position, heading) -> <drone>/base_link (roll, pitch) -> <drone>/camera
+  (position, heading) -> <drone>/base_link_gt (roll, pitch) -> <drone>/camera
   (~camera_offset, gimbal roll and pitch); static <drone>/camera ->
   <drone>/camera_optical (z along the view, the Gazebo camera's image frame); with ~publish_body_fixed also
   ~frame_id -> <drone>/body_fixed (position, roll, pitch, yaw: the frame the reference implementation's
@@ -52,7 +52,6 @@ import threading
 import time
 
 import rospy
-from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
 from tf2_msgs.msg import TFMessage
 
@@ -103,15 +102,7 @@ def read_params(ctx):
     return p
 
 
-def _transform(stamp, parent, child, translation, rotation):
-    t = TransformStamped()
-    t.header.stamp = stamp
-    t.header.frame_id = parent
-    t.child_frame_id = child
-    t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = translation
-    r = t.transform.rotation
-    r.x, r.y, r.z, r.w = rotation
-    return t
+_transform = conversions.transform
 
 
 class InterfaceNode(object):
@@ -122,7 +113,7 @@ class InterfaceNode(object):
         self.p = params = read_params(ctx)
         drone = params['drone_name']
         self.frame_id = params['frame_id']
-        self.base_link = drone + '/base_link'
+        self.base_link = names.ground_truth_frame(drone)
         self.stability_axes = drone + '/stability_axes'
         self.camera = drone + '/camera'
         self.body_fixed = drone + '/body_fixed' if params['publish_body_fixed'] else None

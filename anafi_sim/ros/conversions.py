@@ -2,7 +2,7 @@
 numbers conversion (``anafi_control.frames.odometry_to_world`` on the message's fields), and the controllers'
 inputs (Odometry + Waypoint -> ``on_state`` / ``on_waypoint`` of a controller or an input gate)."""
 import rospy
-from geometry_msgs.msg import Pose, Twist
+from geometry_msgs.msg import Pose, TransformStamped, Twist
 from nav_msgs.msg import Odometry
 
 from anafi_control import frames
@@ -17,6 +17,18 @@ def pose(position, orientation):
     p.position.x, p.position.y, p.position.z = position
     p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = orientation
     return p
+
+
+def transform(stamp, parent, child, translation, rotation):
+    """TransformStamped ``parent`` -> ``child`` at ``stamp`` from a translation (x, y, z) [m] and a quaternion."""
+    t = TransformStamped()
+    t.header.stamp = stamp
+    t.header.frame_id = parent
+    t.child_frame_id = child
+    t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = translation
+    r = t.transform.rotation
+    r.x, r.y, r.z, r.w = rotation
+    return t
 
 
 def twist(linear, angular):

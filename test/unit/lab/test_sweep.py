@@ -146,6 +146,25 @@ def test_command_line_run(short, tmp_path):
     assert bad.returncode == 2 and 'bogus' in bad.stderr
 
 
+def test_command_line_run_names_its_conditions_and_draws_the_asked_format(short, tmp_path):
+    """--conditions in the run's name (files, title); --format svg --dpi: the figure as SVG."""
+    import xml.etree.ElementTree as ElementTree
+    out = str(tmp_path / 'cli')
+    env = dict(os.environ)
+    env['PYTHONPATH'] = ROOT + os.pathsep + env.get('PYTHONPATH', '')
+    proc = subprocess.run([sys.executable, SCRIPT, 'run', '--controller', 'pid', '--scenario', short[0],
+                           '--conditions', 'real_flights', '--format', 'svg', '--dpi', '150', '--out', out],
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True, timeout=600, env=env)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith('RESULT short_a_pid_real_flights  ok'), proc.stdout
+    assert sorted(os.listdir(out)) == ['short_a_pid_real_flights.csv', 'short_a_pid_real_flights.svg',
+                                       'short_a_pid_real_flights.yaml']
+    assert ElementTree.parse(os.path.join(out, 'short_a_pid_real_flights.svg')).getroot().tag.endswith('svg')
+    bad = subprocess.run([sys.executable, SCRIPT, 'run', '--scenario', short[0], '--format', 'jpg', '--out', out],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True, timeout=60, env=env)
+    assert bad.returncode == 2 and 'jpg' in bad.stderr
+
+
 def test_median_is_the_middle_of_an_even_count():
     """The sweep plot's '/ median' row divided by the upper median (sorted(d)[n // 2]) of an even count."""
     assert sweep.median([4.0, 1.0, 3.0, 2.0]) == 2.5

@@ -220,3 +220,40 @@ def test_garbage_and_warnings_are_counted_in_the_summary_lines_not_repeated():
                               'garbage_samples': 1, 'warnings': ['w1', 'w2']})
     text = '\n'.join(lines)
     assert 'GARBAGE excluded: 1 samples, 2 warning(s)' in text and 'x_sphinx' not in text and 'w1' not in text
+
+
+def tuning_record(stamp, parameter='a_max', old=5.0, new=5.5, node='/anafi/mpc_controller', outcome='applied'):
+    return {'stamp': stamp, 'wall': 1.0e9 + stamp, 'node': node, 'parameter': parameter, 'old': old, 'new': new,
+            'requested': new, 'outcome': outcome}
+
+
+def test_the_run_info_keeps_the_measured_window():
+    m = ready_monitor()
+    assert m.run_info()['measured_window'] is None
+    m.on_begin(12.5)
+    m.on_end(32.5, 100.0)
+    assert m.run_info()['measured_window'] == [12.5, 32.5]
+
+
+def test_only_the_measured_windows_tuning_changes_that_changed_a_value_count():
+    info = {'measured_window': [10.0, 30.0], 'tuning': [
+        tuning_record(5.0),                                   # before the window: the run's tuning, not a change
+        tuning_record(22.3, 'q_cum_vel', 0.0, 0.0, outcome='clamped'),   # asked, nothing changed
+        tuning_record(14.25),
+        tuning_record(31.0)]}                                 # after the window
+    changes = em.tuning_in_window(info)
+    assert [(c['parameter'], c['t']) for c in changes] == [('a_max', pytest.approx(4.25))]
+    assert em.tuning_clause(info) == 'tuning changed at t=4.2 s: /anafi/mpc_controller a_max 5.0 -> 5.5'
+    assert em.tuning_in_window({'tuning': info['tuning']}) == []          # no window: nothing to say
+    assert em.tuning_in_window({'measured_window': [10.0, None], 'tuning': info['tuning']}) == []
+    assert em.tuning_in_window({'measured_window': [10.0, 30.0], 'tuning': [None, {'stamp': 'x'}]}) == []
+
+
+def test_a_tuning_change_in_the_measured_window_is_said_in_the_result_line():
+    info = {'disturbed': '', 'measured_window': [10.0, 30.0], 'tuning': [tuning_record(22.3, 'r', 0.1, 0.5)]}
+    said = 'tuning changed at t=12.3 s: /anafi/mpc_controller r 0.1 -> 0.5'
+    assert em.result_status(True, info) == 'ok, ' + said
+    assert em.result_status(True, dict(info, disturbed='3 hover commands')) == 'disturbed: 3 hover commands; ' + said
+    assert em.result_status(False, dict(info, reason='no ground truth')) == 'FAILED: no ground truth; ' + said
+    many = dict(info, tuning=[tuning_record(11.0 + i, new=6.0 + i) for i in range(5)])
+    assert em.result_status(True, many).endswith('a_max 5.0 -> 8.0 (+2 more)')

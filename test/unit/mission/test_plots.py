@@ -114,7 +114,8 @@ def _pixels_of(png, hex_colour, tol=0.06):
 
 
 def test_the_png_shows_the_three_curves(tmp_path):
-    """The saved picture, decoded: its size follows the figure and dpi, and the waypoint (red), estimate (blue)
+    """The saved picture, decoded: its size follows the figure and dpi (cropped to what is drawn: the white margin
+    goes, the legends outside the axes stay), and the waypoint (red), estimate (blue)
     and ground-truth (green) colours are drawn; a log without ground truth has no green curve."""
     from matplotlib import image
     t, log = circle_log()
@@ -124,7 +125,7 @@ def test_the_png_shows_the_three_curves(tmp_path):
     rgb = image.imread(png)
     fig = plots.run_figure(plots.load(csv))
     width, height = fig.get_size_inches() * plots.DEFAULT_DPI
-    assert rgb.shape[:2] == (int(round(height)), int(round(width)))
+    assert 0.8 * height < rgb.shape[0] < 1.2 * height and 0.8 * width < rgb.shape[1] < 1.2 * width, rgb.shape
     counts = dict((key, _pixels_of(png, colour)) for key, colour in plots.COLORS.items())
     assert all(n > 200 for n in counts.values()), counts
     assert np.mean(rgb[:, :, :3]) > 0.7            # mostly white paper, not a black or empty canvas
@@ -169,3 +170,95 @@ def test_comparison_overlays_each_run_against_its_own_offset():
         assert np.allclose(drawn[label].get_xdata(), log.t[::k] - offset)
         assert np.allclose(drawn[label].get_ydata(), log.columns['x_anafi'][::k])
     assert drawn['run 0'].get_color() != drawn['run 1'].get_color()
+
+
+def takeoff_log(n=600, late=0.44):
+    """A run that starts 5 m from its waypoint (the take-off) and tracks within ``late`` m from t = 5 s on."""
+    t = np.arange(n) * 0.05
+    wp = np.column_stack([np.zeros(n), np.zeros(n), np.full(n, 5.0)])
+    gap = np.where(t < 5.0, 5.0 * (1.0 - t / 5.0), late * (0.5 + 0.5 * np.sin(t)))
+    est = wp - np.column_stack([gap, np.zeros(n), np.zeros(n)])
+    return t, make_log(t, est, wp)
+
+
+def test_error_limits_come_from_the_measured_window():
+    t = np.arange(100) * 0.1
+    e = np.where(t < 2.0, 5.0, 0.4)
+    x, y = plots.error_limits(t, [e, np.full(100, np.nan)], (3.0, 9.0))
+    assert x == (3.0, 9.0) and y[0] == 0.0 and y[1] == pytest.approx(1.1 * 0.4)
+    x, y = plots.error_limits(t, [e], None)                   # no window: the whole run
+    assert x == (t[0], t[-1]) and y[1] == pytest.approx(5.5)
+    _, y = plots.error_limits(t, [np.zeros(100)], (3.0, 9.0))  # a perfect run: not a 1e-16 m scale
+    assert y == (0.0, plots.ERROR_MIN_SPAN)
+    x, _ = plots.error_limits(t, [e], (50.0, 60.0))            # a window without samples: the whole run
+    assert x == (t[0], t[-1])
+
+
+def test_the_error_panel_shows_the_measured_window_not_the_take_off():
+    t, log = takeoff_log()
+    window = (6.0, float(t[-1]))
+    fig = plots.run_figure(log, window=window)
+    err_ax = fig.axes[-1]
+    e = np.hypot(log.columns['wp_x'] - log.columns['x_anafi'], 0.0)
+    inside = e[(t >= window[0]) & (t <= window[1])]
+    assert err_ax.get_xlim() == pytest.approx(window)
+    assert err_ax.get_ylim() == pytest.approx((0.0, 1.1 * inside.max()))
+    assert err_ax.get_ylim()[1] < 1.0                          # the 5 m of the take-off do not set the scale
+
+
+def test_legends_sit_outside_the_data():
+    t, log = circle_log()
+    fig = plots.run_figure(log, window=(2.0, 15.0), title='circle')
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        if legend is not None:
+            box, area = legend.get_window_extent(renderer), ax.get_window_extent(renderer)
+            assert not box.overlaps(area), 'the legend of %r covers its axes' % ax.get_title()
+    assert any(ax.get_legend() is not None for ax in fig.axes)
+
+
+def test_a_failed_run_says_failed_in_its_title():
+    _, log = circle_log()
+    fig = plots.run_figure(log, title='circle_mpc', failed='no ground truth')
+    assert fig._suptitle.get_text() == 'circle_mpc\nFAILED: no ground truth'
+    assert plots.figure_title('circle_mpc', failed=True) == 'circle_mpc\nFAILED'
+    assert plots.figure_title('circle_mpc') == 'circle_mpc'
+    assert plots.figure_title('x', 'wind 3.0 m/s', failed='y' * 200).split('\n')[1].endswith('...')
+    assert 'FAILED' not in plots.run_figure(log, title='circle_mpc')._suptitle.get_text()
+
+
+@pytest.mark.parametrize('fmt', ['svg', 'pdf', 'png'])
+def test_a_run_renders_as_svg_pdf_and_png(tmp_path, fmt):
+    import xml.etree.ElementTree as ElementTree
+    _, log = circle_log(n=120)
+    csv = str(tmp_path / 'run.csv')
+    write_log(csv, log)
+    out = plots.plot_run(csv, str(tmp_path / ('run.' + fmt)), summary={'name': 'tiny', 'window': [1.0, 3.5]},
+                         failed='not ready within 90 s', dpi=150)
+    data = open(out, 'rb').read()
+    if fmt == 'svg':
+        root = ElementTree.fromstring(data)
+        assert root.tag.endswith('svg')
+        assert b'FAILED' in data      # the title (drawn as glyph paths, its text in a comment beside them)
+    elif fmt == 'pdf':
+        assert data.startswith(b'%PDF') and data.rstrip().endswith(b'%%EOF')
+    else:
+        assert data[:8] == PNG_MAGIC
+    # no creation date: the same run gives the same file
+    again = plots.plot_run(csv, str(tmp_path / ('again.' + fmt)), summary={'name': 'tiny', 'window': [1.0, 3.5]},
+                           failed='not ready within 90 s', dpi=150)
+    assert open(again, 'rb').read() == data
+
+
+def test_the_format_comes_from_the_argument_or_the_extension():
+    assert plots.figure_format('a/run.svg') == 'svg' and plots.figure_format('a/run.PDF') == 'pdf'
+    assert plots.figure_format('a/run.png.tmp-12') == 'png'        # an unknown extension: the default
+    assert plots.figure_format('a/run.tmp', 'pdf') == 'pdf'
+    with pytest.raises(ValueError):
+        plots.figure_format('a/run.png', 'jpg')
+    assert plots.check_dpi('300') == 300.0
+    for bad in ('0', 'x', float('nan'), 5000):
+        with pytest.raises(ValueError):
+            plots.check_dpi(bad)

@@ -28,12 +28,12 @@ def run_folder(tmp_path, summary_state='final', csv=True, bag='closed'):
     return files
 
 
-def draw(csv, out):
+def draw(csv, out, failed=None):
     with open(out, 'w') as f:
-        f.write('plot of %s' % os.path.basename(csv))
+        f.write('plot of %s' % os.path.basename(csv) + ('' if failed is None else ', FAILED: %s' % failed))
 
 
-def broken(csv, out):
+def broken(csv, out, failed=None):
     raise RuntimeError('no display')
 
 
@@ -115,7 +115,22 @@ def test_a_run_that_failed_before_its_end_keeps_its_reason_and_is_still_plotted(
     assert not done.ok and done.problems == []       # the evaluator's files are not judged: the run failed already
     assert done.info['reason'] == 'not ready within 90 s' and done.info['plot'] == files['plot']
     assert os.path.isfile(done.files['plot']) and done.files['plot'].endswith('RUN.FAILED.png')
+    assert open(done.files['plot']).read() == 'plot of RUN.csv, FAILED: not ready within 90 s'
     assert run_files.read_yaml(done.files['info'])['reason'] == 'not ready within 90 s'
+
+
+def test_a_run_that_fails_at_its_end_is_plotted_as_failed_with_its_problems(tmp_path):
+    files = run_folder(tmp_path)
+    done = run_end.finish_run(True, info_of(), files, draw, problem='no ground truth')
+    assert open(done.files['plot']).read() == 'plot of RUN.csv, FAILED: no ground truth'
+
+
+def test_the_plot_is_drawn_through_a_temporary_name_with_the_files_extension(tmp_path):
+    files = run_folder(tmp_path)
+    files['plot'] = str(tmp_path / 'RUN.svg')
+    seen = []
+    done = run_end.finish_run(True, info_of(), files, lambda csv, out, failed: seen.append(out) or draw(csv, out))
+    assert done.ok and seen[0].endswith('.svg') and os.path.isfile(str(tmp_path / 'RUN.svg'))
 
 
 def test_a_run_file_that_cannot_be_written_fails_the_run(tmp_path):
@@ -175,3 +190,25 @@ def test_a_failed_run_file_says_failed_inside(tmp_path):
     data = run_files.read_yaml(marked[0])
     assert data['state'] == 'failed' and data['reason'] == 'the drone never flew' and data['rmse'] == 0.1
     assert not summary.exists() and not csv.exists()
+
+
+def test_the_run_file_names_the_conditions_a_run_flew_in():
+    assert run_end.conditions_info('') == {'name': 'none', 'settings': {}}
+    assert run_end.conditions_info('real_flights', {'wind_x': 2.5, 'gust_std_horizontal': 0.4}) == {
+        'name': 'real_flights', 'settings': {'wind_x': 2.5, 'gust_std_horizontal': 0.4}}
+    assert run_end.conditions_info('/some/where/gusty.yaml')['name'] == 'gusty'
+
+
+def test_a_windy_runs_title_names_its_conditions():
+    assert run_end.run_title('circle_r2_v1_mpc') == 'circle_r2_v1_mpc'
+    assert run_end.run_title('circle_r2_v1_mpc_real_flights', 'real_flights') == 'circle_r2_v1_mpc_real_flights'
+    assert run_end.run_title('my_run', 'real_flights') == 'my_run (real_flights)'
+
+
+def test_the_result_line_says_a_tuning_change_inside_the_measured_window(tmp_path):
+    info = dict(info_of(), disturbed='', measured_window=[10.0, 30.0], tuning=[
+        {'stamp': 22.3, 'wall': 1.0, 'node': '/anafi/mpc_controller', 'parameter': 'a_max', 'old': 5.0, 'new': 5.5,
+         'requested': 5.5, 'outcome': 'applied'}])
+    done = run_end.finish_run(True, info, run_folder(tmp_path), draw)
+    lines = run_end.result_lines(done, SUMMARY, 'circle')
+    assert lines[2] == 'RESULT circle  (ok, tuning changed at t=12.3 s: /anafi/mpc_controller a_max 5.0 -> 5.5)'

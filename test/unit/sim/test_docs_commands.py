@@ -101,6 +101,8 @@ def rosrun_problems(doc, text):
         folder = None
     if folder is None:
         import importlib.util
+        if exe in executables(package, None):     # no package.xml (Debian's tf), rosrun still finds <prefix>/lib/tf
+            return []
         if importlib.util.find_spec(package) is not None:    # a Python module, not a ROS package: no rosrun
             return ['%s: rosrun %s %s: %s is a Python module here, not a package rosrun finds'
                     % (doc, package, exe, package)]
@@ -114,7 +116,7 @@ def executables(package, folder):
     in the package's libexec folders (<prefix>/lib/<package>) of the CMAKE_PREFIX_PATH and /usr."""
     found = set()
     prefixes = [p for p in os.environ.get('CMAKE_PREFIX_PATH', '').split(os.pathsep) if p] + ['/usr', '/opt/ros']
-    for top in [folder] + [os.path.join(p, 'lib', package) for p in prefixes]:
+    for top in ([folder] if folder else []) + [os.path.join(p, 'lib', package) for p in prefixes]:
         for here, _, files in os.walk(top):
             found.update(f for f in files if os.access(os.path.join(here, f), os.X_OK))
     return found

@@ -12,10 +12,14 @@ topic (~relay: position_control/state_enu, or drone/speed) goes through this nod
    stamped later than the freeze + GENEROUS x the nominal failsafe time (the controller's state_timeout +
    bridge_state's max_skew + a command period), over a quiet window as long again; the measured delay is logged;
 3. the reference run: the same scenario, controller, rtf and lockstep on drone/odom (experiment.launch sync:=true
-   on a private master, anafi_lab.engine.lockstep.run_sync). e_mu against ground truth (the evaluator's core,
-   anafi_sim.mission.evaluation, on hidden/truth; the reference's evaluator summary) within 10 % of the
-   reference's; e_mu on bridge_state's drone/odom within 10 % of e_mu on the simulator's own estimate
-   (hidden/odom) of the same flight.
+   on a private master, anafi_lab.engine.lockstep.run_sync). The evaluator's e_mu (against the estimate, the
+   paper's metric) within 10 % of the reference's; e_mu against ground truth (the evaluator's core,
+   anafi_sim.mission.evaluation, on hidden/truth; the reference's evaluator summary) within ~truth_tolerance
+   (default 10 %) of the reference's; e_mu on bridge_state's drone/odom within 10 % of e_mu on the simulator's
+   own estimate (hidden/odom) of the same flight. The lockstep holds the command, not the state's way to the
+   controller: which estimate sample a cycle sees varies from run to run, and with the preview MPC's few
+   centimetres of error against truth that moves its e_mu vs truth by tens of per cent between two runs on
+   drone/odom alike (real_anafi_preview.test sets ~truth_tolerance).
 """
 import os
 import shutil
@@ -157,18 +161,24 @@ class TestRealAnafi(unittest.TestCase):
         run = lockstep_runs.run_sync(controller, out, paths.config_path('scenarios', 'circle_r2_v1.yaml'),
                                      rtf=rospy.get_param(NS + '/anafi_sim/rtf'), timeout=300.0,
                                      extra=['sync_timeout:=%g' % rospy.get_param(NS + '/anafi_sim/sync_timeout')])
+        truth_tolerance = rospy.get_param('~truth_tolerance', TOLERANCE)
         try:
-            reference = lockstep_runs.e_mu(run['summary'], 'truth')
+            reference = lockstep_runs.e_mu(run['summary'], 'estimate')
+            reference_truth = lockstep_runs.e_mu(run['summary'], 'truth')
             self.assertIsNotNone(reference, 'no reference summary (%s)' % run['log'])
+            self.assertIsNotNone(reference_truth, 'no ground truth in the reference summary (%s)' % run['log'])
+            rospy.loginfo('%s e_mu through the bridge topics / on drone/odom: vs estimate %.4f / %.4f m (ratio %.3f), '
+                          'vs truth %.4f / %.4f m (ratio %.3f); this flight on the simulator estimate %.4f m',
+                          controller, e_mu, reference, e_mu / reference, flight.truth.e_mu, reference_truth,
+                          flight.truth.e_mu / reference_truth, own_estimate.estimate.e_mu)
+            self.assertLess(abs(e_mu / reference - 1.0), TOLERANCE,
+                            'e_mu %.4f m through the bridge topics, %.4f m on drone/odom' % (e_mu, reference))
+            self.assertLess(abs(flight.truth.e_mu / reference_truth - 1.0), truth_tolerance,
+                            'e_mu vs truth %.4f m through the bridge topics, %.4f m on drone/odom'
+                            % (flight.truth.e_mu, reference_truth))
+            self.assertLess(abs(e_mu / own_estimate.estimate.e_mu - 1.0), TOLERANCE)
         except AssertionError:
-            raise AssertionError('%s\n(run files in %s)' % (sys.exc_info()[1], out))
-        rospy.loginfo('%s e_mu vs truth: bridge topics %.3f m, drone/odom %.3f m (ratio %.3f); vs estimate %.3f m, '
-                      'on the simulator estimate %.3f m', controller, flight.truth.e_mu, reference,
-                      flight.truth.e_mu / reference, e_mu, own_estimate.estimate.e_mu)
-        self.assertLess(abs(flight.truth.e_mu / reference - 1.0), TOLERANCE,
-                        'e_mu vs truth %.4f m through the bridge topics, %.4f m on drone/odom (run files in %s)'
-                        % (flight.truth.e_mu, reference, out))
-        self.assertLess(abs(e_mu / own_estimate.estimate.e_mu - 1.0), TOLERANCE)
+            raise AssertionError('%s\n(reference run files in %s)' % (sys.exc_info()[1], out))
         shutil.rmtree(out, ignore_errors=True)
 
 

@@ -11,7 +11,10 @@ what the node publishes after each step (``Step``). ``health(wall)`` sums it up 
 With a ``anafi_sim.sim.clock.Lockstep`` (``~sync``), ``sync(t)`` after a step waits for the controller's
 command of the control period when one is due (commands carry their stamps: ``on_command(..., stamp=)``;
 an unstamped command, header.stamp 0 as the reference implementation's controllers send, counts at the
-simulation time of its arrival, and ``health`` says so).
+simulation time of its arrival, and ``health`` says so). A command stamped more than ``FOREIGN_CLOCK_MARGIN``
+ahead of the simulation time comes from a node on another clock (the wall clock: a node without
+/use_sim_time, or under compat.launch's /use_sim_time false): the lockstep cannot pace it, so it counts at
+its arrival too and ``health`` WARNs once per new such command.
 """
 import collections
 import math
@@ -25,6 +28,10 @@ Step = collections.namedtuple('Step', 't events sample estimate state clock')
 after)]; sample: the ground-truth TelemetrySample to publish (None: decimated); estimate: the
 BridgeEstimate to publish (None: decimated or not ready); state: the new flight state (None: unchanged);
 clock: publish /clock at t."""
+
+FOREIGN_CLOCK_MARGIN = 1.0
+"""s: a command stamp further than this ahead of the simulation time at its arrival is on another clock (a
+controller on the simulation clock stamps the /clock tick it fired on, which the simulator has reached)."""
 
 Status = collections.namedtuple('Status', 'warning message values')
 """Health for /diagnostics: warning (bool: WARN, else OK), message, (key, text) values."""
@@ -54,13 +61,16 @@ class SimulatedAnafi(object):
         self.lockstep = lockstep
         self._timeouts_reported = 0
         self.unstamped_commands = 0      # lockstep: commands without a stamp, taken at their arrival time
+        self.foreign_clock_commands = 0  # lockstep: commands stamped on another clock, taken at their arrival time
+        self._foreign_reported = 0
 
     # ------------------------------------------------------------ inputs (any thread)
     def on_command(self, roll_deg, pitch_deg, yaw_rate_deg, gaz, stamp=None):
         """A piloting command (ROS units) of the controller's cycle at ``stamp`` [s sim] (None or 0: unknown);
         False when refused (non-finite), counted. Either way it answers the lockstep's period: an unknown
         stamp is replaced by the simulation time of the command's arrival (counted; at time 0, before the
-        simulation starts, it does not arm the lockstep)."""
+        simulation starts, it does not arm the lockstep), and so is a stamp on another clock (more than
+        ``FOREIGN_CLOCK_MARGIN`` ahead of the simulation time: counted apart, WARN in ``health``)."""
         values = (roll_deg, pitch_deg, yaw_rate_deg, gaz)
         ok = all(math.isfinite(v) for v in values)
         if ok:
@@ -69,11 +79,14 @@ class SimulatedAnafi(object):
         else:
             self.bad_commands += 1
         if self.lockstep is not None:
-            if stamp is not None and math.isfinite(stamp) and stamp > 0.0:
+            arrival = self.clock.t
+            if stamp is not None and math.isfinite(stamp) and 0.0 < stamp <= arrival + FOREIGN_CLOCK_MARGIN:
                 self.lockstep.on_command(stamp)
             else:
-                self.unstamped_commands += 1
-                arrival = self.clock.t
+                if stamp is not None and math.isfinite(stamp) and stamp > 0.0:
+                    self.foreign_clock_commands += 1
+                else:
+                    self.unstamped_commands += 1
                 if arrival > 0.0:
                     self.lockstep.on_command(arrival)
         return ok
@@ -159,6 +172,11 @@ class SimulatedAnafi(object):
             self._timeouts_reported = lockstep.timeouts
             if lockstep.disarms and not self.lockstep.armed:
                 problems.append('lockstep: controller silent, free-running')
+            if self.foreign_clock_commands > self._foreign_reported:
+                problems.append('lockstep cannot pace a node on another clock (the wall clock?): %d commands '
+                                'stamped ahead of the simulation, taken at their arrival time'
+                                % (self.foreign_clock_commands - self._foreign_reported))
+            self._foreign_reported = self.foreign_clock_commands
         elif report.achieved_rate < WANTED_RATE_FRACTION * report.wanted_rate:
             problems.append('physics %.0f Hz of wall time, wanted %.0f' % (report.achieved_rate, report.wanted_rate))
         bad = self.bad_commands
@@ -185,6 +203,7 @@ class SimulatedAnafi(object):
         if lockstep is not None:
             values += lockstep_values(lockstep)
             values.append(('lockstep unstamped commands (taken at arrival)', str(self.unstamped_commands)))
+            values.append(('lockstep commands on another clock (taken at arrival)', str(self.foreign_clock_commands)))
         server = self.server
         if server is not None:
             values += [

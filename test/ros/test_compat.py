@@ -228,6 +228,11 @@ class TestCompat(unittest.TestCase):
             self.assertEqual(header.frame_id, '/world')
         a = s.twist.twist.angular.vector
         self.assertEqual((a.x, a.y, a.z), (0.0, 0.0, 0.0))
+        def of_the_step(by_stamp):     # the other topics' messages of the step may arrive after state_enu's
+            with self.latest.lock:
+                return by_stamp.get(s.header.stamp) is not None
+        self.wait(lambda: of_the_step(self.latest.pose_by_stamp) and of_the_step(self.latest.speed_by_stamp), 5.0,
+                  'drone/pose_enu and drone/speed of the same step as state_enu')
         with self.latest.lock:
             pose = self.latest.pose_by_stamp.get(s.header.stamp)
         self.assertIsNotNone(pose, 'no drone/pose_enu of the same step as state_enu')

@@ -1,7 +1,8 @@
 """The anafi_control name clash: the paper authors' ROS message package and this project's control library.
 
-With theirs first on the path our nodes stop with one clear message (no traceback); with ours first both work
-(our package extends its path, so their ``anafi_control.msg`` is found behind it).
+With theirs first on the path our nodes stop with one clear message (no traceback), except from our devel space
+(its relay puts our source tree first); with ours first both work (our package extends its path, so their
+``anafi_control.msg`` is found behind it).
 """
 import ast
 import glob
@@ -51,6 +52,21 @@ def test_ours_first_finds_both(their_package, tmp_path):
     result = run(['-c', code], [ROOT, their_package], str(tmp_path))
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip().startswith(os.path.join(ROOT, 'anafi_control'))
+
+
+DEVEL_PYTHON = os.path.join(ROOT, '.ws', 'devel', 'lib', 'python3', 'dist-packages')
+
+
+@pytest.mark.skipif(not os.path.isfile(os.path.join(DEVEL_PYTHON, 'anafi_sim', '__init__.py')),
+                    reason='no devel space: run make setup')
+def test_theirs_first_works_in_our_devel_space(their_package, tmp_path):
+    """The devel space's anafi_sim/__init__.py (catkin's relay) puts our source tree first on sys.path when it is
+    imported: theirs first on PYTHONPATH, our nodes still find our anafi_control, theirs behind it."""
+    code = ('import anafi_sim, anafi_control.contract, anafi_control.msg as m; '
+            'assert m.THEIRS; print(anafi_control.contract.__file__)')
+    result = run(['-c', code], [their_package, DEVEL_PYTHON], str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    assert os.path.realpath(result.stdout.strip()).startswith(os.path.join(os.path.realpath(ROOT), 'anafi_control'))
 
 
 def _top_level_imports(path):

@@ -8,7 +8,7 @@ from anafi_sim.mission import monitor
 from anafi_sim.sim.bridge import BridgeEstimate, PilotingMapping, bridge_estimate
 from anafi_sim.sim.clock import SimClock
 from anafi_sim.sim.drone_model import FLYING, LANDED, TAKING_OFF, AnafiModel, load_model_params
-from anafi_sim.sim.simulator import SimulatedAnafi
+from anafi_sim.sim.simulator import FOREIGN_CLOCK_MARGIN, SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
 
 
@@ -164,9 +164,9 @@ def test_lockstep_waits_at_the_period_of_the_stamped_commands():
 
 def test_a_refused_command_still_answers_the_lockstep_period():
     sim, lock = lockstep_simulator()
-    sim.on_command(0.0, 0.0, 0.0, 0.0, stamp=1.0)
-    assert not sim.on_command(float('nan'), 0.0, 0.0, 0.0, stamp=1.1)
-    assert lock.newest == pytest.approx(1.1) and sim.bad_commands == 1
+    sim.on_command(0.0, 0.0, 0.0, 0.0, stamp=0.5)
+    assert not sim.on_command(float('nan'), 0.0, 0.0, 0.0, stamp=0.6)
+    assert lock.newest == pytest.approx(0.6) and sim.bad_commands == 1
 
 
 def test_lockstep_timeouts_are_a_warning_and_the_wanted_rate_is_not():
@@ -201,6 +201,22 @@ def test_unstamped_commands_count_at_their_arrival_time_and_say_so():
     health = sim.health(1.0)
     assert not health.warning and 'unstamped commands, taken at their arrival time (3)' in health.message
     assert dict(health.values)['lockstep unstamped commands (taken at arrival)'] == '3'
+
+
+def test_a_command_stamped_on_the_wall_clock_counts_at_its_arrival_and_warns_once():
+    """A node on the wall clock (no /use_sim_time) stamps its commands ~1.7e9 s: the lockstep cannot pace it;
+    taken at its arrival (a wall stamp would hold the lockstep's period end out of reach), WARN once."""
+    sim, lock = lockstep_simulator()
+    steps(sim, 40)                                           # 0.2 s
+    sim.on_command(1.0, 0.0, 0.0, 0.0, stamp=1.7e9)
+    assert lock.armed and lock.last == pytest.approx(0.2)
+    assert sim.foreign_clock_commands == 1 and sim.unstamped_commands == 0
+    health = sim.health(1.0)
+    assert health.warning and 'cannot pace a node on another clock' in health.message and '1 commands' in health.message
+    assert dict(health.values)['lockstep commands on another clock (taken at arrival)'] == '1'
+    assert not sim.health(2.0).warning                       # reported once
+    sim.on_command(1.0, 0.0, 0.0, 0.0, stamp=0.2 + FOREIGN_CLOCK_MARGIN)   # within the margin: its own stamp
+    assert sim.foreign_clock_commands == 1 and lock.newest == pytest.approx(0.2 + FOREIGN_CLOCK_MARGIN)
 
 
 def test_stamped_commands_are_not_counted_as_unstamped():

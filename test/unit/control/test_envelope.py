@@ -94,6 +94,23 @@ def test_velocity_toward_the_fence_brakes_to_stop_on_it():
     assert out[5] == 0.0
 
 
+def test_a_target_trailing_the_drone_brakes_from_the_drone_s_distance():
+    # waypoints at where the drone was (a late stream at the drone's own position): the drone nearer the fence
+    env = Envelope()
+    a = 0.5 * env.max_reference_acceleration
+    out, notes = env.limit_waypoint((240.0, 0.0, 5.0, 10.0, 0.0, 0.0, 0.0), CENTRE, (247.5, 0.0, 5.0))
+    assert names(notes) == ['fence_braking'] and out[3] == pytest.approx(math.sqrt(2.0 * a * 0.5))
+    out, _ = env.limit_waypoint((240.0, 0.0, 5.0, 10.0, 0.0, 0.0, 0.0), CENTRE, (249.0, 0.0, 5.0))
+    assert out[3] == pytest.approx(0.0, abs=1e-9)
+    out, notes = env.limit_waypoint((0.0, 0.0, 48.0, 0.0, 0.0, 2.0, 0.0), CENTRE, (0.0, 0.0, 49.5))
+    assert names(notes) == ['fence_braking'] and out[5] == pytest.approx(math.sqrt(2.0 * a * 0.5))
+    # inward, or a drone farther inside than its target: untouched
+    wp = (240.0, 0.0, 5.0, -10.0, 0.0, 0.0, 0.0)
+    assert env.limit_waypoint(wp, CENTRE, (247.5, 0.0, 5.0)) == (wp, [])
+    wp = (200.0, 0.0, 5.0, 10.0, 0.0, 0.0, 0.0)
+    assert env.limit_waypoint(wp, CENTRE, (195.0, 0.0, 5.0)) == (wp, [])
+
+
 def test_a_waypoint_beyond_reach_is_approached():
     env = Envelope()
     out, notes = env.limit_waypoint((0.0, 0.0, 5.0, 3.0, 0.0, 0.0, 45.0), CENTRE, (200.0, 0.0, 5.0))

@@ -43,7 +43,7 @@ ENVELOPE_DEFAULTS = collections.OrderedDict([
     ('geofence_radius', 250.0),               # [m] horizontal radius of the fence around the take-off point
     ('min_altitude', 0.5),                    # [m] floor of the fence (world z)
     ('max_altitude', 50.0),                   # [m] ceiling of the fence
-    ('geofence_margin', 2.0),                 # [m] the target stays this far inside (the drone's room)
+    ('geofence_margin', 3.0),                 # [m] the target stays this far inside (the drone's room)
     ('max_waypoint_jump', 50.0),              # [m] reach: farthest target from the drone (airship: <= 38 m)
     ('max_reference_speed', 10.0),            # [m/s] reference horizontal speed (Table 1 v_max)
     ('max_reference_vertical_speed', 2.0),    # [m/s] reference vertical speed (firmware setting)

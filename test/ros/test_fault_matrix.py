@@ -115,9 +115,10 @@ FAULTS = (
     ('master_restart', 'ROS master killed and restarted on the same port', 'every node exits (code 75) and is '
      'respawned with its parameters; new publishers reach the controller again'),
     ('clock_jump', '/clock jumps 5 s back under use_sim_time (as when the simulator respawns), on a graph of '
-     'its own: the MPC and the distributed PID, each given a hovering state and a waypoint',
-     'the timers keep running (rospy.Timer died before): the controllers go SILENT (clock_jump) and command '
-     'again; the nodes count the jump ("ROS time jumps back") and log it'),
+     'its own: the MPC and the distributed PID, each given a hovering state and a waypoint; then /clock stops '
+     'for 6 s', 'the timers keep running (rospy.Timer died before): the controllers go SILENT (clock_jump) and '
+     'command again; the nodes count the jump ("ROS time jumps back") and log it; with /clock stopped the MPC\'s '
+     'health is WARN "stalled: ..." (its cycles frozen), never "tracking"'),
     ('second_commander', 'a second MPC (node mpc_rival) started on the flying drone; then an operator (this '
      'test node) publishes hover commands on drone/rpyt for 2 s', 'one commander at any time: the newcomer '
      'hears the commands and never commands (ERROR "second commander: ... also publishes ..."), the flying '
@@ -1667,12 +1668,13 @@ class TestFaultMatrix(unittest.TestCase):
         for node, jumps in r['jumps'].items():
             self.assertGreaterEqual(jumps, 1, r)
         self.assertGreaterEqual(r['mpc_clock_jumps'], 1, r)     # the MPC's input gate saw it: SILENT, inputs dropped
+        self.assertTrue(r['stalled'] and r['stalled'][0][0] == 1 and r['stalled'][0][1].startswith('stalled'), r)
         self.record('clock_jump', 'commands in the 2 s before / the last 2 s after: MPC %d / %d, PID %d / %d; '
                     'first command after the jump: MPC %.1f s, PID %.1f s; "ROS time jumps back": %s; '
-                    'MPC clock_jumps %d'
+                    'MPC clock_jumps %d; /clock stopped: the MPC WARN "%s"'
                     % (r['m']['before'], r['m']['after'], r['p']['before'], r['p']['after'], r['m']['first'],
                        r['p']['first'], ', '.join('%s %d' % kv for kv in sorted(r['jumps'].items())),
-                       r['mpc_clock_jumps']),
+                       r['mpc_clock_jumps'], r['stalled'][0][1][:200]),
                     'not needed (no drone in this graph: the controllers\' own cycles are checked)',
                     max(r['m']['first'], r['p']['first']))
 
@@ -1706,7 +1708,7 @@ rospy.init_node('clock_probe', anonymous=True)
 Command = piloting_command_class()
 lock = threading.Lock()
 times = {'m': [], 'p': []}
-jumps, silent = {}, []
+jumps, silent, stalled = {}, [], []
 def on_cmd(drone):
     def cb(msg):
         with lock:
@@ -1720,6 +1722,9 @@ def on_diag(msg):
                 with lock:
                     jumps[node] = max(jumps.get(node, 0), int(kv.value))
         if st.name.endswith('/m/mpc_controller'):
+            if stop_wall is not None and time.time() > stop_wall:
+                with lock:
+                    stalled.append((st.level, st.message))
             for kv in st.values:
                 if kv.key == 'clock_jumps':
                     with lock:
@@ -1730,7 +1735,7 @@ rospy.Subscriber('/diagnostics', DiagnosticArray, on_diag, queue_size=50)
 clock = rospy.Publisher('/clock', Clock, queue_size=10)
 odom = dict((d, rospy.Publisher('/%s/drone/odom' % d, Odometry, queue_size=10)) for d in times)
 wp = dict((d, rospy.Publisher('/%s/position_control/waypoint' % d, Waypoint, queue_size=10)) for d in times)
-t_sim, tick, jump_wall, end = 100.0, 0, None, None
+t_sim, tick, jump_wall, end, stop_wall = 100.0, 0, None, None, None
 start = time.time()
 while True:
     now = time.time()
@@ -1763,7 +1768,12 @@ while True:
             w.z = 2.0
             wp[d].publish(w)
     time.sleep(max(0.0, start + tick * 0.01 - time.time()))
+stop_wall = time.time()      # /clock stops (and with it the inputs): the MPC's cycles freeze
+while time.time() - stop_wall < 6.0:
+    time.sleep(0.1)
 out = {'jumps': jumps, 'mpc_clock_jumps': silent[-1] if silent else -1}
+with lock:
+    out['stalled'] = [m for m in stalled if m[1].startswith('stalled')][-1:] or stalled[-1:]
 with lock:
     for d, ts in times.items():
         after = [t for t in ts if t > jump_wall]

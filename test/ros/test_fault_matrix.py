@@ -269,6 +269,7 @@ class Graph(object):
         self.pub_mode = rospy.Publisher('/%s/fault/mode' % DRONE, String, queue_size=1, latch=True)
         self.pub_wp = rospy.Publisher('/%s/position_control/waypoint' % DRONE, Waypoint, queue_size=10)
         rospy.Subscriber('/%s/sim/truth' % DRONE, Odometry, self.on_truth, queue_size=1, tcp_nodelay=True)
+        self.truth_speed = None     # [m/s] of the last ground truth (its twist: not from receipt times)
         self.estimate = None        # (x, y, z) of the drone's estimate (drone/odom: what the controller flies on)
         rospy.Subscriber('/%s/drone/odom' % DRONE, Odometry, self.on_estimate, queue_size=1, tcp_nodelay=True)
         rospy.Subscriber('/diagnostics', DiagnosticArray, self.on_diag, queue_size=50)
@@ -288,6 +289,8 @@ class Graph(object):
 
     def on_truth(self, msg):
         p = msg.pose.pose.position
+        v = msg.twist.twist.linear
+        self.truth_speed = math.sqrt(v.x ** 2 + v.y ** 2 + v.z ** 2)   # the simulated drone's own speed
         with self.lock:
             self.truth.append((time.time(), p.x, p.y, p.z))
             del self.truth[:-3000]
@@ -1220,8 +1223,8 @@ class TestFaultMatrix(unittest.TestCase):
         def stopped_at_fence():
             p, v, q = g.position(), g.speed() or 0.0, g.estimate
             seen['far'] = max(seen['far'], math.hypot(p[0] - cx, p[1] - cy))
+            seen['vmax'] = max(seen['vmax'], g.truth_speed or 0.0)
             seen['far_estimate'] = max(seen['far_estimate'], math.hypot(q[0] - cx, q[1] - cy))
-            seen['vmax'] = max(seen['vmax'], v)
             seen['z'] = (min(seen['z'][0], p[2]), max(seen['z'][1], p[2]))
             e = self.controller(t0 + 1.5)           # the first 1 Hz diagnostic may be the cycle before the fault
             if e is not None:
@@ -1277,7 +1280,7 @@ class TestFaultMatrix(unittest.TestCase):
         first = self.controller(0.0)
         before = (counter(first, other) or 0, counter(first, order) or 0)
         y0 = g.track[2]
-        worst, notes = [0.0], []
+        worst, notes, warned = [0.0], [], {}
         for mode in ('zero', 'future'):
             t0 = time.time()
             b = counter(self.controller(0.0), other) or 0
@@ -1285,8 +1288,10 @@ class TestFaultMatrix(unittest.TestCase):
             self.procs.start(name, [sys.executable, '-c', SECOND_SOURCE.format(drone=DRONE, mode=mode)], self.env)
             try:
                 def published():
-                    p = g.position()
+                    p, e = g.position(), self.controller(t0)
                     worst[0] = max(worst[0], abs(p[1] - y0))
+                    if e is not None and 'another publisher than the waypoint source' in e[2]:
+                        warned[mode] = e        # the WARN of a diagnostic period with drops
                     return 'PUBLISHED' in open(self.procs.log_path(name)).read()
                 processes.require(published, 60.0, 'the second stream (%s) published for 4 s' % mode,
                                   lambda: self.procs.log_tail(name, 20))
@@ -1294,7 +1299,10 @@ class TestFaultMatrix(unittest.TestCase):
                 self.procs.stop(name)
             e = self.wait_controller(t0, lambda e: (counter(e, other) or 0) > b + 10, 5.0,
                                      'the second stream (%s) dropped as another publisher' % mode)
-            notes.append('%s: "%s"' % ('stamped 0, frame \'\'' if mode == 'zero' else 'stamped +0.9 s', e[2]))
+            self.assertIn(mode, warned, 'no WARN naming the drops of the second stream (%s)' % mode)
+            self.assertEqual(warned[mode][1], 1, warned[mode])
+            notes.append('%s: WARN "%s"' % ('stamped 0, frame \'\'' if mode == 'zero' else 'stamped +0.9 s',
+                                            warned[mode][2]))
         self.assertEqual(counter(e, order) or 0, before[1], 'the legitimate stream was dropped as out of order')
         self.assertLess(worst[0], 1.0, 'the second stream moved the drone %.2f m sideways' % worst[0])
         self.assertGreater(g.command_rate(), 5.0)

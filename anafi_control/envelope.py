@@ -23,8 +23,10 @@ the in-process engine fly the same envelope. Defaults (``ENVELOPE_DEFAULTS``) = 
   margin is the drone's room to lag behind and overshoot its target). A target outside it is moved onto it
   (the nearest point), and the target's velocity pointing out of it is reduced to the speed from which
   braking at half ``max_reference_acceleration`` (``BRAKING``; the other half is the controller's margin to
-  follow) stops on it (sqrt(2 a d), d = the distance left): zero there. So the target, moving at its
-  reference velocity and braking within the envelope, stays inside, and the drone, lagging behind it, too.
+  follow) stops on it (sqrt(2 a d), d = the distance left: from the target or from the drone, whichever is
+  nearer the fence): zero there. So the target, moving at its reference velocity and braking within the
+  envelope, stays inside, and the drone, lagging behind it, too; a target that trails the drone (a waypoint
+  at where the drone was, late) brakes from the drone's distance, not its own.
 - ``max_waypoint_jump`` [m] (the reach): a target farther than this from the drone is replaced by the point
   at this distance on the way to it, with zero velocity: the drone approaches a far waypoint at the speed
   the controllers allow and tracks it again once it is within reach (no lock-out).
@@ -41,7 +43,7 @@ ENVELOPE_DEFAULTS = collections.OrderedDict([
     ('geofence_radius', 250.0),               # [m] horizontal radius of the fence around the take-off point
     ('min_altitude', 0.5),                    # [m] floor of the fence (world z)
     ('max_altitude', 50.0),                   # [m] ceiling of the fence
-    ('geofence_margin', 2.0),                 # [m] the target stays this far inside (the drone's room)
+    ('geofence_margin', 3.0),                 # [m] the target stays this far inside (the drone's room)
     ('max_waypoint_jump', 50.0),              # [m] reach: farthest target from the drone (airship: <= 38 m)
     ('max_reference_speed', 10.0),            # [m/s] reference horizontal speed (Table 1 v_max)
     ('max_reference_vertical_speed', 2.0),    # [m/s] reference vertical speed (firmware setting)
@@ -134,8 +136,9 @@ class Envelope(object):
                                                                         self.min_altitude, self.max_altitude)))
         return x, y, zc
 
-    def _brake(self, x, y, z, vx, vy, vz, centre, notes):
-        """The velocity with its outward part cut to sqrt(2 a d) (a 'fence_braking' note)."""
+    def _brake(self, x, y, z, vx, vy, vz, centre, notes, drone=None):
+        """The velocity with its outward part cut to sqrt(2 a d) (a 'fence_braking' note); d from the target
+        (x, y, z) or the ``drone`` (x, y, z; None: the target alone), whichever is nearer the fence."""
         a = BRAKING * self.max_reference_acceleration
         cut = False
         if centre is not None:
@@ -143,13 +146,16 @@ class Envelope(object):
             r = math.hypot(dx, dy)
             if r > 0.0:
                 out = (vx * dx + vy * dy) / r
-                allowed = math.sqrt(2.0 * a * max(0.0, self.target_radius - r))
+                rd = r if drone is None else max(r, math.hypot(_clip(drone[0], -_FAR, _FAR) - centre[0],
+                                                               _clip(drone[1], -_FAR, _FAR) - centre[1]))
+                allowed = math.sqrt(2.0 * a * max(0.0, self.target_radius - rd))
                 if out > allowed:
                     vx -= (out - allowed) * dx / r
                     vy -= (out - allowed) * dy / r
                     cut = True
-        up = math.sqrt(2.0 * a * max(0.0, self.max_altitude - z))
-        down = math.sqrt(2.0 * a * max(0.0, z - self.min_altitude))
+        top, bottom = (z, z) if drone is None else (max(z, drone[2]), min(z, drone[2]))
+        up = math.sqrt(2.0 * a * max(0.0, self.max_altitude - top))
+        down = math.sqrt(2.0 * a * max(0.0, bottom - self.min_altitude))
         if vz > up or vz < -down:
             vz = _clip(vz, -down, up)
             cut = True
@@ -187,7 +193,7 @@ class Envelope(object):
             notes.append(('vertical_speed', 'reference vertical speed %.3g m/s > %.1f m/s'
                           % (abs(vz), self.max_reference_vertical_speed)))
             vz = math.copysign(self.max_reference_vertical_speed, vz)
-        vx, vy, vz = self._brake(x, y, z, vx, vy, vz, centre, notes)
+        vx, vy, vz = self._brake(x, y, z, vx, vy, vz, centre, notes, drone)
         if not notes:
             return tuple(position), tuple(velocity), notes
         return (x, y, z), (vx, vy, vz), notes

@@ -714,7 +714,8 @@ def scenario_in_folders(name_or_path, folders):
     """The path of scenario ``name_or_path`` (a name or a YAML path, as ``scenario_path`` with the first
     folder), only if the file lies inside one of ``folders`` (real paths compared: no ``..`` or link leads
     out); else ValueError that names the folders and shows nothing of the file."""
-    folders = [os.path.realpath(f) for f in folders if f]
+    real = [os.path.realpath(f) for f in folders if f]
+    folders = [f for i, f in enumerate(real) if f not in real[:i]]
     path = os.path.realpath(scenario_path(name_or_path, folders[0] if folders else None))
     if os.path.splitext(path)[1] not in ('.yaml', '.yml') or not any(
             os.path.dirname(path) == f or path.startswith(f + os.sep) for f in folders):

@@ -440,6 +440,11 @@ class ControllerNode(object):
                      ('state topic', self.state_topic), ('waypoint topic', self.waypoint_topic),
                      ('ROS time jumps back (timers kept running)',
                       max([t.jumps_back for t in self.timers] or [0]))]
+            gate = getattr(self.core, 'gate', None)
+            if gate is not None:        # the flight envelope's fence: where it is, how large
+                extra += [('geofence centre (take-off point) [m]', 'none yet' if gate.centre is None else
+                           '%.3f %.3f' % tuple(gate.centre)),
+                          ('geofence radius [m]', gate.envelope.geofence_radius)]
             extra += self.adapter.diagnostic_values()
         self.commanders.check_presence()
         extra += self.commanders.values()

@@ -95,8 +95,9 @@ class TrajectoryGeneratorNode(object):
             scenario = load_scenario(scenario_in_folders(scenario_file or p.string('scenario', 'circle_r2_v1'),
                                                          [self.scenario_dir] + allowed))
         except ValueError as e:
-            raise ValueError('%s (scenarios in %s: %s)'
-                             % (e, self.scenario_dir, ', '.join(list_scenarios(self.scenario_dir))))
+            raise ValueError('%s: %s (scenarios in %s: %s)'
+                             % ('scenario_file' if scenario_file else 'scenario', e, self.scenario_dir,
+                                ', '.join(list_scenarios(self.scenario_dir))))
         # 'switch' reads scenarios from ~scenario_dir, the package's scenarios and ~scenario_file's folder
         self.switch_folders = [self.scenario_dir, SCENARIO_DIR] + (
             [os.path.dirname(os.path.abspath(scenario_file))] if scenario_file else [])

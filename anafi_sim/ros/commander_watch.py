@@ -36,17 +36,19 @@ def commander_label(claimed, endpoint, my_uri, my_name):
 
     ``claimed``: the connection header's callerid (anyone may write anything there); ``endpoint``: the XML-RPC
     URI of the publisher the connection was made to (from the master's publisher list; None or 'unknown'
-    when the connection is not known); ``my_uri`` / ``my_name``: this node's. A known endpoint decides: this
-    node's URI is its own command whatever the header says, any other URI is another node, named by its
-    header unless that claims this node's name (then by its URI)."""
+    when the connection is not known); ``my_uri``: this node's; ``my_name``: its name, or the names it goes
+    by (a hosted instance: its own and its host's, the name its commands carry on the wire). A known endpoint
+    decides: this node's URI is its own command whatever the header says, any other URI is another node, named
+    by its header unless that claims one of this node's names (then by its URI)."""
+    names = (my_name,) if isinstance(my_name, str) else tuple(n for n in my_name if n)
     known = bool(endpoint) and endpoint != 'unknown' and bool(my_uri)
     if known:
         if endpoint == my_uri:
             return None
-        if not claimed or claimed == my_name:
-            return '%s (claims to be %s)' % (endpoint, my_name)
+        if not claimed or claimed in names:
+            return '%s (claims to be %s)' % (endpoint, claimed or names[0])
         return claimed
-    return claimed if claimed and claimed != my_name else None
+    return claimed if claimed and claimed not in names else None
 
 
 def _answers(uri, caller, timeout=PRESENCE_TIMEOUT):
@@ -97,7 +99,7 @@ class CommandTopicWatch(object):
         connections: no master call), sorted; they may be idle (a controller that stood down)."""
         my_uri = self._my_uri()
         names = [commander_label((c.header or {}).get('callerid', ''), getattr(c, 'endpoint_id', None), my_uri,
-                                 self.me) for c in self._connections() if c.header]
+                                 (self.me, self.host)) for c in self._connections() if c.header]
         return sorted(set(n for n in names if n and n != self.host))
 
     def _on_command(self, msg):
@@ -111,7 +113,7 @@ class CommandTopicWatch(object):
         else:
             endpoint = next((getattr(c, 'endpoint_id', None) for c in self._connections() if c.header is header),
                             None)
-            caller = commander_label(claimed, endpoint, self._my_uri(), self.me)
+            caller = commander_label(claimed, endpoint, self._my_uri(), (self.me, self.host))
             if caller and endpoint and endpoint != 'unknown':
                 with self.lock:
                     self._endpoints[caller] = endpoint

@@ -43,6 +43,7 @@ import rostest
 from diagnostic_msgs.msg import DiagnosticArray
 from dynamic_reconfigure.client import Client
 from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Log
 from std_msgs.msg import String
 
 from anafi_sim import paths, processes
@@ -114,9 +115,10 @@ FAULTS = (
     ('master_restart', 'ROS master killed and restarted on the same port', 'every node exits (code 75) and is '
      'respawned with its parameters; new publishers reach the controller again'),
     ('clock_jump', '/clock jumps 5 s back under use_sim_time (as when the simulator respawns), on a graph of '
-     'its own: the MPC and the distributed PID, each given a hovering state and a waypoint',
-     'the timers keep running (rospy.Timer died before): the controllers go SILENT (clock_jump) and command '
-     'again; the nodes count the jump ("ROS time jumps back") and log it'),
+     'its own: the MPC and the distributed PID, each given a hovering state and a waypoint; then /clock stops '
+     'for 6 s', 'the timers keep running (rospy.Timer died before): the controllers go SILENT (clock_jump) and '
+     'command again; the nodes count the jump ("ROS time jumps back") and log it; with /clock stopped the MPC\'s '
+     'health is WARN "stalled: ..." (its cycles frozen), never "tracking"'),
     ('second_commander', 'a second MPC (node mpc_rival) started on the flying drone; then an operator (this '
      'test node) publishes hover commands on drone/rpyt for 2 s', 'one commander at any time: the newcomer '
      'hears the commands and never commands (ERROR "second commander: ... also publishes ..."), the flying '
@@ -136,6 +138,43 @@ FAULTS = (
      'interface, /flood, whose tlm-data-logger found on PATH is a test tool that floods stderr, then runs the '
      'stand-in)', 'stderr read with the same 4096-byte cap as stdout: the interface\'s memory stays that of an '
      'interface without the flood, the bytes are counted, samples flow: OK'),
+    ('velocity_stream', 'waypoints at the drone\'s own position with vx = 1e6 (finite), stamped, at 10 Hz, until '
+     'the drone stops; then the legitimate stream (the waypoint where the fault began) again (the graph\'s MPC has '
+     'a 100 m geofence, FENCE)',
+     'bounded by the flight envelope: WARN "limiting: reference speed 1e+06 m/s > 10.0 m/s ..." throughout, never '
+     '"tracking"; the drone at most 10 m/s and inside the geofence; the legitimate waypoint reached again within '
+     'distance / 10 m/s + 15 s (no lock-out)'),
+    ('second_waypoint_source', 'a second waypoint stream from another node, 7.5 m to the side: first stamped 0 with '
+     'frame \'\', then stamped 0.9 s ahead (inside the age limit), 10 Hz, 4 s each',
+     'refused: the waypoint source is the first publisher heard (by its URI, from the master): dropped as "another '
+     'publisher than the waypoint source", counted; the drone keeps tracking the legitimate stream (no swing, none '
+     'of it dropped as out of order)'),
+    ('claimed_commander', 'a node whose connection header claims callerid=<the controller\'s node> publishes '
+     'piloting commands on drone/rpyt for 2 s',
+     'seen by its publisher URI: the controller stands down, ERROR "second commander: <URI> (claims to be <the '
+     'controller>) also publishes ..."; tracks again once it is gone'),
+    ('huge_telemetry', 'telemetry of the drone\'s own stream id with position x = 1e308 (the simulator\'s port '
+     'parameter pointed at it, the telemetry CLI restarted)',
+     'malformed input: counted ("rejected samples beyond physical bounds"), no ground truth published from it; '
+     'the right port back -> OK'),
+    ('file_parameters', 'a simulator started with ~model_file and a trajectory generator with ~scenario_file '
+     'pointing at a file outside the allowed folders (holding a secret line)',
+     'refused unread: one FATAL line naming the parameter ("refused ... only .yaml/.yml files in ..."), the '
+     'file\'s text in no log and not on /rosout_agg'),
+    ('remote_telemetry_host', 'a simulator started with ~telemetry_host 0.0.0.0',
+     'bad parameter: one FATAL line naming ~telemetry_host (loopback only unless allow_remote_telemetry), up in '
+     'ERROR, nothing listens on 0.0.0.0'),
+    ('launch_numbers', 'roslaunch sim.launch rtf:=1e308, initial_x:=1e300 and rtf:=1e0 (--nodes); the simulator '
+     'given ~rtf as the text \'1e0\'; fleet.launch drones:=\u00b2',
+     'one parser for the check and the nodes: 1e308 / 1e300 refused in one line with the range (exit 1, nothing '
+     'started), \u00b2 one line (no traceback), 1e0 accepted by both (the node runs, not in ERROR)'),
+    ('hostile_fleet_file', 'a fleet file whose target.model is "$(eval exec(...os.system(\'touch FILE\')...))": '
+     'roslaunch --nodes anafi_sim fleet.launch fleet:=FILE and roslaunch anafi_sim fleet.launch fleet:=FILE',
+     'refused at load in one line naming target.model, exit 1, nothing started, FILE never created'),
+    ('untrusted_text', '49 commands of 1 MB each on a trajectory generator\'s ~command topic; a scenario file '
+     'holding a YAML alias bomb given to a generator as ~scenario_file',
+     'commands logged clipped (<= 300 characters) and throttled: the logs grow by kilobytes, not 205 MB; the alias '
+     'bomb refused in one FATAL line (exit 1) without building or quoting the expanded value'),
 )
 
 #: the rows that do not run as in the per-drone layout when the graph is hosted (fault_matrix_shared.test):
@@ -168,6 +207,14 @@ SHARED = {
                        '(the hosts with every instance); new publishers reach the hosted controller'),
     'clock_jump': ('skipped', 'a graph of its own with no hosted node (layout-independent as built): runs in '
                    'fault_matrix.test only'),
+    'claimed_commander': ('adapted', 'the header claims the name the hosted controller\'s commands carry, its host '
+                          '(/fleet_drones)'),
+    'file_parameters': ('adapted', 'the simulator and the generator started as processes of their own (the node code '
+                        'a host runs as an instance), as in the per-drone layout'),
+    'remote_telemetry_host': ('adapted', 'the simulator started as a process of its own, as in the per-drone layout'),
+    'launch_numbers': ('adapted', 'fleet.launch drones:=\u00b2 layout:=shared; sim.launch and the simulator as in '
+                       'the per-drone layout'),
+    'hostile_fleet_file': ('adapted', 'fleet.launch ... layout:=shared'),
 }
 
 #: a second interface on a garbage telemetry stream (malformed lines, a 10 kB line, then the real stream)
@@ -190,12 +237,19 @@ GARBAGE_GROUP = """  <group ns="garbage">
 """
 
 
+#: [m] the geofence radius of the graph's MPC (velocity_stream flies to it and back; the other rows stay well
+#: inside it: they fly +-x in turn)
+FENCE = 100.0
+FENCE_LINE = '  <param name="/%s/mpc_controller/geofence_radius" value="%.1f"/>' % (DRONE, FENCE)
+
+
 def launch_text(port, garbage_port, fake_bin):
     """The graph: world.launch + mpc.launch on the fault relay's state, the garbage interface (on the garbage
     relay of ``garbage_port``) and the stderr-flood interface (its tlm-data-logger found first in ``fake_bin``)."""
     return launch_document([('world.launch', [('drone_name', DRONE), ('telemetry_port', port)]),
                             ('mpc.launch', [('drone_name', DRONE), ('state_topic', 'fault/odom'), ('output', 'log')])],
-                           GARBAGE_GROUP.format(port=port, garbage_port=garbage_port, fake_bin=fake_bin).splitlines(),
+                           GARBAGE_GROUP.format(port=port, garbage_port=garbage_port, fake_bin=fake_bin).splitlines()
+                           + [FENCE_LINE],
                            head=['  <param name="/use_sim_time" value="false"/>'])
 
 
@@ -211,9 +265,13 @@ class Graph(object):
         self.wp_mode = 'off'       # off | track | nan | far | stop | foreign (track, in anafi/base_link)
         self.second = None         # None | old (a second stream stamped 5 s old) | behind (0.3 s behind)
         self.track = None          # (t0, x0, y0, direction)
+        self.point = None          # (x, y, z) of the mode 'point'
         self.pub_mode = rospy.Publisher('/%s/fault/mode' % DRONE, String, queue_size=1, latch=True)
         self.pub_wp = rospy.Publisher('/%s/position_control/waypoint' % DRONE, Waypoint, queue_size=10)
         rospy.Subscriber('/%s/sim/truth' % DRONE, Odometry, self.on_truth, queue_size=1, tcp_nodelay=True)
+        self.truth_speed = None     # [m/s] of the last ground truth (its twist: not from receipt times)
+        self.estimate = None        # (x, y, z) of the drone's estimate (drone/odom: what the controller flies on)
+        rospy.Subscriber('/%s/drone/odom' % DRONE, Odometry, self.on_estimate, queue_size=1, tcp_nodelay=True)
         rospy.Subscriber('/diagnostics', DiagnosticArray, self.on_diag, queue_size=50)
         rospy.Subscriber('/%s/drone/rpyt' % DRONE, piloting_command_class(), self.on_cmd, queue_size=50)
         self.models = (0.0, ())     # (wall time, names) of the last /gazebo/model_states
@@ -231,9 +289,15 @@ class Graph(object):
 
     def on_truth(self, msg):
         p = msg.pose.pose.position
+        v = msg.twist.twist.linear
+        self.truth_speed = math.sqrt(v.x ** 2 + v.y ** 2 + v.z ** 2)   # the simulated drone's own speed
         with self.lock:
             self.truth.append((time.time(), p.x, p.y, p.z))
             del self.truth[:-3000]
+
+    def on_estimate(self, msg):
+        p = msg.pose.pose.position
+        self.estimate = (p.x, p.y, p.z)
 
     def on_diag(self, msg):
         now = time.time()
@@ -261,6 +325,13 @@ class Graph(object):
             w.x = w.y = w.z = NAN
         elif mode == 'far':
             w.x, w.y, w.z = 1000.0, 0.0, 3.0
+        elif mode == 'vx':          # the drone's own position, vx = 1e6 (finite)
+            p = self.position()
+            if p is None:
+                return
+            w.x, w.y, w.z, w.vx = p[0], p[1], p[2], 1e6
+        elif mode == 'point':       # one fixed waypoint, at rest
+            w.x, w.y, w.z = self.point
         elif mode == 'foreign':     # "20 m to the side" in the drone's body frame
             w.header.frame_id = '%s/base_link' % DRONE
             w.x, w.y, w.z = 0.0, 20.0, 0.0
@@ -306,6 +377,14 @@ class Graph(object):
         now = time.time()
         with self.lock:
             return sum(1 for t in self.commands if t > now - window) / window
+
+
+def counter_lead(entry, key):
+    """The number a diagnostic value starts with ('12 (last: ...)' -> 12), None when there is none."""
+    try:
+        return int(entry[3][key].split()[0])
+    except (TypeError, KeyError, ValueError, IndexError):
+        return None
 
 
 def counter(entry, key):
@@ -407,7 +486,7 @@ class TestFaultMatrix(unittest.TestCase):
         pos = None
         processes.require(lambda: g.position() is not None, 10.0, 'truth')
         pos = g.position()
-        TestFaultMatrix.direction = -self.direction
+        TestFaultMatrix.direction = self.inward(pos)
         g.track = (time.time(), pos[0], pos[1], self.direction)
         g.wp_mode = 'track'
         steady = [None]
@@ -422,6 +501,14 @@ class TestFaultMatrix(unittest.TestCase):
         processes.require(flying, timeout, 'the drone flying steadily at %.1f m/s' % SPEED,
                         lambda: 'speed %s, controller %s' % (g.speed(), g.status('/%s/mpc_controller' % DRONE)))
         return g.speed()
+
+    def inward(self, pos):
+        """The direction along x (+-1) toward the controller's geofence centre from ``pos`` (the rows fly back and
+        forth through it: the legitimate stream goes on between the rows, so the drone never reaches the fence)."""
+        e = self.controller(0.0)
+        centre = e[3].get('geofence centre (take-off point) [m]', 'none yet') if e is not None else 'none yet'
+        cx = 0.0 if centre == 'none yet' else float(centre.split()[0])
+        return -1.0 if pos[0] > cx else 1.0
 
     def wait_stop(self, t_fault, pos0):
         """(seconds, farthest horizontal distance [m]) until the drone stopped."""
@@ -457,6 +544,7 @@ class TestFaultMatrix(unittest.TestCase):
         g = self.g
         g.state_mode = 'relay'
         pos = g.position()
+        TestFaultMatrix.direction = self.inward(pos)
         g.track = (time.time(), pos[0], pos[1], self.direction)
         g.wp_mode = 'track'
         e = self.wait_controller(t_fixed, lambda e: e[1] == 0 and 'tracking' in e[2], RECOVERY_TIME + 25.0,
@@ -1108,6 +1196,424 @@ class TestFaultMatrix(unittest.TestCase):
                        commands0),
                     'not needed (the drone keeps tracking at %.1f m/s)' % (g.speed() or 0.0), ok[0][0] - t0)
 
+    # -- the reproductions of the security review (each refused or bounded with one clear line)
+    def fence(self):
+        """(centre (x, y), radius) of the controller's geofence, from its diagnostics."""
+        e = self.wait_controller(0.0, lambda e: e[3].get('geofence centre (take-off point) [m]', 'none yet')
+                                 != 'none yet', 10.0, 'the controller\'s geofence on /diagnostics')
+        x, y = (float(v) for v in e[3]['geofence centre (take-off point) [m]'].split())
+        return (x, y), float(e[3]['geofence radius [m]'])
+
+    def test_08f_velocity_stream(self):
+        g = self.g
+        v0 = self.fly()
+        (cx, cy), radius = self.fence()
+        self.assertEqual(radius, FENCE)
+        before = counter(self.controller(0.0), 'limiting') or 0
+        pos0, t0 = g.position(), time.time()
+        g.wp_mode = 'vx'
+
+        def legitimate_again():     # should the row fail: the legitimate waypoint for the next rows
+            if g.wp_mode == 'vx':
+                g.point, g.wp_mode = pos0, 'point'
+        self.addCleanup(legitimate_again)
+        seen = {'far': 0.0, 'far_estimate': 0.0, 'vmax': 0.0, 'tracking': [], 'limiting': None,
+                'z': (pos0[2], pos0[2])}
+
+        def stopped_at_fence():
+            p, v, q = g.position(), g.speed() or 0.0, g.estimate
+            seen['far'] = max(seen['far'], math.hypot(p[0] - cx, p[1] - cy))
+            seen['vmax'] = max(seen['vmax'], g.truth_speed or 0.0)
+            seen['far_estimate'] = max(seen['far_estimate'], math.hypot(q[0] - cx, q[1] - cy))
+            seen['z'] = (min(seen['z'][0], p[2]), max(seen['z'][1], p[2]))
+            e = self.controller(t0 + 1.5)           # the first 1 Hz diagnostic may be the cycle before the fault
+            if e is not None:
+                if 'tracking' in e[2] and not e[2].startswith('limiting'):
+                    seen['tracking'].append(e[2])
+                elif e[2].startswith('limiting') and seen['limiting'] is None:
+                    seen['limiting'] = e
+            return seen['limiting'] is not None and time.time() - t0 > 5.0 and v < STOP_SPEED
+        processes.require(stopped_at_fence, 2.0 * FENCE / 10.0 + 40.0, 'the drone stopped by the fence',
+                          lambda: 'speed %s, position %s, controller %s' % (g.speed(), g.position(),
+                                                                         self.controller(0.0)))
+        e = self.wait_controller(time.time() - 1.5, lambda e: True, 10.0, 'the controller\'s diagnostics')
+        self.assertEqual(e[1], 1, e)                                    # WARN
+        self.assertTrue(e[2].startswith('limiting: '), e)
+        self.assertIn('reference speed 1e+06 m/s', e[2])
+        self.assertEqual(seen['tracking'], [], 'the health said tracking under the 1e6 stream')
+        self.assertGreater(counter(e, 'limiting'), before, e)
+        self.assertGreater(g.command_rate(3.0), 5.0, 'limiting keeps commanding')
+        self.assertLessEqual(seen['far'], radius, 'the drone left the geofence (the estimate: %.2f m)'
+                             % seen['far_estimate'])
+        self.assertLess(seen['vmax'], 10.0 * 1.1, 'faster than the envelope\'s 10 m/s')
+        at_fence = g.position()
+        # the legitimate stream again: the waypoint where the fault began
+        g.point = pos0
+        t1 = time.time()
+        dist = math.sqrt(sum((a - b) ** 2 for a, b in zip(at_fence, pos0)))
+        allowed = dist / 10.0 + 15.0
+        back = [None]
+
+        def returned():
+            p = g.position()
+            back[0] = math.sqrt(sum((a - b) ** 2 for a, b in zip(p, pos0)))
+            return back[0] < 1.0 and (g.speed() or 9.0) < STOP_SPEED
+        g.wp_mode = 'point'
+        processes.require(returned, allowed + 60.0, 'the drone back at its waypoint',
+                          lambda: '%.1f m from it; controller %s' % (back[0], self.controller(0.0)))
+        took = time.time() - t1
+        self.assertLess(took, allowed, 'back after %.1f s > %.1f s (%.1f m at 10 m/s + 15 s)' % (took, allowed, dist))
+        rec = self.recover(time.time())
+        self.record('velocity_stream', 'WARN "%s" (no "tracking" under the stream); limiting %d -> %d; commands %.0f '
+                    'Hz; at most %.1f m/s, %.1f m from the take-off point (fence %.0f m); the legitimate waypoint '
+                    'reached again after %.1f s from %.1f m away (allowed %.1f s)'
+                    % (e[2], before, counter(e, 'limiting'), g.command_rate(3.0), seen['vmax'], seen['far'], radius,
+                       took, dist, allowed),
+                    'stopped inside the fence (%.1f m of %.0f m), from %.1f m/s' % (seen['far'], radius, v0),
+                    took + rec)
+
+    def test_08g_second_waypoint_source(self):
+        g = self.g
+        self.fly()
+        other = 'dropped waypoints: another publisher than the waypoint source'
+        order = 'dropped waypoints: out of order'
+        first = self.controller(0.0)
+        before = (counter(first, other) or 0, counter(first, order) or 0)
+        y0 = g.track[2]
+        worst, notes, warned = [0.0], [], {}
+        for mode in ('zero', 'future'):
+            t0 = time.time()
+            b = counter(self.controller(0.0), other) or 0
+            name = 'second_source_%s' % mode
+            self.procs.start(name, [sys.executable, '-c', SECOND_SOURCE.format(drone=DRONE, mode=mode)], self.env)
+            try:
+                def published():
+                    p, e = g.position(), self.controller(t0)
+                    worst[0] = max(worst[0], abs(p[1] - y0))
+                    if e is not None and 'another publisher than the waypoint source' in e[2]:
+                        warned[mode] = e        # the WARN of a diagnostic period with drops
+                    return 'PUBLISHED' in open(self.procs.log_path(name)).read()
+                processes.require(published, 60.0, 'the second stream (%s) published for 4 s' % mode,
+                                  lambda: self.procs.log_tail(name, 20))
+            finally:
+                self.procs.stop(name)
+            e = self.wait_controller(t0, lambda e: (counter(e, other) or 0) > b + 10, 5.0,
+                                     'the second stream (%s) dropped as another publisher' % mode)
+            self.assertIn(mode, warned, 'no WARN naming the drops of the second stream (%s)' % mode)
+            self.assertEqual(warned[mode][1], 1, warned[mode])
+            notes.append('%s: WARN "%s"' % ('stamped 0, frame \'\'' if mode == 'zero' else 'stamped +0.9 s',
+                                            warned[mode][2]))
+        self.assertEqual(counter(e, order) or 0, before[1], 'the legitimate stream was dropped as out of order')
+        self.assertLess(worst[0], 1.0, 'the second stream moved the drone %.2f m sideways' % worst[0])
+        self.assertGreater(g.command_rate(), 5.0)
+        rec = self.recover(time.time())
+        self.record('second_waypoint_source', '%s; %s %d -> %d, out of order %d -> %d; largest sideways deviation '
+                    '%.2f m (the second stream is 7.5 m away); waypoint source %s'
+                    % ('; '.join(notes), other, before[0], counter(e, other), before[1], counter(e, order) or 0,
+                       worst[0], e[3].get('waypoint source')),
+                    'not needed (the drone keeps tracking at %.1f m/s)' % (g.speed() or 0.0), rec)
+
+    def test_08h_claimed_commander(self):
+        commander = self.node_of('/%s/mpc_controller' % DRONE)    # its host's name in the shared layout
+        self.fly()
+        t0 = time.time()
+        self.procs.start('imposter', [sys.executable, '-c', IMPOSTER.format(drone=DRONE, claim=commander)], self.env)
+        try:
+            e = self.wait_controller(t0, lambda e: e[1] == 2 and 'second commander' in e[2], 60.0,
+                                     'the controller standing down: ERROR second commander')
+            self.assertIn('(claims to be %s)' % commander, e[2])
+            processes.require(lambda: 'PUBLISHED' in open(self.procs.log_path('imposter')).read(), 30.0,
+                              'the imposter done', lambda: self.procs.log_tail('imposter', 20))
+        finally:
+            self.procs.stop('imposter')
+        rec = self.recover(time.time())
+        self.record('claimed_commander', 'ERROR "%s"; second commander episodes %s' % (
+            e[2], e[3].get('second commander episodes')),
+            'not needed (the controller stands down; the other node\'s commands fly the drone meanwhile)', rec)
+
+    def test_08i_huge_telemetry(self):
+        from anafi_sim.telemetry.protocol import FIELDS, TelemetrySample
+        from anafi_sim.telemetry.server import TelemetryServer
+        g = self.g
+        self.fly()
+        param = '/%s/anafi_sim/telemetry_bound_port' % DRONE
+        own_port = rospy.get_param(param)
+        own_id = rospy.get_param('/%s/anafi_sim/telemetry_stream_id' % DRONE)
+        huge = TelemetryServer('127.0.0.1', 0, stream_id=own_id)
+        huge.start()
+        stop = threading.Event()
+        seen = {'huge': 0, 'total': 0}
+
+        def serve():
+            t = 0.0
+            values = dict((f, 0.0) for f in FIELDS)
+            while not stop.is_set():
+                t += 0.01
+                values.update(x=1e308, z=3.0, timestamp=t)
+                huge.publish(TelemetrySample(**values))
+                time.sleep(0.01)
+
+        def on_truth(msg):
+            seen['total'] += 1
+            if not abs(msg.pose.pose.position.x) < 1e5:
+                seen['huge'] += 1
+        threading.Thread(target=serve, daemon=True).start()
+        sub = rospy.Subscriber('/%s/ground_truth/odom' % DRONE, Odometry, on_truth, queue_size=100)
+        key = 'rejected samples beyond physical bounds'
+        try:
+            before = self._interface()
+            t0 = time.time()
+            rospy.set_param(param, huge.port)
+            self.cli_of('/%s/interface' % DRONE, own_port).kill()
+            err = [None]
+
+            def rejected():
+                err[0] = self._interface(t0)
+                return err[0] is not None and (counter_lead(err[0], key) or 0) > (counter_lead(before, key) or 0)
+            processes.require(rejected, 15.0, 'the interface rejecting the samples', lambda: str(err[0]))
+            time.sleep(2.0)
+            err[0] = self._interface(time.time() - 1.5) or err[0]
+            self.assertEqual(seen['huge'], 0, 'ground truth beyond physical bounds was published')
+            self.assertEqual(self.controller(t0)[2], 'tracking', 'the controller flies on the estimate')
+            t_fixed = time.time()
+            rospy.set_param(param, own_port)
+            self.cli_of('/%s/interface' % DRONE, huge.port).kill()
+            ok = [None]
+
+            def back():
+                ok[0] = self._interface(t_fixed)
+                return ok[0] is not None and ok[0][1] == 0 and \
+                    counter(ok[0], 'samples published') > counter(err[0], 'samples published')
+            processes.require(back, RECOVERY_TIME + 5.0, 'interface OK on its own stream', lambda: str(ok[0]))
+        finally:
+            stop.set()
+            sub.unregister()
+            huge.stop()
+            rospy.set_param(param, own_port)
+        self.assertEqual(seen['huge'], 0)
+        self.record('huge_telemetry', '%s "%s"; %s: %s; no ground truth beyond the bounds published (0 of %d '
+                    'messages); OK again on its own stream' % ({0: 'OK', 1: 'WARN', 2: 'ERROR'}.get(err[0][1]),
+                                                               err[0][2], key, err[0][3].get(key), seen['total']),
+                    'not needed (the drone keeps tracking on its estimate)', ok[0][0] - t_fixed)
+
+    def start_node(self, name, argv, params=()):
+        """A node of this test's own (argv after the interpreter), its log file; ``params`` set first."""
+        for key, value in params:
+            rospy.set_param(key, value)
+        log = os.path.join(self.workdir, name + '.log')
+        proc = processes.start([sys.executable] + argv, env=self.env, log=log)
+        return proc, log
+
+    def fatal_lines(self, log):
+        with open(log) as f:
+            return [line for line in f.read().splitlines() if 'FATAL' in line]
+
+    def test_08j_file_parameters(self):
+        outside = '/dev/shm' if os.access('/dev/shm', os.W_OK) else '/var/tmp'
+        folder = tempfile.mkdtemp(prefix='fault_matrix_secret_', dir=outside)
+        secret = 'secret_%d_line' % os.getpid()
+        rosout = []
+        sub = rospy.Subscriber('/rosout_agg', Log, lambda m: rosout.append(m.msg), queue_size=200)
+        try:
+            path = os.path.join(folder, 'model.yaml')
+            with open(path, 'w') as f:
+                f.write('mass: 0.5\n%s: 1\n' % secret)
+            sim, sim_log = self.start_node('file_sim', [paths.data_path('scripts', 'anafi_sim_node.py'),
+                                                        '__name:=anafi_sim', '__ns:=/repro_file'],
+                                           [('/repro_file/anafi_sim/model_file', path)])
+            gen, gen_log = self.start_node('file_gen', [paths.data_path('scripts', 'trajectory_generator.py'),
+                                                        '__name:=trajectory_generator', '__ns:=/repro_file'],
+                                           [('/repro_file/trajectory_generator/scenario_file', path),
+                                            ('/repro_file/trajectory_generator/wait_for_flying', False)])
+            try:
+                processes.require(lambda: self.fatal_lines(sim_log) and gen.poll() is not None, 60.0,
+                                  'the simulator\'s FATAL line and the generator\'s exit',
+                                  lambda: open(sim_log).read()[-1500:] + open(gen_log).read()[-1500:])
+                time.sleep(2.0)
+                sim_up = sim.poll() is None
+            finally:
+                processes.stop(sim)
+                processes.stop(gen)
+            texts = dict((n, open(l).read()) for n, l in (('simulator', sim_log), ('generator', gen_log)))
+            fatal = dict((n, [line for line in t.splitlines() if 'FATAL' in line]) for n, t in texts.items())
+            self.assertTrue(sim_up, 'the simulator exited instead of staying up in ERROR: ' + texts['simulator'][-2000:])
+            self.assertEqual(len(fatal['simulator']), 1, texts['simulator'][-2000:])
+            self.assertIn('model_file', fatal['simulator'][0])
+            self.assertIn('refused', fatal['simulator'][0])
+            self.assertEqual(gen.returncode, 1, texts['generator'][-2000:])
+            self.assertEqual(len(fatal['generator']), 1, texts['generator'][-2000:])
+            self.assertIn('scenario_file', fatal['generator'][0])
+            self.assertIn('refused', fatal['generator'][0])
+            time.sleep(1.0)
+            for n, t in texts.items():
+                self.assertNotIn(secret, t, 'the %s echoed the file' % n)
+            self.assertFalse([m for m in rosout if secret in m], 'the file on /rosout_agg')
+            for root, _, files in os.walk(self.env['ROS_LOG_DIR']):
+                for name in files:
+                    with open(os.path.join(root, name), errors='replace') as f:
+                        self.assertNotIn(secret, f.read(), 'the file in the log %s' % name)
+        finally:
+            sub.unregister()
+            shutil.rmtree(folder, ignore_errors=True)
+        self.record('file_parameters', 'simulator (up in ERROR): "%s"; generator (exit 1): "%s"; the file\'s text in '
+                    'no log, not on /rosout_agg' % (fatal['simulator'][0].split(']: ', 1)[-1][:300],
+                                                    fatal['generator'][0].split(']: ', 1)[-1][:300]),
+                    'not needed (nothing read)', None)
+
+    def test_08k_remote_telemetry_host(self):
+        sim, log = self.start_node('remote_sim', [paths.data_path('scripts', 'anafi_sim_node.py'), '__name:=anafi_sim',
+                                                  '__ns:=/repro_remote'],
+                                   [('/repro_remote/anafi_sim/telemetry_host', '0.0.0.0')])
+        try:
+            processes.require(lambda: self.fatal_lines(log) or sim.poll() is not None, 60.0,
+                              'the simulator\'s FATAL line', lambda: open(log).read()[-2000:])
+            time.sleep(2.0)
+            up = sim.poll() is None
+            listening = [c.laddr for p in [psutil.Process(sim.pid)] + psutil.Process(sim.pid).children(recursive=True)
+                         for c in p.connections('inet') if c.status == psutil.CONN_LISTEN] if up else []
+        finally:
+            processes.stop(sim)
+        fatal = self.fatal_lines(log)
+        self.assertTrue(up, 'the simulator exited instead of staying up in ERROR: ' + open(log).read()[-2000:])
+        self.assertEqual(len(fatal), 1, open(log).read()[-2000:])
+        self.assertIn('telemetry_host', fatal[0])
+        everywhere = [a for a in listening if a.ip in ('0.0.0.0', '::')]
+        self.assertEqual(everywhere, [], 'listening on every interface')
+        self.record('remote_telemetry_host', 'one FATAL line, then up in ERROR: "%s"; listening: %s'
+                    % (fatal[0].split(']: ', 1)[-1][:300], ', '.join('%s:%d' % (a.ip, a.port) for a in listening)
+                       or 'nothing'), 'not needed (nothing listens)', None)
+
+    def roslaunch_line(self, args, prefix):
+        """Run ``roslaunch ARGS`` without a master (the launch check refuses before anything starts): (exit
+        status, the lines starting with ``prefix``, the whole output)."""
+        env = dict(self.env, ROS_MASTER_URI='http://127.0.0.1:%d' % processes.free_port())
+        out = subprocess.run(['roslaunch'] + args, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, universal_newlines=True, timeout=120)
+        return out.returncode, [line for line in out.stdout.splitlines() if line.startswith(prefix)], out.stdout
+
+    def test_08l_launch_numbers(self):
+        seen = []
+        for arg in ('rtf:=1e308', 'initial_x:=1e300'):
+            rc, lines, text = self.roslaunch_line(['anafi_sim', 'sim.launch', arg], 'launch argument %s' % arg)
+            self.assertNotEqual(rc, 0, text[-2000:])
+            self.assertEqual(len(lines), 1, text[-2000:])
+            self.assertNotIn('started with pid', text)
+            seen.append('%s: exit %d, "%s"' % (arg, rc, lines[0]))
+        rc, lines, text = self.roslaunch_line(['anafi_sim', 'fleet.launch', 'drones:=\u00b2', 'layout:=%s' % LAYOUT],
+                                              'launch argument drones:=')
+        self.assertNotEqual(rc, 0, text[-2000:])
+        self.assertEqual(len(lines), 1, text[-2000:])
+        self.assertNotIn('invalid literal', text)
+        self.assertNotIn('Traceback', text)
+        seen.append('drones:=\u00b2: exit %d, "%s"' % (rc, lines[0]))
+        rc, _, text = self.roslaunch_line(['--nodes', 'anafi_sim', 'sim.launch', 'rtf:=1e0'], '')
+        self.assertEqual(rc, 0, text[-2000:])
+        seen.append('rtf:=1e0 passes the check (exit 0)')
+        ns = '/repro_numbers/anafi_sim'
+        sim, log = self.start_node('numbers_sim', [paths.data_path('scripts', 'anafi_sim_node.py'), '__name:=anafi_sim',
+                                                   '__ns:=/repro_numbers'], [(ns + '/rtf', '1e0')])
+        try:
+            port = [None]
+
+            def serving():
+                try:
+                    port[0] = rospy.get_param(ns + '/telemetry_bound_port')
+                except KeyError:
+                    return sim.poll() is not None
+                return True
+            processes.require(serving, 60.0, 'the simulator serving with ~rtf \'1e0\'', lambda: open(log).read()[-2000:])
+            time.sleep(1.0)
+            up = sim.poll() is None
+        finally:
+            processes.stop(sim)
+        text = open(log).read()
+        self.assertTrue(up, text[-2000:])
+        self.assertEqual(self.fatal_lines(log), [], text[-2000:])
+        self.assertIsNotNone(port[0], text[-2000:])
+        seen.append('the simulator given ~rtf \'1e0\' runs (telemetry on port %s, no FATAL)' % port[0])
+        self.record('launch_numbers', '; '.join(seen), 'not needed (nothing started for a refused number)', None)
+
+    def test_08m_hostile_fleet_file(self):
+        marker = os.path.join(self.workdir, 'pwned_fleet')
+        fleet = os.path.join(self.workdir, 'hostile_fleet.yaml')
+        with open(fleet, 'w') as f:
+            f.write('name: hostile\ndrones:\n  - name: a\n    target: {model: "$(eval exec(\\"import os; '
+                    'os.system(\'touch %s\')\\", dict()))"}\n' % marker)
+        seen = []
+        for args in (['--nodes', 'anafi_sim', 'fleet.launch', 'fleet:=%s' % fleet, 'layout:=%s' % LAYOUT],
+                     ['anafi_sim', 'fleet.launch', 'fleet:=%s' % fleet, 'layout:=%s' % LAYOUT]):
+            rc, lines, text = self.roslaunch_line(args, 'launch argument fleet:=')
+            self.assertNotEqual(rc, 0, text[-2000:])
+            self.assertEqual(len(lines), 1, text[-2000:])
+            self.assertIn('target.model', lines[0])
+            self.assertNotIn('started with pid', text)
+            seen.append('%s: exit %d' % (' '.join(a for a in args[:3] if not a.startswith('anafi')), rc))
+        self.assertFalse(os.path.exists(marker), 'the fleet file ran its code')
+        self.record('hostile_fleet_file', '%s, nothing started, FILE not created: "%s"'
+                    % (', '.join(seen), lines[0].split(': ', 1)[-1][:300]), 'not needed', None)
+
+    def test_08n_untrusted_text(self):
+        from std_msgs.msg import String as Text
+        ns = '/repro_text'
+        gen, gen_log = self.start_node('text_gen', [paths.data_path('scripts', 'trajectory_generator.py'),
+                                                    '__name:=trajectory_generator', '__ns:=' + ns],
+                                       [(ns + '/trajectory_generator/wait_for_flying', False),
+                                        (ns + '/trajectory_generator/autostart', False)])
+        logs = self.env['ROS_LOG_DIR']
+
+        def size(pred):
+            return sum(os.path.getsize(os.path.join(r, n)) for r, _, fs in os.walk(logs) for n in fs
+                       if pred(os.path.join(r, n)))
+        try:
+            pub = rospy.Publisher(ns + '/trajectory_generator/command', Text, queue_size=100)
+            processes.require(lambda: pub.get_num_connections() > 0 or gen.poll() is not None, 60.0,
+                              'the generator listening', lambda: open(gen_log).read()[-2000:])
+            mine = lambda p: 'repro_text' in p or p == gen_log
+            before, before_all = size(mine) + os.path.getsize(gen_log), size(lambda p: True)
+            t0 = time.time()
+            for i in range(49):
+                pub.publish(Text('switch ' + chr(65 + i % 26) * (1 << 20)))
+                time.sleep(0.1)
+            time.sleep(3.0)
+            up = gen.poll() is None
+            grown, grown_all = size(mine) + os.path.getsize(gen_log) - before, size(lambda p: True) - before_all
+            seconds = time.time() - t0
+            pub.unregister()
+        finally:
+            processes.stop(gen)
+        self.assertTrue(up, open(gen_log).read()[-2000:])
+        self.assertLess(grown, 100 * 1024, 'the generator logged %d bytes for 49 MB of commands' % grown)
+        longest = max([len(line) for line in open(gen_log).read().splitlines()] or [0])
+        self.assertLess(longest, 1000, 'a log line of %d characters' % longest)
+        # the alias bomb, in a folder scenario files may come from (ROS_HOME)
+        bomb = os.path.join(self.env['ROS_HOME'], 'bomb.yaml')
+        with open(bomb, 'w') as f:
+            f.write('a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]\n')
+            for k in range(1, 12):
+                f.write('%s: &%s [%s]\n' % (chr(97 + k), chr(97 + k), ','.join(['*' + chr(96 + k)] * 9)))
+        bgen, bomb_log = self.start_node('bomb_gen', [paths.data_path('scripts', 'trajectory_generator.py'),
+                                                      '__name:=trajectory_generator', '__ns:=/repro_bomb'],
+                                         [('/repro_bomb/trajectory_generator/scenario_file', bomb),
+                                          ('/repro_bomb/trajectory_generator/wait_for_flying', False)])
+        t1 = time.time()
+        try:
+            processes.require(lambda: bgen.poll() is not None, 60.0, 'the generator refusing the alias bomb',
+                              lambda: open(bomb_log).read()[-2000:])
+        finally:
+            processes.stop(bgen)
+        bomb_seconds = time.time() - t1
+        text = open(bomb_log).read()
+        fatal = [line for line in text.splitlines() if 'FATAL' in line]
+        self.assertEqual(bgen.returncode, 1, text[-2000:])
+        self.assertEqual(len(fatal), 1, text[-2000:])
+        self.assertLess(len(fatal[0]), 1000, fatal[0][:2000])
+        self.assertLess(text.count('lol'), 20, 'the expanded value in the log')
+        self.record('untrusted_text', '49 commands of 1 MB in %.1f s: the generator\'s logs grew %d bytes (all logs '
+                    'of the graph %d bytes), longest line %d characters; alias bomb: exit 1 after %.1f s, one FATAL '
+                    'line "%s"' % (seconds, grown, grown_all, longest, bomb_seconds,
+                                   fatal[0].split(']: ', 1)[-1][:300]),
+                    'not needed', None)
+
     def test_09_master_restart(self):
         g = self.g
         self.fly()
@@ -1175,12 +1681,13 @@ class TestFaultMatrix(unittest.TestCase):
         for node, jumps in r['jumps'].items():
             self.assertGreaterEqual(jumps, 1, r)
         self.assertGreaterEqual(r['mpc_clock_jumps'], 1, r)     # the MPC's input gate saw it: SILENT, inputs dropped
+        self.assertTrue(r['stalled'] and r['stalled'][0][0] == 1 and r['stalled'][0][1].startswith('stalled'), r)
         self.record('clock_jump', 'commands in the 2 s before / the last 2 s after: MPC %d / %d, PID %d / %d; '
                     'first command after the jump: MPC %.1f s, PID %.1f s; "ROS time jumps back": %s; '
-                    'MPC clock_jumps %d'
+                    'MPC clock_jumps %d; /clock stopped: the MPC WARN "%s"'
                     % (r['m']['before'], r['m']['after'], r['p']['before'], r['p']['after'], r['m']['first'],
                        r['p']['first'], ', '.join('%s %d' % kv for kv in sorted(r['jumps'].items())),
-                       r['mpc_clock_jumps']),
+                       r['mpc_clock_jumps'], r['stalled'][0][1][:200]),
                     'not needed (no drone in this graph: the controllers\' own cycles are checked)',
                     max(r['m']['first'], r['p']['first']))
 
@@ -1214,7 +1721,7 @@ rospy.init_node('clock_probe', anonymous=True)
 Command = piloting_command_class()
 lock = threading.Lock()
 times = {'m': [], 'p': []}
-jumps, silent = {}, []
+jumps, silent, stalled = {}, [], []
 def on_cmd(drone):
     def cb(msg):
         with lock:
@@ -1228,6 +1735,9 @@ def on_diag(msg):
                 with lock:
                     jumps[node] = max(jumps.get(node, 0), int(kv.value))
         if st.name.endswith('/m/mpc_controller'):
+            if stop_wall is not None and time.time() > stop_wall:
+                with lock:
+                    stalled.append((st.level, st.message))
             for kv in st.values:
                 if kv.key == 'clock_jumps':
                     with lock:
@@ -1238,7 +1748,7 @@ rospy.Subscriber('/diagnostics', DiagnosticArray, on_diag, queue_size=50)
 clock = rospy.Publisher('/clock', Clock, queue_size=10)
 odom = dict((d, rospy.Publisher('/%s/drone/odom' % d, Odometry, queue_size=10)) for d in times)
 wp = dict((d, rospy.Publisher('/%s/position_control/waypoint' % d, Waypoint, queue_size=10)) for d in times)
-t_sim, tick, jump_wall, end = 100.0, 0, None, None
+t_sim, tick, jump_wall, end, stop_wall = 100.0, 0, None, None, None
 start = time.time()
 while True:
     now = time.time()
@@ -1271,7 +1781,12 @@ while True:
             w.z = 2.0
             wp[d].publish(w)
     time.sleep(max(0.0, start + tick * 0.01 - time.time()))
+stop_wall = time.time()      # /clock stops (and with it the inputs): the MPC's cycles freeze
+while time.time() - stop_wall < 6.0:
+    time.sleep(0.1)
 out = {'jumps': jumps, 'mpc_clock_jumps': silent[-1] if silent else -1}
+with lock:
+    out['stalled'] = [m for m in stalled if m[1].startswith('stalled')][-1:] or stalled[-1:]
 with lock:
     for d, ts in times.items():
         after = [t for t in ts if t > jump_wall]
@@ -1322,6 +1837,61 @@ while time.time() < end and not state['ok']:
     pub.publish(w)
     time.sleep(0.1)
 sys.exit(0 if state['ok'] else 1)
+"""
+
+#: a second waypoint stream from a node of its own ({mode}: 'zero' stamped 0 with frame '', 'future' stamped 0.9 s
+#: ahead in world), 7.5 m to the side of the drone, 10 Hz for 4 s once the controller is connected; prints PUBLISHED
+SECOND_SOURCE = """
+import sys, time, rospy
+from nav_msgs.msg import Odometry
+from anafi_sim.msg import Waypoint
+rospy.init_node('second_source', anonymous=True)
+last = []
+rospy.Subscriber('/{drone}/sim/truth', Odometry, lambda m: last.append(m.pose.pose.position), queue_size=1)
+pub = rospy.Publisher('/{drone}/position_control/waypoint', Waypoint, queue_size=10)
+end = time.time() + 30.0
+while (not last or pub.get_num_connections() == 0) and time.time() < end:
+    time.sleep(0.05)
+t0 = time.time()
+while time.time() - t0 < 4.0 and not rospy.is_shutdown():
+    p = last[-1]
+    w = Waypoint()
+    if '{mode}' == 'future':
+        w.header.stamp = rospy.Time.now() + rospy.Duration(0.9)
+        w.header.frame_id = 'world'
+    w.x, w.y, w.z = p.x, p.y + 7.5, 3.0
+    pub.publish(w)
+    time.sleep(0.1)
+print('PUBLISHED')
+sys.stdout.flush()
+time.sleep(30.0)
+"""
+
+#: a node registered as itself whose TCPROS connection header claims callerid {claim}; publishes hover commands
+#: on the drone's command topic for 2 s once the controller is connected; prints PUBLISHED
+IMPOSTER = """
+import sys, time, rospy
+import rospy.impl.tcpros_pubsub as tcpros
+from anafi_sim.ros.wire_types import piloting_command_class
+header = tcpros.TCPROSPub.get_header_fields
+def forged(self):
+    fields = header(self)
+    fields['callerid'] = '{claim}'
+    return fields
+tcpros.TCPROSPub.get_header_fields = forged
+rospy.init_node('imposter', anonymous=True)
+Command = piloting_command_class()
+pub = rospy.Publisher('/{drone}/drone/rpyt', Command, queue_size=10)
+end = time.time() + 30.0
+while pub.get_num_connections() == 0 and time.time() < end:
+    time.sleep(0.05)
+t0 = time.time()
+while time.time() - t0 < 2.0:
+    pub.publish(Command())
+    time.sleep(0.1)
+print('PUBLISHED')
+sys.stdout.flush()
+time.sleep(30.0)
 """
 
 #: [MB] written on stderr by the /flood interface's telemetry tool at each start

@@ -360,12 +360,12 @@ def test_hold_recaptures_after_tracking_again(ctl):
 
 
 # -- the flight envelope: geofence, reach, speeds (anafi_control.envelope) ------------------------
-_K = 50.0 / math.hypot(248.0, 4.0)      # the target's fence: 250 m less the 2 m margin
+_K = 50.0 / math.hypot(247.0, 4.0)      # the target's fence: 250 m less the 3 m margin
 
 
 @pytest.mark.parametrize('wp, limit, target', [
     ((300.0, 0.0, 5.0, 0, 0, 0, 0), 'geofence',                              # 300 m from the start: on the fence,
-     (248.0 * _K, 0.0, 1.0 + 4.0 * _K)),                                    # then 50 m from the drone toward it
+     (247.0 * _K, 0.0, 1.0 + 4.0 * _K)),                                    # then 50 m from the drone toward it
     ((3.0, 2.0, 60.0, 0, 0, 0, 0), 'geofence', (3.0, 2.0, 50.0)),          # above the altitude band: on the ceiling
     ((3.0, 2.0, 0.1, 0, 0, 0, 0), 'geofence', (3.0, 2.0, 0.5)),            # below it: on the floor
     ((60.0, 0.0, 1.0, 0, 0, 0, 0), 'reach', (50.0, 0.0, 1.0)),             # 60 m from the drone: 50 m toward it
@@ -412,7 +412,7 @@ def test_the_hold_point_is_moved_into_the_fence():
     gate.on_state(0.1, (30.0, 0.0, 5.0), LEVEL, (0, 0, 0))      # the drone overshot the fence
     gate.on_waypoint(0.1, (NAN,) * 7)
     inputs, key, _ = gate.check(0.1)
-    assert key == 'bad_waypoint' and inputs.waypoint[:3] == (8.0, 0.0, 5.0)      # 10 m less the margin
+    assert key == 'bad_waypoint' and inputs.waypoint[:3] == (7.0, 0.0, 5.0)      # 10 m less the margin
 
 
 def test_no_reach_without_a_state_but_the_altitude_band_applies():

@@ -56,8 +56,8 @@ def test_the_vertical_reference_speed_is_clipped():
 
 
 @pytest.mark.parametrize('position, expected', [
-    ((300.0, 0.0, 5.0), (248.0, 0.0, 5.0)),            # beyond the radius: on the target's fence
-    ((-1e300, 0.0, 5.0), (-248.0, 0.0, 5.0)),          # huge finite
+    ((300.0, 0.0, 5.0), (247.0, 0.0, 5.0)),            # beyond the radius: on the target's fence
+    ((-1e300, 0.0, 5.0), (-247.0, 0.0, 5.0)),          # huge finite
     ((30.0, 40.0, 60.0), (30.0, 40.0, 50.0)),          # above the ceiling
     ((30.0, 40.0, -1e9), (30.0, 40.0, 0.5)),           # below the floor
 ])
@@ -78,20 +78,37 @@ def test_the_fence_is_around_the_take_off_point():
 def test_velocity_toward_the_fence_brakes_to_stop_on_it():
     env = Envelope()
     a = 0.5 * env.max_reference_acceleration
-    # 8 m from the target's fence, flying out at 9 m/s and along it at 3 m/s: the outward part is cut
+    # 7 m from the target's fence, flying out at 9 m/s and along it at 3 m/s: the outward part is cut
     out, notes = env.limit_waypoint((240.0, 0.0, 5.0, 9.0, 3.0, 0.0, 0.0), CENTRE, (235.0, 0.0, 5.0))
     assert names(notes) == ['fence_braking']
-    assert out[3] == pytest.approx(math.sqrt(2.0 * a * 8.0)) and out[4] == 3.0
+    assert out[3] == pytest.approx(math.sqrt(2.0 * a * 7.0)) and out[4] == 3.0
     # on the fence: nothing outward; inward is free
-    out, _ = env.limit_waypoint((248.0, 0.0, 5.0, 10.0, 0.0, 0.0, 0.0), CENTRE, (240.0, 0.0, 5.0))
+    out, _ = env.limit_waypoint((247.0, 0.0, 5.0, 10.0, 0.0, 0.0, 0.0), CENTRE, (240.0, 0.0, 5.0))
     assert out[3] == pytest.approx(0.0, abs=1e-9)
-    wp = (248.0, 0.0, 5.0, -10.0, 0.0, 0.0, 0.0)
+    wp = (247.0, 0.0, 5.0, -10.0, 0.0, 0.0, 0.0)
     assert env.limit_waypoint(wp, CENTRE, (240.0, 0.0, 5.0)) == (wp, [])
     # the ceiling and the floor
     out, notes = env.limit_waypoint((0.0, 0.0, 49.5, 0.0, 0.0, 2.0, 0.0), CENTRE, (0.0, 0.0, 48.0))
     assert names(notes) == ['fence_braking'] and out[5] == pytest.approx(math.sqrt(2.0 * a * 0.5))
     out, notes = env.limit_waypoint((0.0, 0.0, 0.5, 0.0, 0.0, -1.0, 0.0), CENTRE, DRONE)
     assert out[5] == 0.0
+
+
+def test_a_target_trailing_the_drone_brakes_from_the_drone_s_distance():
+    # waypoints at where the drone was (a late stream at the drone's own position): the drone nearer the fence
+    env = Envelope()
+    a = 0.5 * env.max_reference_acceleration
+    out, notes = env.limit_waypoint((240.0, 0.0, 5.0, 10.0, 0.0, 0.0, 0.0), CENTRE, (246.5, 0.0, 5.0))
+    assert names(notes) == ['fence_braking'] and out[3] == pytest.approx(math.sqrt(2.0 * a * 0.5))
+    out, _ = env.limit_waypoint((240.0, 0.0, 5.0, 10.0, 0.0, 0.0, 0.0), CENTRE, (248.0, 0.0, 5.0))
+    assert out[3] == pytest.approx(0.0, abs=1e-9)
+    out, notes = env.limit_waypoint((0.0, 0.0, 48.0, 0.0, 0.0, 2.0, 0.0), CENTRE, (0.0, 0.0, 49.5))
+    assert names(notes) == ['fence_braking'] and out[5] == pytest.approx(math.sqrt(2.0 * a * 0.5))
+    # inward, or a drone farther inside than its target: untouched
+    wp = (240.0, 0.0, 5.0, -10.0, 0.0, 0.0, 0.0)
+    assert env.limit_waypoint(wp, CENTRE, (246.5, 0.0, 5.0)) == (wp, [])
+    wp = (200.0, 0.0, 5.0, 10.0, 0.0, 0.0, 0.0)
+    assert env.limit_waypoint(wp, CENTRE, (195.0, 0.0, 5.0)) == (wp, [])
 
 
 def test_a_waypoint_beyond_reach_is_approached():

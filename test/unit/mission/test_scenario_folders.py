@@ -31,3 +31,9 @@ def test_a_link_out_of_a_folder_is_refused(tmp_path):
     (tmp_path / 'evil.yaml').symlink_to('/etc/passwd')
     with pytest.raises(ValueError, match='refused'):
         scenario_in_folders('evil', [str(tmp_path)])
+
+
+def test_the_refusal_names_each_folder_once(tmp_path):
+    with pytest.raises(ValueError) as error:
+        scenario_in_folders('/etc/passwd', [str(tmp_path), SCENARIO_DIR, str(tmp_path), SCENARIO_DIR])
+    assert str(error.value).count(os.path.realpath(SCENARIO_DIR)) == 1

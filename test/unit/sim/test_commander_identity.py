@@ -21,3 +21,12 @@ def test_without_a_known_connection_the_header_is_all_there_is():
     assert commander_label('/pid', None, MY_URI, ME) == '/pid'
     assert commander_label('/pid', 'unknown', MY_URI, ME) == '/pid'
     assert commander_label(ME, None, MY_URI, ME) is None
+
+
+def test_a_hosted_instance_knows_a_claim_of_its_host_s_name():
+    host = '/fleet_drones'      # the name a hosted controller's commands carry on the wire
+    label = commander_label(host, OTHER_URI, MY_URI, (ME, host))
+    assert label == '%s (claims to be %s)' % (OTHER_URI, host)
+    assert commander_label(host, MY_URI, MY_URI, (ME, host)) is None
+    assert commander_label(host, None, MY_URI, (ME, host)) is None
+    assert commander_label('/pid', OTHER_URI, MY_URI, (ME, None)) == '/pid'

@@ -454,8 +454,8 @@ class PreviewMpc(Controller):
         """A preview (``contract.ReferenceSample``s, increasing times) received at ``t`` [s]; False if refused
         (fewer than 2 samples, not increasing, not finite)."""
         try:
-            rows = [(float(s[0]),) + tuple(float(v) for v in s[1]) + tuple(float(v) for v in s[2])
-                    + tuple(float(v) for v in s[3]) + (float(s[4]),) for s in samples]
+            rows = [(float(s[0]),) + tuple(map(float, s[1])) + tuple(map(float, s[2])) + tuple(map(float, s[3]))
+                    + (float(s[4]),) for s in samples]
             arr = np.array(rows, dtype=float).reshape(-1, 11)
         except (TypeError, ValueError, IndexError):
             arr = None

@@ -220,6 +220,39 @@ class Envelope(object):
         return (ax, ay, az), [('acceleration',
                                'reference acceleration > %.1f m/s^2' % self.max_reference_acceleration)]
 
+    def inert(self, positions, velocities, accelerations, centre, drone, margin=1e-6):
+        """True when neither ``limit_target`` nor ``limit_acceleration`` can act on any sample of the arrays
+        (n, 3) (positions, velocities, accelerations world ENU; ``centre``, ``drone`` as ``limit_target``): every
+        sample inside every limit by more than ``margin`` (far above the rounding of these few operations), so
+        a whole reference is checked at once; False when one may act (then limit each sample) or on NaN."""
+        import numpy as np
+        P = np.asarray(positions, dtype=float)
+        V = np.asarray(velocities, dtype=float)
+        A = np.asarray(accelerations, dtype=float)
+        x, y, z = P[:, 0], P[:, 1], P[:, 2]
+        vx, vy, vz = V[:, 0], V[:, 1], V[:, 2]
+        with np.errstate(all='ignore'):
+            room_up, room_down = self.max_altitude - z, z - self.min_altitude
+            ok = (room_up > margin) & (room_down > margin) & (np.abs(x) < 1e8) & (np.abs(y) < 1e8)
+            a = BRAKING * self.max_reference_acceleration
+            if centre is not None:
+                dx, dy = x - centre[0], y - centre[1]
+                r = np.sqrt(dx * dx + dy * dy)
+                room = self.target_radius - r
+                ok &= room > margin
+                out = vx * dx + vy * dy
+                ok &= (out <= 0.0) | (out / np.where(r > 0.0, r, 1.0) < np.sqrt(2.0 * a * np.maximum(room, 0.0)) - margin)
+            if drone is not None:
+                ddx, ddy, ddz = x - drone[0], y - drone[1], z - drone[2]
+                ok &= np.sqrt(ddx * ddx + ddy * ddy + ddz * ddz) < self.max_waypoint_jump - margin
+            ok &= np.sqrt(vx * vx + vy * vy) < self.max_reference_speed - margin
+            ok &= np.abs(vz) < self.max_reference_vertical_speed - margin
+            ok &= vz < np.sqrt(2.0 * a * np.maximum(room_up, 0.0)) - margin
+            ok &= -vz < np.sqrt(2.0 * a * np.maximum(room_down, 0.0)) - margin
+            ok &= np.sqrt(A[:, 0] * A[:, 0] + A[:, 1] * A[:, 1]) < self.max_reference_acceleration - margin
+            ok &= np.abs(A[:, 2]) < self.max_reference_acceleration - margin
+        return bool(np.all(ok))
+
     # -- the command -------------------------------------------------------------------------------
     def limit_command(self, command):
         """(command, notes): (roll deg, pitch deg, yaw rate deg/s, gaz m/s) with |roll|, |pitch| <=

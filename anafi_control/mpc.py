@@ -477,7 +477,7 @@ class CumulativeErrorMpc(object):
             if pending is not None:
                 vecs, delayed = pending, True
         dp, dv, wp, wv = vecs
-        vel = np.clip(dv, self.x_min[list(DRONE_VEL)], self.x_max[list(DRONE_VEL)])
+        vel = np.minimum(np.maximum(dv, self.x_min[list(DRONE_VEL)]), self.x_max[list(DRONE_VEL)])   # clip
         clipped = bool(np.any(vel != dv))
         cum0 = self._cum.copy() if self.carry_cumulative_errors else np.zeros(6)
         x_bar = initial_state(dp, vel, wp, wv, cum0)
@@ -564,9 +564,9 @@ class CumulativeErrorMpc(object):
         result.x_pred = sol[:n_x].reshape(self._N + 1, NX) * self._scale + shift
         result.u_pred = sol[n_x:].reshape(self._N, NU)
         # clipped to the limits: OSQP meets bounds only within its tolerance
-        result.u0 = tuple(float(a) for a in np.clip(result.u_pred[0], self.u_min, self.u_max))
-        result.vz_command = float(np.clip(result.x_pred[self._vz_step, VZ_INDEX],
-                                          self.x_min[VZ_INDEX], self.x_max[VZ_INDEX]))
+        result.u0 = tuple(float(a) for a in np.minimum(np.maximum(result.u_pred[0], self.u_min), self.u_max))
+        vz, lo, hi = result.x_pred[self._vz_step, VZ_INDEX], self.x_min[VZ_INDEX], self.x_max[VZ_INDEX]
+        result.vz_command = float(lo if vz < lo else (hi if vz > hi else vz))
         result.inaccurate = status.lower() != 'solved'
         result.ok = True
 

@@ -444,7 +444,7 @@ class PreviewMpc(Controller):
         residual = (new['v'] - prev['v']) / h - np.array([acc_h[0], acc_h[1], acc_z])
         d = self.disturbance + (h / max(tc, h)) * (residual - self.disturbance)
         limit = self.u_max[0]
-        self.disturbance = np.clip(d, -limit, limit)
+        self.disturbance = np.minimum(np.maximum(d, -limit), limit)     # clip
 
     @property
     def _orientation(self):
@@ -454,8 +454,8 @@ class PreviewMpc(Controller):
         """A preview (``contract.ReferenceSample``s, increasing times) received at ``t`` [s]; False if refused
         (fewer than 2 samples, not increasing, not finite)."""
         try:
-            rows = [(float(s[0]),) + tuple(float(v) for v in s[1]) + tuple(float(v) for v in s[2])
-                    + tuple(float(v) for v in s[3]) + (float(s[4]),) for s in samples]
+            rows = [(float(s[0]),) + tuple(map(float, s[1])) + tuple(map(float, s[2])) + tuple(map(float, s[3]))
+                    + (float(s[4]),) for s in samples]
             arr = np.array(rows, dtype=float).reshape(-1, 11)
         except (TypeError, ValueError, IndexError):
             arr = None
@@ -497,6 +497,9 @@ class PreviewMpc(Controller):
         reach, speeds, acceleration; noted for the cycle's 'limiting'); the arrays untouched when none acts."""
         gate = self.gate
         env, drone, notes = gate.envelope, gate.state.value[0], []
+        if env.inert(P, V, A, gate.centre, drone):     # no limit can act: the arrays as they are
+            gate.note(notes)
+            return P, V, A
         out = None
         for i in range(len(P)):
             p, v, n = env.limit_target(tuple(P[i]), tuple(V[i]), gate.centre, drone)
@@ -606,7 +609,7 @@ class PreviewMpc(Controller):
             return hover_output(SOLVER_FAILED, ': %s' % result.status, result)
         dx = sol[:self.n_x].reshape(N + 1, NX)
         du = sol[self.n_x:].reshape(N, NU)
-        u0 = np.clip(u_ref[0] + du[0], -self.u_max, self.u_max)
+        u0 = np.minimum(np.maximum(u_ref[0] + du[0], -self.u_max), self.u_max)     # clip
         if self._yaw_cap < math.inf and math.hypot(u0[0] - ah0[0], u0[1] - ah0[1]) > YAW_GOVERNOR_DEMAND:
             self._yaw_governed_until = t + YAW_GOVERNOR_HOLD       # a large tilt change ahead: no fast yaw
         x_pred = ref[:N + 1] + dx
@@ -640,7 +643,7 @@ class PreviewMpc(Controller):
         u_ref[:, 0] = ref[:N + 1, AX] + tau * (ref[1:, AX] - ref[:-1, AX]) / dt
         u_ref[:, 1] = ref[:N + 1, AY] + tau * (ref[1:, AY] - ref[:-1, AY]) / dt
         u_ref[:, 2] = ref[:N + 1, VZ] + tz * (A[:N + 1, 2] - d_w[2])
-        return ref, np.clip(u_ref, -self.u_max, self.u_max), e
+        return ref, np.minimum(np.maximum(u_ref, -self.u_max), self.u_max), e     # clip
 
     def _solve_deviation(self, dx0, ref, u_ref, e, result):
         """The QP's solution (deviations from the reference) for the initial deviation ``dx0``, or None when
@@ -761,14 +764,15 @@ class PreviewMpc(Controller):
 def _interpolate(preview, times):
     """Preview (receipt, T, P, V, A, yaw) at ``times``: cubic Hermite positions, linear V, A and yaw."""
     _, T, P, V, A, Y = preview
-    idx = np.clip(np.searchsorted(T, times, side='right') - 1, 0, len(T) - 2)
+    idx = np.minimum(np.maximum(np.searchsorted(T, times, side='right') - 1, 0), len(T) - 2)     # clip
     t0, t1 = T[idx], T[idx + 1]
     h = (t1 - t0)[:, None]
     s = ((np.asarray(times) - t0)[:, None] / h).clip(0.0, 1.0)
-    h00 = 2 * s ** 3 - 3 * s ** 2 + 1
-    h10 = s ** 3 - 2 * s ** 2 + s
-    h01 = -2 * s ** 3 + 3 * s ** 2
-    h11 = s ** 3 - s ** 2
+    s2, s3 = s ** 2, s ** 3
+    h00 = 2 * s3 - 3 * s2 + 1
+    h10 = s3 - 2 * s2 + s
+    h01 = -2 * s3 + 3 * s2
+    h11 = s3 - s2
     pos = h00 * P[idx] + h10 * h * V[idx] + h01 * P[idx + 1] + h11 * h * V[idx + 1]
     vel = (1 - s) * V[idx] + s * V[idx + 1]
     acc = (1 - s) * A[idx] + s * A[idx + 1]

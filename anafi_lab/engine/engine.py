@@ -80,8 +80,10 @@ trips; /clock ticks are exact multiples of the physics period (rospy.Time.from_s
 nanosecond); a node's callbacks never wait for another callback's lock.
 """
 import collections
+import copy
 import importlib
 import math
+import os
 import time
 
 from anafi_control.contract import Controller, InputGate
@@ -96,13 +98,13 @@ from anafi_sim import names, paths, run_files
 from anafi_sim.mission.evaluation import LiveEvaluator
 from anafi_sim.mission.monitor import ExperimentMonitor
 from anafi_lab.engine.event_loop import ACTION, PHYSICS, TIMER, EventLoop, NodeClock, Timer, Topic, to_ns, to_s
-from anafi_sim.mission.trajectory import Scenario, load_scenario
+from anafi_sim.mission.trajectory import Scenario, load_scenario, scenario_path
 from anafi_sim.mission.generator import DONE, TrajectoryGenerator
 from anafi_sim.interface.ground_truth import GroundTruthInterface, odometry
 from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG, PilotingMapping
 from anafi_sim.sim.clock import TIMER_PHASES, SimClock
 from anafi_sim.sim.conditions_profile import load_conditions
-from anafi_sim.sim.drone_model import DEFAULT_SETTINGS, AnafiModel, load_model_params
+from anafi_sim.sim.drone_model import DEFAULT_MODEL_FILE, DEFAULT_SETTINGS, AnafiModel, load_model_params
 from anafi_sim.sim.simulator import SimulatedAnafi
 from anafi_sim.sim.state_estimate import StateEstimate
 
@@ -151,6 +153,22 @@ RunResult = collections.namedtuple('RunResult', 'name ok error summary info eval
 RunResult.__doc__ = ('One run: name, ok (final summary), error (why not), summary (the evaluator\'s dict, state '
                      '\'final\' or \'incomplete\'), info (run figures), evaluation (Evaluation or None).')
 
+_FILES = {}
+
+
+def _file_once(path, load, *args):
+    """``load(*args)`` of the file ``path`` once per process while the file stays as it was (its modification
+    time and size); a deep copy every call (a batch's workers run many engines: they parse each configuration,
+    scenario and model file once). A file that cannot be read is not kept: ``load`` raises as it would."""
+    try:
+        st = os.stat(path)
+        key = (os.path.abspath(path), load, repr(args), st.st_mtime_ns, st.st_size)
+    except (OSError, TypeError, ValueError):
+        return load(*args)
+    if key not in _FILES:
+        _FILES[key] = load(*args)
+    return copy.deepcopy(_FILES[key])
+
 
 
 def make_schedule(overrides=None):
@@ -189,7 +207,8 @@ def wind_settings(wind):
 def simulator_config(settings=None):
     """(mapping kwargs, model settings, seed) as anafi_sim_node.py reads anafi_sim/config/sim.yaml, with
     ``settings`` (keys of DEFAULT_SETTINGS) overriding the file."""
-    config = run_files.read_yaml(paths.config_path('sim.yaml'), {})
+    path = paths.config_path('sim.yaml')
+    config = _file_once(path, run_files.read_yaml, path, {})
     mapping = dict(max_tilt_deg=float(config.get('max_tilt_deg', MAX_TILT_DEG)),
                    max_vertical_speed=float(config.get('max_vertical_speed', MAX_VERTICAL_SPEED)),
                    max_yaw_rate_deg=float(config.get('max_yaw_rate_deg', MAX_YAW_RATE_DEG)))
@@ -213,7 +232,8 @@ def waypoint_limits(config):
 def mpc_config(overrides=None):
     """The MPC node's parameters as mpc.launch loads them (anafi_sim/config/mpc.yaml) with ``overrides``:
     (flat MPC params, yaw config or None, tracking kwargs, rate [Hz])."""
-    config = run_files.read_yaml(paths.config_path('mpc.yaml'), {})
+    path = paths.config_path('mpc.yaml')
+    config = _file_once(path, run_files.read_yaml, path, {})
     config.update(dict(overrides or {}))
     names = tuple(k for k in MPC_DEFAULTS if k != 'v_max') + ('v_max_x', 'v_max_y', 'v_max_z')
     tracking = ('state_timeout', 'waypoint_timeout', 'twist_in_child_frame', 'cum_reset_distance')
@@ -231,7 +251,8 @@ def pid_config(overrides=None):
     """The PID framework's parameters as pid.launch loads them (anafi_sim/config/pid.yaml) with ``overrides``
     ({loop: {param: value}}, or top-level keys such as the waypoint limits): (loops config validated by
     ``anafi_control.pid_framework.make_config``, limits kwargs for the node that gates the inputs)."""
-    config = run_files.read_yaml(paths.config_path('pid.yaml'), {})
+    path = paths.config_path('pid.yaml')
+    config = _file_once(path, run_files.read_yaml, path, {})
     for key, value in dict(overrides or {}).items():
         if key in LOOP_NAMES:
             if not isinstance(value, dict):
@@ -249,7 +270,8 @@ def pid_config(overrides=None):
 def preview_config(overrides=None):
     """The preview MPC's parameters as experiment.launch loads them (anafi_sim/config/preview_mpc.yaml) with
     ``overrides``: (params for anafi_control.preview_mpc.PreviewMpc, limits kwargs)."""
-    config = run_files.read_yaml(paths.config_path('preview_mpc.yaml'), {})
+    path = paths.config_path('preview_mpc.yaml')
+    config = _file_once(path, run_files.read_yaml, path, {})
     config.update(dict(overrides or {}))
     node_only = ('state_topic', 'waypoint_topic', 'command_topic', 'frame_id', 'reference_topic')
     params = dict((k, v) for k, v in config.items() if k in PREVIEW_DEFAULTS and k not in LIMIT_DEFAULTS)
@@ -512,7 +534,8 @@ class Engine(object):
     def __init__(self, scenario, controller='mpc', seed=None, wind=None, settings=None, controller_params=None,
                  schedule=None, model_params=None, state_source='estimate', name=None, max_sim_time=None,
                  actions=None, conditions=None):
-        self.scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        self.scenario = scenario if isinstance(scenario, Scenario) else \
+            _file_once(scenario_path(str(scenario)), load_scenario, scenario)
         self.controller = controller
         label = controller if isinstance(controller, str) else getattr(controller, '__name__', 'controller')
         self.name = name or '%s_%s' % (self.scenario.name, label.split(':')[-1])
@@ -524,7 +547,8 @@ class Engine(object):
         self.mapping, self.settings, default_seed = simulator_config(sim_settings)
         self.seed = default_seed if seed is None else int(seed)
         self.wind = dict(wind or {})
-        self.model_params = model_params if model_params is not None else load_model_params()
+        self.model_params = model_params if model_params is not None else \
+            _file_once(DEFAULT_MODEL_FILE, load_model_params)
         if state_source not in ('estimate', 'truth'):
             raise ValueError("state_source must be 'estimate' or 'truth', got %r" % (state_source,))
         self.state_topic = names.ESTIMATE if state_source == 'estimate' else names.GROUND_TRUTH

@@ -54,19 +54,16 @@ class EventLoop(object):
         self._seq = itertools.count()
         self._stopped = False
 
-    def at(self, t, callback, *args, **kwargs):
+    def at(self, t, callback, *args, order=DELIVERY):
         """Run ``callback(*args)`` at time ``t`` [ns] (>= now); keyword ``order`` (default DELIVERY)."""
-        order = kwargs.pop('order', DELIVERY)
-        if kwargs:
-            raise TypeError('unexpected keyword arguments %s' % sorted(kwargs))
         t = int(t)
         if t < self.now:
             raise ValueError('cannot schedule at %d ns, before now (%d ns)' % (t, self.now))
         heapq.heappush(self._queue, (t, order, next(self._seq), callback, args))
 
-    def after(self, delay, callback, *args, **kwargs):
+    def after(self, delay, callback, *args, order=DELIVERY):
         """Run ``callback(*args)`` ``delay`` ns from now."""
-        self.at(self.now + int(delay), callback, *args, **kwargs)
+        self.at(self.now + int(delay), callback, *args, order=order)
 
     def stop(self):
         """End ``run`` after the current callback."""
@@ -179,5 +176,8 @@ class Topic(object):
         for callback, delay in self.subscribers:
             if delay is None:
                 callback(msg)
-            else:
-                loop.at(loop.now + delay + extra, callback, msg, order=DELIVERY)
+            else:           # loop.at(now + delay + extra, callback, msg, order=DELIVERY), without its checks
+                t = loop.now + delay + int(extra)
+                if t < loop.now:
+                    raise ValueError('cannot schedule at %d ns, before now (%d ns)' % (t, loop.now))
+                heapq.heappush(loop._queue, (t, DELIVERY, next(loop._seq), callback, (msg,)))

@@ -722,8 +722,17 @@ class AnafiModel(object):
 
     def truth_sample(self, t=None):
         """The ground truth as a ``TelemetrySample`` stamped with sim time ``t`` (default: model time)."""
-        bv = self.body_velocity()
-        ba = self.body_linear_acceleration()
+        # velocity and acceleration into the body frame: frames.world_to_body's arithmetic, its trigonometry once
+        cr, sr = math.cos(self.roll), math.sin(self.roll)
+        cp, sp = math.cos(self.pitch), math.sin(self.pitch)
+        cy, sy = math.cos(self.yaw), math.sin(self.yaw)
+        r00, r01, r02 = cy * cp, sy * cp, -sp
+        r10, r11, r12 = cy * sp * sr - sy * cr, sy * sp * sr + cy * cr, cp * sr
+        r20, r21, r22 = cy * sp * cr + sy * sr, sy * sp * cr - cy * sr, cp * cr
+        x, y, z = self.vx, self.vy, self.vz
+        bv = (r00 * x + r01 * y + r02 * z, r10 * x + r11 * y + r12 * z, r20 * x + r21 * y + r22 * z)
+        x, y, z = self.accel
+        ba = (r00 * x + r01 * y + r02 * z, r10 * x + r11 * y + r12 * z, r20 * x + r21 * y + r22 * z)
         al = self.alpha
         g_roll, g_pitch = self.gimbal_angles()
         return TelemetrySample(

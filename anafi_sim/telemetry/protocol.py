@@ -62,12 +62,13 @@ PHYSICAL_BOUNDS = dict(
     + [(f, 1e3) for f in ('body_wx', 'body_wy', 'body_wz')]
     + [(f, 1e5) for f in ('body_ax', 'body_ay', 'body_az', 'body_alpha_x', 'body_alpha_y', 'body_alpha_z')]
     + [('timestamp', 1e10)])
+_BOUNDS = tuple((field, PHYSICAL_BOUNDS[field]) for field in FIELDS)   # in the sample's order
 
 
 def beyond_bounds(sample):
     """The first field of ``sample`` beyond ``PHYSICAL_BOUNDS`` (or a negative timestamp), None when none."""
-    for field, value in zip(FIELDS, sample):
-        if abs(value) > PHYSICAL_BOUNDS[field]:
+    for (field, bound), value in zip(_BOUNDS, sample):
+        if abs(value) > bound:
             return field
     return 'timestamp' if sample.timestamp < 0.0 else None
 

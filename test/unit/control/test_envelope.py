@@ -241,3 +241,35 @@ def test_a_vx_1e6_stream_is_limited_and_the_legitimate_stream_brings_the_drone_b
     assert math.hypot(m.x, m.y) < 0.5 and abs(m.z - 3.0) < 0.5, (away, m.x, m.y, m.z)
     assert flight.ctl.health().message == 'tracking'
     check_invariants(flight, env)
+
+
+sample = st.tuples(*([st.one_of(st.floats(-300.0, 300.0), st.sampled_from([0.0, 1e9, -1e9, 149.0, 150.0]))] * 9))
+
+
+@settings(max_examples=300, deadline=None, database=None)
+@given(st.lists(sample, min_size=1, max_size=6), st.one_of(st.none(), st.just(CENTRE), st.just((5.0, -3.0))),
+       st.one_of(st.none(), st.just(DRONE), st.just((10.0, 0.0, 2.0))))
+def test_inert_holds_only_where_no_limit_acts_on_any_sample(samples, centre, drone):
+    """``inert`` (the whole-reference check the preview MPC takes before limiting each sample) is True only when
+    ``limit_target`` and ``limit_acceleration`` would leave every sample as it is."""
+    import numpy as np
+    env = Envelope(geofence_radius=150.0, max_altitude=120.0)
+    arr = np.array(samples, dtype=float)
+    P, V, A = arr[:, 0:3], arr[:, 3:6], arr[:, 6:9]
+    if env.inert(P, V, A, centre, drone):
+        for i in range(len(arr)):
+            assert env.limit_target(tuple(P[i]), tuple(V[i]), centre, drone)[2] == []
+            assert env.limit_acceleration(tuple(A[i]))[1] == []
+
+
+def test_inert_on_a_reference_inside_and_one_sample_out():
+    import numpy as np
+    env = Envelope()
+    P = np.array([[1.0, 2.0, 5.0], [1.5, 2.0, 5.0]])
+    V = np.array([[1.0, 0.0, 0.5], [1.0, 0.0, 0.5]])
+    A = np.zeros((2, 3))
+    assert env.inert(P, V, A, CENTRE, DRONE)
+    V[1, 0] = 1e6                                  # one sample too fast: the per-sample limits must act
+    assert not env.inert(P, V, A, CENTRE, DRONE)
+    V[1, 0] = float('nan')
+    assert not env.inert(P, V, A, CENTRE, DRONE)

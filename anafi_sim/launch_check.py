@@ -13,6 +13,7 @@ import math
 import os
 import re
 
+from anafi_control import registry
 from anafi_sim.numeric import parse_integer, parse_number, range_problem
 from anafi_sim.untrusted import LOG_CHARS, clip
 
@@ -327,7 +328,9 @@ def layout(value):
 
 
 def controller(value):
-    return None if value in ('mpc', 'pid', 'preview_mpc') else 'must be mpc, pid or preview_mpc'
+    """experiment.launch's controller:=, one of anafi_control.registry's (``experiment_names``)."""
+    known = registry.experiment_names()
+    return None if value in known else 'must be %s or %s' % (', '.join(known[:-1]), known[-1])
 
 
 def pid_mode(value):

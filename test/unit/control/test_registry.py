@@ -190,3 +190,41 @@ def test_a_new_controller_runs_in_the_node_with_the_generic_adapter():
         core = adapter.build(ParamReader(lambda name, default: params.get(name, default)))
     assert isinstance(core, Toy) and core.gain == 2.0 and adapter.label == 'toy'
     assert core.gate.envelope.geofence_radius == 100.0
+
+
+@pytest.mark.parametrize('name', ['mpc', 'pid_single', 'preview_mpc'])
+def test_the_node_and_the_engine_build_a_shipped_controller_alike(name):
+    """The node (its ~params loaded from the YAML, as the launch file does) and the engine (the file) build the
+    same controller: one reader of a controller's YAML."""
+    pytest.importorskip('rospy')
+    from anafi_lab.engine import engine as E
+    from anafi_sim import paths, run_files
+    from anafi_sim.nodes import controller_node
+    from anafi_sim.ros.params import ParamReader
+    entry = registry.get(name)
+    params = run_files.read_yaml(paths.config_path(entry.config), {})
+
+    class Ctx(object):
+        def get_param(self, key, default=None):
+            return params.get(key, default)
+
+        def has_param(self, key):
+            return key in params
+
+    class Node(object):
+        ctx = Ctx()
+
+    node_core = controller_node.ADAPTERS[entry.node](Node(), entry).build(
+        ParamReader(lambda key, default: params.get(key, default)))
+    from anafi_sim.sim.bridge import MAX_TILT_DEG, MAX_VERTICAL_SPEED, MAX_YAW_RATE_DEG
+    # the bridge's limits as the node has them without ~max_tilt_deg & co. (the engine's default: sim.yaml's)
+    bridge = dict(max_tilt_deg=MAX_TILT_DEG, max_vertical_speed=MAX_VERTICAL_SPEED, max_yaw_rate_deg=MAX_YAW_RATE_DEG)
+    engine_core = E.controller_factory(name, mapping=bridge)()
+    assert type(node_core) is type(engine_core) is entry.core_class()
+    assert vars(node_core.gate.envelope) == vars(engine_core.gate.envelope)
+    if name == 'mpc':
+        assert node_core.config() == engine_core.config() and node_core.yaw_config == engine_core.yaw_config
+    elif name == 'preview_mpc':
+        assert node_core.params == engine_core.params and node_core.model == engine_core.model
+    else:
+        assert node_core.framework.config == engine_core.framework.config

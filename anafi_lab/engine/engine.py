@@ -511,7 +511,8 @@ class Engine(object):
     """One experiment (see the module doc).
 
     scenario: a ``Scenario``, a scenario name or a YAML path; controller: a name of anafi_control.registry
-    ('mpc', 'pid' (distributed graph), 'pid_single', 'preview_mpc', ...: its YAML), 'package.module:Class' (a contract.Controller built with ``controller_params``
+    ('mpc', 'pid' (distributed graph), 'pid_single', 'preview_mpc', ...: its YAML), 'package.module:Class'
+    (a contract.Controller built with ``controller_params``
     as keyword arguments) or a no-argument callable returning a Controller; controller_params: its YAML's keys
     (mpc -> mpc.yaml keys, preview_mpc -> preview_mpc.yaml keys),
     pid / pid_single -> {loop: {pid param: value}}; seed: wind-gust seed (sim.yaml ``seed``: 0); wind: see

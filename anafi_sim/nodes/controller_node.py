@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """One tracking-controller node for every implementation of the controller contract (thin node).
 
-Stage: controllers -> piloting command. ``~controller`` picks the implementation (``anafi_control.contract``) by
-its name in ``anafi_control.registry`` (any entry with a node adapter): ``mpc`` = the paper's MPC (``anafi_control.mpc_tracking.MpcTracking``, run as node ``mpc_controller`` by
-mpc.launch), ``pid`` = the paper's PID framework in one process (``anafi_control.pid_framework.PidTracking``,
-node ``pid_framework``, pid.launch mode single; ``pid_single`` is the same), ``preview_mpc`` = the preview MPC beyond the paper
+Stage: controllers -> piloting command. ``~controller`` picks the implementation (``anafi_control.contract``)
+by its name in ``anafi_control.registry`` (any entry with a node adapter): ``mpc`` = the paper's MPC
+(``anafi_control.mpc_tracking.MpcTracking``, run as node ``mpc_controller`` by mpc.launch), ``pid`` = the
+paper's PID framework in one process (``anafi_control.pid_framework.PidTracking``, node ``pid_framework``,
+pid.launch mode single; ``pid_single`` is the same), ``preview_mpc`` = the preview MPC beyond the paper
 (``anafi_control.preview_mpc.PreviewMpc``, node ``preview_mpc_controller``, preview_mpc.launch; it also takes
 the trajectory generator's preview, ~reference_topic command/trajectory, trajectory_msgs/
 MultiDOFJointTrajectory, and publishes preview_mpc/{predicted,reference}_path and preview_mpc/stats; its
@@ -33,8 +34,9 @@ Namespace /<drone> (default /anafi). Topics, relative to the namespace:
       and waypoint positions z_k over the horizon; built only while someone subscribes), mpc/stats
       (anafi_sim/MpcStats), dynamic_reconfigure (cfg/Mpc.cfg: weights, limits, horizon,
       carry_cumulative_errors, applied live).
-Parameters: ~controller (a registered name, default mpc), ~rate [Hz] (default the controller's RATE), ~command_rate [Hz] (pid),
-~state_timeout, ~waypoint_timeout [s], the flight envelope (anafi_control.envelope: ~geofence_radius,
+Parameters: ~controller (a registered name, default mpc), ~rate [Hz] (default the controller's RATE),
+~command_rate [Hz] (pid), ~state_timeout, ~waypoint_timeout [s], the flight envelope
+(anafi_control.envelope: ~geofence_radius,
 ~min_altitude, ~max_altitude, ~max_waypoint_jump [m], ~max_reference_speed, ~max_reference_vertical_speed [m/s],
 ~max_reference_acceleration [m/s^2], ~max_command_tilt_deg [deg]), ~stall_timeout [s of wall time without a
 cycle -> WARN 'stalled'], ~state_topic, ~waypoint_topic, ~waypoint_type, ~command_topic; mpc: the keys of
@@ -61,7 +63,7 @@ from nav_msgs.msg import Path
 
 import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.commanders import DOWN, LISTEN, RESUMED
-from anafi_control.contract import LEVEL_ERROR, OK, STALL_TIMEOUT, TIMEOUT_DEFAULTS, WAITING, health, \
+from anafi_control.contract import LEVEL_ERROR, OK, STALL_TIMEOUT, Controller, TIMEOUT_DEFAULTS, WAITING, health, \
     stalled
 from anafi_control import registry
 from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, PARAM_NAMES, RECONFIGURABLE,
@@ -103,6 +105,7 @@ class Adapter(object):
     the engine uses too) over the ~params of its ``CONFIG_KEYS``, ~state_timeout and ~waypoint_timeout
     checked here."""
     label = None              # diagnostics name prefix and log prefix (None: the registry name)
+    controller_class = Controller   # the contract.Controller subclass (an instance's: its entry's core)
 
     def __init__(self, node, entry):
         self.node = node

@@ -179,6 +179,17 @@ TIMEOUT_DEFAULTS = collections.OrderedDict([('state_timeout', 0.5), ('waypoint_t
 LIMIT_DEFAULTS = ENVELOPE_DEFAULTS
 
 
+
+#: keys of a controller's YAML that are the node's wiring, not its core's parameters (``from_config`` leaves them)
+NODE_KEYS = ('rate', 'command_rate', 'state_topic', 'waypoint_topic', 'waypoint_type', 'command_topic', 'frame_id',
+             'reference_topic', 'model_file', 'timer_phase', 'stall_timeout', 'controller')
+
+
+def envelope_from_config(config):
+    """The flight envelope (``Envelope``) of a controller's flat parameters (the ``LIMIT_DEFAULTS`` keys)."""
+    return Envelope(**dict((k, config.get(k, v)) for k, v in LIMIT_DEFAULTS.items()))
+
+
 STALL_TIMEOUT = 3.0
 """Default [s of wall time] after which a node whose cycles stopped (e.g. /clock stopped) reports ``stalled``."""
 
@@ -368,7 +379,7 @@ class Controller(object):
     -> CycleOutput (called only with gated, finite inputs) and may override the hooks ``_state_received(t)``,
     ``_hover(out)`` (reset internal state on a hover cycle) and ``_clock_jumped()``.
 
-    Class attributes: ``NAME`` (registry key of the node's ~controller), ``RATE`` [Hz] of ``cycle``,
+    Class attributes: ``NAME`` (its usual name in ``anafi_control.registry``), ``RATE`` [Hz] of ``cycle``,
     ``COMMAND_RATE`` [Hz] of the command output (None: every cycle), ``COUNTERS`` extra counter names.
     """
     NAME = None
@@ -378,6 +389,19 @@ class Controller(object):
     #: True: the controller tracks a reference preview (``on_reference``); the node / engine then subscribes
     #: to the trajectory generator's preview (trajectory_msgs/MultiDOFJointTrajectory, command/trajectory)
     PREVIEW = False
+
+    #: the keys of its YAML (anafi_sim/config/, anafi_control.registry) that ``from_config`` reads
+    CONFIG_KEYS = tuple(TIMEOUT_DEFAULTS) + tuple(LIMIT_DEFAULTS)
+
+    @classmethod
+    def from_config(cls, config, limits=None):
+        """The controller from its parameters: a flat mapping of its YAML's keys, as the node's ~params have
+        them or as the in-process engine reads the file (the one reader for both; other keys, e.g. topics,
+        are left to the node). ``limits``: the flight envelope (default: from the ``LIMIT_DEFAULTS`` keys).
+        A controller with more parameters overrides it (and ``CONFIG_KEYS``)."""
+        return cls(state_timeout=config.get('state_timeout', TIMEOUT_DEFAULTS['state_timeout']),
+                   waypoint_timeout=config.get('waypoint_timeout', TIMEOUT_DEFAULTS['waypoint_timeout']),
+                   limits=envelope_from_config(config) if limits is None else limits)
 
     def __init__(self, state_timeout=TIMEOUT_DEFAULTS['state_timeout'],
                  waypoint_timeout=TIMEOUT_DEFAULTS['waypoint_timeout'], twist_frame='child', limits=None):

@@ -33,7 +33,7 @@ import math
 import numpy as np
 
 from anafi_control.contract import (BAD_OUTPUT, LIMIT_DEFAULTS, OK, SOLVER_FAILED, TIMEOUT_DEFAULTS, Controller,
-                                    CycleOutput, hover_output)
+                                    CycleOutput, envelope_from_config, hover_output)
 from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
 from anafi_control.mpc import DRONE_POS, REF_POS, CumulativeErrorMpc, attitude_from_acceleration
 from anafi_control.pid import PidController
@@ -55,6 +55,11 @@ DEFAULTS = {
     'cum_reset_distance': 1.0,    # [m] waypoint jump that resets carried cumulative errors
 }
 DEFAULTS.update(LIMIT_DEFAULTS)   # the flight envelope (anafi_control.envelope: geofence, reach, speeds, tilt)
+
+#: the MPC's flat parameter names in mpc.yaml (v_max split per axis, as the reconfigure server has them)
+PARAM_NAMES = tuple(k for k in MPC_DEFAULTS if k != 'v_max') + ('v_max_x', 'v_max_y', 'v_max_z')
+#: MpcTracking's own parameters in mpc.yaml (keyword arguments)
+TRACKING_KEYS = ('state_timeout', 'waypoint_timeout', 'twist_in_child_frame', 'cum_reset_distance')
 
 DroneState = collections.namedtuple('DroneState', ['t', 'position', 'velocity', 'yaw'])
 DroneState.__doc__ = 'Drone state at receipt time t [s]: position [m], velocity [m/s] world ENU, heading [rad].'
@@ -89,6 +94,15 @@ class MpcTracking(Controller):
     NAME = 'mpc'
     RATE = DEFAULTS['rate']
     COUNTERS = EXTRA_COUNTERS
+    CONFIG_KEYS = PARAM_NAMES + TRACKING_KEYS + ('rate', 'yaw') + tuple(LIMIT_DEFAULTS)
+
+    @classmethod
+    def from_config(cls, config, limits=None):
+        """From mpc.yaml's keys (``PARAM_NAMES``, ``TRACKING_KEYS``, ``yaw``: the yaw loop's overrides, the
+        flight envelope; see ``contract.Controller.from_config``)."""
+        return cls(dict((k, config[k]) for k in PARAM_NAMES if k in config), config.get('yaw'),
+                   limits=envelope_from_config(config) if limits is None else limits,
+                   **dict((k, config.get(k, DEFAULTS[k])) for k in TRACKING_KEYS))
 
     def __init__(self, mpc_params=None, yaw_config=None, state_timeout=DEFAULTS['state_timeout'],
                  waypoint_timeout=DEFAULTS['waypoint_timeout'],

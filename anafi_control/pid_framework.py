@@ -60,8 +60,8 @@ import collections
 import copy
 import math
 
-from anafi_control.contract import (BAD_OUTPUT, BAD_STATE, HOVER, OK, TIMEOUT_DEFAULTS, Controller, CycleOutput,
-                                    hover_output)
+from anafi_control.contract import (BAD_OUTPUT, BAD_STATE, HOVER, LIMIT_DEFAULTS, OK, TIMEOUT_DEFAULTS, Controller,
+                                    CycleOutput, envelope_from_config, hover_output)
 from anafi_control.frames import is_finite, world_to_stability
 from anafi_control.pid import PidController
 
@@ -236,6 +236,16 @@ class PidTracking(Controller):
     NAME = 'pid'
     RATE = DEFAULTS['rate']
     COMMAND_RATE = DEFAULTS['command_rate']
+    CONFIG_KEYS = LOOP_NAMES + tuple(TIMEOUT_DEFAULTS) + tuple(LIMIT_DEFAULTS)
+
+    @classmethod
+    def from_config(cls, config, limits=None):
+        """From pid.yaml's keys: {loop: {pid param: value}} for the ``LOOP_NAMES``, the timeouts, the flight
+        envelope (see ``contract.Controller.from_config``)."""
+        loops = dict((k, v) for k, v in config.items() if k in LOOP_NAMES)
+        return cls(loops, config.get('state_timeout', DEFAULTS['state_timeout']),
+                   config.get('waypoint_timeout', DEFAULTS['waypoint_timeout']),
+                   limits=envelope_from_config(config) if limits is None else limits)
 
     def __init__(self, config=None, state_timeout=DEFAULTS['state_timeout'],
                  waypoint_timeout=DEFAULTS['waypoint_timeout'], limits=None):

@@ -57,7 +57,7 @@ import scipy.sparse as sparse
 import osqp
 
 from anafi_control.contract import (LIMIT_DEFAULTS, OK, SOLVER_FAILED, TIMEOUT_DEFAULTS, Controller, CycleOutput,
-                                    ReferenceSample, hover_output)
+                                    ReferenceSample, envelope_from_config, hover_output)
 from anafi_control.frames import (quaternion_to_euler, stability_to_world, tilt_loop_step, world_to_stability,
                                   wrap_angle)
 from anafi_control.target_estimator import DEFAULTS as ESTIMATOR_DEFAULTS, TargetEstimator
@@ -324,6 +324,15 @@ class PreviewMpc(Controller):
     RATE = DEFAULTS['rate']
     COUNTERS = EXTRA_COUNTERS
     PREVIEW = True
+    CONFIG_KEYS = tuple(DEFAULTS) + tuple(k for k in LIMIT_DEFAULTS if k not in DEFAULTS)
+
+    @classmethod
+    def from_config(cls, config, limits=None, model=None):
+        """From preview_mpc.yaml's keys (``DEFAULTS``, the flight envelope; see
+        ``contract.Controller.from_config``) and the prediction ``model`` (a ``PredictionModel``: the node's
+        ~model_file, the engine's model, with the bridge's limits)."""
+        params = dict((k, v) for k, v in config.items() if k in DEFAULTS and k not in LIMIT_DEFAULTS)
+        return cls(model, params, limits=envelope_from_config(config) if limits is None else limits)
 
     def __init__(self, model, params=None, limits=None):
         if not isinstance(model, PredictionModel):

@@ -1,7 +1,8 @@
 """The paper's experiments as data: its controllers, scenario groups and published simulation figures."""
+from anafi_control import registry
 
-CONTROLLERS = ('mpc', 'pid')                  # the paper's two: every batch runs them
-BEYOND = ('preview_mpc',)                     # beyond the paper: a column where the batch has it
+CONTROLLERS = registry.batch_names('paper')   # the paper's two (mpc, pid): every batch runs them
+BEYOND = registry.batch_names('beyond')       # beyond the paper: a column where the batch has it
 KNOWN_CONTROLLERS = CONTROLLERS + BEYOND
 STATIC = ('static_wp0', 'static_wp1')
 STRAIGHT_SPEEDS = (1, 2, 3, 4, 5)

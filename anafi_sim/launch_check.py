@@ -19,6 +19,7 @@ import math
 import os
 import re
 
+from anafi_control import registry
 from anafi_sim.numeric import parse_integer, parse_number, range_problem
 from anafi_sim.run_files import FIGURE_FORMATS
 from anafi_sim.untrusted import LOG_CHARS, clip
@@ -338,7 +339,9 @@ def layout(value):
 
 
 def controller(value):
-    return None if value in ('mpc', 'pid', 'preview_mpc') else 'must be mpc, pid or preview_mpc'
+    """experiment.launch's controller:=, one of anafi_control.registry's (``experiment_names``)."""
+    known = registry.experiment_names()
+    return None if value in known else 'must be %s or %s' % (', '.join(known[:-1]), known[-1])
 
 
 def plot_format(value):

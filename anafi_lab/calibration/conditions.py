@@ -30,6 +30,7 @@ from scipy.signal import savgol_filter
 
 from anafi_control.mpc import CumulativeErrorMpc, attitude_from_acceleration
 from anafi_control.pid_framework import PidFramework
+from anafi_lab.paper import CONTROLLERS
 from anafi_sim.sim.bridge import PilotingMapping
 
 GRAVITY = 9.81
@@ -47,7 +48,7 @@ CommandTrace.__doc__ = 'Recomputed attitude setpoints: t [s, log time], roll, pi
 def controller_of(log):
     """'pid' or 'mpc' from the log's name (``..._pid`` / ``..._mpc``); ValueError otherwise."""
     name = log.name
-    for controller in ('pid', 'mpc'):
+    for controller in CONTROLLERS:
         if name.endswith('_' + controller):
             return controller
     raise ValueError('%s: the log name does not say the controller (..._pid or ..._mpc)' % name)

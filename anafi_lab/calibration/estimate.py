@@ -14,6 +14,7 @@ from scipy.signal import lfilter
 
 from anafi_lab.calibration.logs import is_clean, log_rate
 from anafi_lab.calibration.responses import ESTIMATE_STEP, SIM_STEP, first_order_response, fit_first_order_delay
+from anafi_lab.paper import CONTROLLERS
 from anafi_sim.mission.reference_log import (INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES, detect_garbage,
                                              initial_velocity_error, velocity_error)
 
@@ -583,7 +584,7 @@ def fit_yaw_bias(logs, estimate):
     per_file = collections.OrderedDict((name, value) for name, value in estimate.yaw_bias.items())
     values = list(per_file.values())
     by_controller = collections.OrderedDict()
-    for controller in ('mpc', 'pid'):
+    for controller in CONTROLLERS:
         own = [v for name, v in per_file.items() if name.endswith('_' + controller)]
         if own:
             by_controller[controller] = float(np.median(own))

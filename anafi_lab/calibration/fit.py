@@ -39,7 +39,7 @@ from anafi_lab.calibration.estimate import (estimate_series, fit_estimate, fit_p
                                             fit_velocity_error, fit_yaw_bias, replay_estimates)
 from anafi_lab.calibration.logs import is_clean
 from anafi_lab.calibration.responses import ESTIMATE_STEP, fit_first_order_delay
-from anafi_lab.paper import PAPER_TABLE3
+from anafi_lab.paper import CONTROLLERS, PAPER_TABLE3
 from anafi_sim.mission.reference_log import detect_garbage, tracking_error
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, EFFECTS_OFF
 
@@ -226,7 +226,7 @@ def table3(logs):
     """Recompute the paper's Table 3 from the x_straight_<speed>_<controller> logs; list of ``Table3Row``."""
     by_name = dict((log.name, log) for log in logs)
     rows = []
-    for controller in ('mpc', 'pid'):
+    for controller in CONTROLLERS:
         for k, paper in enumerate(PAPER_TABLE3[controller]):
             name = 'x_straight_%d_%s' % (k + 1, controller)
             log = by_name.get(name)

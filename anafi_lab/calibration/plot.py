@@ -15,6 +15,7 @@ from anafi_lab.calibration.estimate import estimate_model_response, replay_estim
 from anafi_lab.calibration.fit import table3
 from anafi_lab.calibration.logs import is_clean, measured_yaw_rate
 from anafi_lab.calibration.responses import first_order_response
+from anafi_lab.paper import CONTROLLERS
 
 REPLAY_LOG = 'static_waypoint_yaw_0_pid'
 STEADY_LOG = 'x_straight_5_mpc'
@@ -189,7 +190,7 @@ def _effect_panels(axes, cal, by_name):
 
 def _table3_panel(ax, rows):
     """Bars: the paper's Table 3 next to the values recomputed from the logs (horizontal where z is garbage)."""
-    for k, controller in enumerate(('mpc', 'pid')):
+    for k, controller in enumerate(CONTROLLERS):
         sel = [r for r in rows if r.controller == controller]
         xs = np.array([r.speed for r in sel], dtype=float)
         ax.bar(xs - 0.2 + 0.4 * k - 0.09, [r.paper for r in sel], width=0.18, color='C%d' % (k * 2),

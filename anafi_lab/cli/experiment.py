@@ -42,7 +42,8 @@ import yaml
 from anafi_sim import paths, run_files
 from anafi_sim.run_files import FIGURE_DPI, FIGURE_FORMATS
 from anafi_lab.reports import paper_tables as report
-from anafi_lab.engine.engine import CONTROLLERS, make_schedule, wind_settings
+from anafi_control import registry
+from anafi_lab.engine.engine import make_schedule, wind_settings
 from anafi_lab.engine.runs import SYNC_SCHEDULE, batch, make_task, result_line, run_task, task_name
 from anafi_lab.engine.sweep import GROUPS, load_spec, run_sweep, unflatten
 from anafi_sim.mission.trajectory import list_scenarios
@@ -50,7 +51,7 @@ from anafi_sim.sim.conditions_profile import conditions_label, load_conditions
 
 
 #: the batch's controllers by engine (the ROS batch runs the paper's two); README's run counts come from these
-BATCH_CONTROLLERS = {'inprocess': 'mpc,pid,preview_mpc', 'ros': 'mpc,pid'}
+BATCH_CONTROLLERS = {'inprocess': ','.join(report.KNOWN_CONTROLLERS), 'ros': ','.join(report.CONTROLLERS)}
 
 
 def _key_values(items, what):
@@ -111,7 +112,7 @@ def cmd_run(args):
     load_conditions(args.conditions)
     name = task_name(task)
     if args.engine == 'ros':
-        if args.controller not in ('mpc', 'pid') or wind or params or schedule or args.seed is not None \
+        if args.controller not in report.CONTROLLERS or wind or params or schedule or args.seed is not None \
                 or args.state_source != 'estimate' or args.name or args.conditions:
             raise ValueError('--engine ros runs experiment.launch as it is: controller mpc or pid, the seed and wind '
                              'of sim.yaml, no --param / --schedule / --state-source / --name / --conditions '
@@ -220,7 +221,7 @@ def parser():
 
     run = sub.add_parser('run', help='one experiment')
     run.add_argument('--controller', default='mpc',
-                     help='%s, or package.module:Class (a contract.Controller)' % ', '.join(CONTROLLERS))
+                     help='%s, or package.module:Class (a contract.Controller)' % ', '.join(registry.names()))
     run.add_argument('--scenario', required=True, help='a scenario name (anafi_sim/config/scenarios) or a YAML path')
     run.add_argument('--seed', type=int, default=None, help='wind-gust seed (default: sim.yaml, 0)')
     run.add_argument('--wind', default=None, help='constant wind X,Y[,Z] [m/s], world ENU')

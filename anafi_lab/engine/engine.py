@@ -86,13 +86,13 @@ import math
 import os
 import time
 
-from anafi_control.contract import Controller, InputGate
-from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
-from anafi_control.mpc_tracking import DEFAULTS as MPC_TRACKING_DEFAULTS, MpcTracking
+from anafi_control import registry
+from anafi_control.contract import NODE_KEYS, Controller, InputGate
+from anafi_control.mpc_tracking import DEFAULTS as MPC_TRACKING_DEFAULTS, PARAM_NAMES as MPC_PARAM_NAMES, \
+    TRACKING_KEYS as MPC_TRACKING_KEYS, MpcTracking
 from anafi_control.pid import PidController
-from anafi_control.pid_framework import DEFAULTS as PID_DEFAULTS, LOOP_NAMES, PidTracking, make_config, \
-    relative_state
-from anafi_control.preview_mpc import DEFAULTS as PREVIEW_DEFAULTS, PredictionModel, PreviewMpc
+from anafi_control.pid_framework import LOOP_NAMES, make_config, relative_state
+from anafi_control.preview_mpc import DEFAULTS as PREVIEW_DEFAULTS, PredictionModel
 from anafi_control.pid_wiring import COMMAND_LOOPS, CommandAssembler, input_topics, loop_inputs, loop_topics
 from anafi_sim import names, paths, run_files
 from anafi_sim.mission.evaluation import LiveEvaluator
@@ -130,11 +130,6 @@ WALL_KEYS = ('monitor_period', 'message_latency', 'clock_latency', 'mpc_latency'
              'pid_coalesce', 'pid_latency')
 _RATE_KEYS = ('physics_rate', 'telemetry_rate', 'truth_rate', 'estimate_rate', 'generator_rate',
               'relative_state_rate', 'pid_command_rate')
-
-#: controllers by name: 'mpc' (MpcTracking), 'pid' (the distributed PID graph, as pid.launch mode distributed),
-#: 'pid_single' (PidTracking in one node, pid.launch mode single), 'preview_mpc' (PreviewMpc with
-#: preview_mpc.yaml, the calibrated model and the bridge limits of the run); or 'package.module:Class'
-CONTROLLERS = ('mpc', 'pid', 'pid_single', 'preview_mpc')
 
 #: wind keys (``Engine(wind={...})``) -> simulator settings (anafi_sim/config/sim.yaml)
 WIND_KEYS = collections.OrderedDict([('x', 'wind_x'), ('y', 'wind_y'), ('z', 'wind_z'),
@@ -229,20 +224,26 @@ def waypoint_limits(config):
     return {'limits': Envelope(**dict((k, config.get(k, v)) for k, v in LIMIT_DEFAULTS.items()))}
 
 
+def controller_config(name, overrides=None):
+    """The parameters of the registered controller ``name`` as its launch file loads them (its YAML under
+    anafi_sim/config/, anafi_control.registry) with ``overrides`` on top; keys neither its core reads
+    (``CONFIG_KEYS``) nor the node's wiring (contract.NODE_KEYS) raise ValueError."""
+    entry = registry.get(name)
+    path = paths.config_path(entry.config)
+    config = _file_once(path, run_files.read_yaml, path, {})
+    config.update(dict(overrides or {}))
+    unknown = sorted(k for k in config if k not in entry.core_class().CONFIG_KEYS and k not in NODE_KEYS)
+    if unknown:
+        raise ValueError('unknown %s parameter(s) %s' % (name, ', '.join(unknown)))
+    return config
+
+
 def mpc_config(overrides=None):
     """The MPC node's parameters as mpc.launch loads them (anafi_sim/config/mpc.yaml) with ``overrides``:
     (flat MPC params, yaw config or None, tracking kwargs, rate [Hz])."""
-    path = paths.config_path('mpc.yaml')
-    config = _file_once(path, run_files.read_yaml, path, {})
-    config.update(dict(overrides or {}))
-    names = tuple(k for k in MPC_DEFAULTS if k != 'v_max') + ('v_max_x', 'v_max_y', 'v_max_z')
-    tracking = ('state_timeout', 'waypoint_timeout', 'twist_in_child_frame', 'cum_reset_distance')
-    node_only = ('rate', 'state_topic', 'waypoint_topic', 'command_topic', 'frame_id', 'yaw') + tuple(LIMIT_DEFAULTS)
-    unknown = sorted(k for k in config if k not in names + tracking + node_only)
-    if unknown:
-        raise ValueError('unknown MPC parameter(s) %s' % ', '.join(unknown))
-    params = dict((k, config[k]) for k in names if k in config)
-    kwargs = dict((k, config.get(k, MPC_TRACKING_DEFAULTS[k])) for k in tracking)
+    config = controller_config('mpc', overrides)
+    params = dict((k, config[k]) for k in MPC_PARAM_NAMES if k in config)
+    kwargs = dict((k, config.get(k, MPC_TRACKING_DEFAULTS[k])) for k in MPC_TRACKING_KEYS)
     kwargs.update(waypoint_limits(config))
     return params, config.get('yaw'), kwargs, float(config.get('rate', MPC_TRACKING_DEFAULTS['rate']))
 
@@ -270,43 +271,58 @@ def pid_config(overrides=None):
 def preview_config(overrides=None):
     """The preview MPC's parameters as experiment.launch loads them (anafi_sim/config/preview_mpc.yaml) with
     ``overrides``: (params for anafi_control.preview_mpc.PreviewMpc, limits kwargs)."""
-    path = paths.config_path('preview_mpc.yaml')
-    config = _file_once(path, run_files.read_yaml, path, {})
-    config.update(dict(overrides or {}))
-    node_only = ('state_topic', 'waypoint_topic', 'command_topic', 'frame_id', 'reference_topic')
+    config = controller_config('preview_mpc', overrides)
     params = dict((k, v) for k, v in config.items() if k in PREVIEW_DEFAULTS and k not in LIMIT_DEFAULTS)
-    unknown = sorted(k for k in config if k not in PREVIEW_DEFAULTS and k not in node_only)
-    if unknown:
-        raise ValueError('unknown preview_mpc parameter(s) %s' % ', '.join(unknown))
     return params, waypoint_limits(config)
 
 
-def preview_factory(params, model_params, mapping):
-    """A no-argument callable building the PreviewMpc with preview_mpc.yaml (+ ``params``), the prediction model
-    of ``model_params`` (anafi_model.yaml dict) and the bridge limits ``mapping`` (PilotingMapping kwargs)."""
-    config, limits = preview_config(params)
+# engine adapters by kind (a registry entry's ``engine``): (entry, overrides, model_params, mapping) -> a
+# no-argument callable building the core with its ``from_config`` over its YAML (the node's reader too)
+def _contract_factory(entry, params, model_params, mapping):
+    """Any controller of the contract: its YAML + ``params``."""
+    config, cls = controller_config(entry.name, params), entry.core_class()
+    return lambda: cls.from_config(config)
+
+
+def _pid_factory(entry, params, model_params, mapping):
+    """The PID framework in one node: pid.yaml + ``params`` merged per loop (``pid_config``)."""
+    loops, limits = pid_config(params)
+    cls = entry.core_class()
+    return lambda: cls.from_config(loops, **limits)
+
+
+def _preview_factory(entry, params, model_params, mapping):
+    """The preview MPC: its YAML + ``params``, the prediction model of ``model_params`` (anafi_model.yaml
+    dict) and the bridge limits ``mapping`` (PilotingMapping kwargs)."""
+    config, cls = controller_config(entry.name, params), entry.core_class()
     model = PredictionModel.from_params(model_params, mapping['max_tilt_deg'], mapping['max_vertical_speed'],
                                         mapping['max_yaw_rate_deg'])
-    return lambda: PreviewMpc(model, config, **limits)
+    return lambda: cls.from_config(config, model=model)
 
 
-def controller_factory(kind, params=None):
-    """A no-argument callable building the contract.Controller ``kind`` ('mpc', 'pid_single' or
-    'package.module:Class', built with ``params`` as keyword arguments) with its node's parameters."""
+#: engine adapters by kind (``pid_graph``: the distributed PID graph, wired by the Engine itself)
+ENGINE_ADAPTERS = {registry.GENERIC: _contract_factory, 'pid_loops': _pid_factory, 'preview_model': _preview_factory,
+                   'pid_graph': None}
+
+
+def controller_factory(kind, params=None, model_params=None, mapping=None):
+    """A no-argument callable building the contract.Controller ``kind`` (a name of anafi_control.registry run
+    by one node, with its YAML and ``params``; or 'package.module:Class', built with ``params`` as keyword
+    arguments). ``model_params`` / ``mapping``: the model and bridge limits of a controller that predicts
+    with them (default anafi_model.yaml and sim.yaml's)."""
     params = dict(params or {})
-    if kind == 'mpc':
-        mpc_params, yaw, kwargs, _ = mpc_config(params)
-        return lambda: MpcTracking(mpc_params, yaw, **kwargs)
-    if kind == 'pid_single':
-        config, limits = pid_config(params)
-        return lambda: PidTracking(config, PID_DEFAULTS['state_timeout'], PID_DEFAULTS['waypoint_timeout'], **limits)
     if isinstance(kind, str) and ':' in kind:
         module, _, name = kind.partition(':')
         cls = getattr(importlib.import_module(module), name)
         if not (isinstance(cls, type) and issubclass(cls, Controller)):
             raise ValueError('%s is not an anafi_control.contract.Controller subclass' % kind)
         return lambda: cls(**params)
-    raise ValueError('unknown controller %r (known: %s, or package.module:Class)' % (kind, ', '.join(CONTROLLERS)))
+    entry = registry.get(kind)
+    adapter = ENGINE_ADAPTERS[entry.engine]
+    if adapter is None:
+        raise ValueError('controller %r is not one node (the engine wires it itself)' % kind)
+    return adapter(entry, params, load_model_params() if model_params is None else model_params,
+                   simulator_config()[0] if mapping is None else mapping)
 
 
 class _Timing(object):
@@ -515,10 +531,11 @@ class PidCommandNode(object):
 class Engine(object):
     """One experiment (see the module doc).
 
-    scenario: a ``Scenario``, a scenario name or a YAML path; controller: 'mpc', 'pid' (distributed graph),
-    'pid_single', 'preview_mpc', 'package.module:Class' (a contract.Controller built with ``controller_params``
-    as keyword arguments) or a no-argument callable returning a Controller; controller_params: mpc -> mpc.yaml
-    keys, preview_mpc -> preview_mpc.yaml keys,
+    scenario: a ``Scenario``, a scenario name or a YAML path; controller: a name of anafi_control.registry
+    ('mpc', 'pid' (distributed graph), 'pid_single', 'preview_mpc', ...: its YAML), 'package.module:Class'
+    (a contract.Controller built with ``controller_params``
+    as keyword arguments) or a no-argument callable returning a Controller; controller_params: its YAML's keys
+    (mpc -> mpc.yaml keys, preview_mpc -> preview_mpc.yaml keys),
     pid / pid_single -> {loop: {pid param: value}}; seed: wind-gust seed (sim.yaml ``seed``: 0); wind: see
     ``wind_settings``; settings: more simulator settings (sim.yaml keys of the model); schedule: overrides of
     DEFAULT_SCHEDULE; model_params: the model dict (default anafi_model.yaml); state_source: 'estimate'
@@ -555,13 +572,11 @@ class Engine(object):
         self.controller_params = controller_params
         if callable(controller) and not isinstance(controller, str):
             self._factory = controller
-        elif controller == 'pid':
+        elif isinstance(controller, str) and ':' not in controller and registry.get(controller).engine == 'pid_graph':
             self._factory = None
             self.pid_loops, self.pid_limits = pid_config(controller_params)
-        elif controller == 'preview_mpc':
-            self._factory = preview_factory(controller_params, self.model_params, self.mapping)
         else:
-            self._factory = controller_factory(controller, controller_params)
+            self._factory = controller_factory(controller, controller_params, self.model_params, self.mapping)
         self.max_sim_time = float(max_sim_time) if max_sim_time is not None else self.scenario.duration + 120.0
         self.actions = []
         for offset, action in actions or ():

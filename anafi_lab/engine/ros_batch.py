@@ -134,7 +134,8 @@ class Run(object):
 
 def parse_args(argv):
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    ap.add_argument('--controllers', default='mpc,pid', help='comma list of mpc, pid (default both)')
+    ap.add_argument('--controllers', default=','.join(report.CONTROLLERS),
+                    help='comma list of %s (default all)' % ', '.join(report.CONTROLLERS))
     ap.add_argument('--scenarios', default='all',
                     help='all (Tables 3-5 + WP0/WP1), a group (static, straight, circle, vertical) or names')
     ap.add_argument('--rtf', type=float, default=2.0,

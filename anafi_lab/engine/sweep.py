@@ -45,7 +45,8 @@ import yaml
 
 from anafi_sim import paths, processes
 from anafi_lab.reports import paper_tables as report
-from anafi_lab.engine.engine import CONTROLLERS, WIND_KEYS, make_schedule, simulator_config, wind_settings
+from anafi_control import registry
+from anafi_lab.engine.engine import WIND_KEYS, make_schedule, simulator_config, wind_settings
 from anafi_lab.engine.runs import execute, make_task, run_task
 from anafi_sim.mission.trajectory import list_scenarios
 from anafi_sim.numeric import fmt, median, summary_stats
@@ -200,9 +201,9 @@ def _controllers(value):
         cfg = cfg or {}
         if not isinstance(cfg, dict) or set(cfg) - {'params', 'schedule'}:
             raise ValueError('controller %s: expected {params: GRID, schedule: GRID}, got %r' % (name, cfg))
-        if name not in CONTROLLERS and ':' not in str(name):
+        if name not in registry.names() and ':' not in str(name):
             raise ValueError('unknown controller %r (known: %s, or package.module:Class)'
-                             % (name, ', '.join(CONTROLLERS)))
+                             % (name, ', '.join(registry.names())))
         out.append((str(name), grid(cfg.get('params')), grid(cfg.get('schedule'))))
     return out
 

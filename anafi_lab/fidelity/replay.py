@@ -60,6 +60,7 @@ import re
 import numpy as np
 
 from anafi_lab.engine.engine import Engine
+from anafi_lab.paper import CONTROLLERS
 from anafi_sim.mission.evaluation import interpolate
 from anafi_sim.mission.reference_log import (COLUMNS, INITIAL_WINDOW, STATE_NAMES, VELOCITY_ERROR_AXES,
                                                  WAYPOINT_COLUMNS, ReferenceLog, as_logged, detect_garbage,
@@ -69,8 +70,7 @@ from anafi_sim.mission.trajectory import Phase, Scenario
 from anafi_sim.mission.waypoint import WaypointSample
 from anafi_sim.sim.drone_model import load_model_params
 
-CONTROLLERS = ('pid', 'mpc')
-LOG_NAME = re.compile(r'^(?P<scenario>.+)_(?P<controller>pid|mpc)$')
+LOG_NAME = re.compile(r'^(?P<scenario>.+)_(?P<controller>%s)$' % '|'.join(CONTROLLERS))   # the paper's logs
 SOURCES = ('estimate', 'truth')
 STATS = ('e_mu', 'e_max')
 CELLS = tuple((s, k) for s in SOURCES for k in STATS)      # (source, stat), the order of every table

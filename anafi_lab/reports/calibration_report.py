@@ -18,6 +18,7 @@ import yaml
 
 from anafi_lab.calibration import commands, estimate
 from anafi_lab.calibration.drag import steady_state_pitch
+from anafi_lab.paper import CONTROLLERS
 from anafi_lab.calibration.effects import fit_descent
 from anafi_lab.calibration.fit import MODEL_KEYS, table3
 from anafi_lab.calibration.plot import REPLAY_LOG
@@ -97,7 +98,7 @@ def _effect_figures(cal, fitted):
         'vertical': {'time_constant': f.vertical.time_constant, 'first_order_rms': f.vertical.first_order[1],
                      'rms': f.vertical.rms},
         'velocity_error': {'rms_zero': f.velocity_error.rms_zero, 'rms': f.velocity_error.rms},
-        'yaw': {'spread': f.yaw.spread, 'mpc': f.yaw.by_controller.get('mpc'), 'pid': f.yaw.by_controller.get('pid')},
+        'yaw': dict([('spread', f.yaw.spread)] + [(c, f.yaw.by_controller.get(c)) for c in CONTROLLERS]),
         'quanta': dict(('estimate_quantum_' + key, _quantum_figures(qu, columns, unit)) for key, columns, unit in
                        (('x', ('x',), 'm'), ('y', ('y',), 'm'), ('z', ('z',), 'm'),
                         ('velocity', ('vx', 'vy', 'vz'), 'm/s'))),

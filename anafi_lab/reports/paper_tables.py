@@ -22,6 +22,7 @@ import os
 
 import yaml
 
+from anafi_control import registry
 from anafi_lab.paper import (ALL_SCENARIOS, BEYOND, CIRCLE_SCENARIOS, CIRCLES, CONTROLLERS, KNOWN_CONTROLLERS,  # noqa: F401
                               PAPER_TABLE3, STATIC, STRAIGHT, STRAIGHT_SPEEDS, VERTICAL, VERTICAL_SCENARIOS)
 from anafi_lab.reports.batch_facts import batch_facts
@@ -30,7 +31,7 @@ from anafi_sim.mission import step_response
 from anafi_sim.numeric import fmt  # noqa: F401  (the tables' number format; callers use report.fmt)
 
 SOURCES = (('estimate', 'vs the drone\'s estimate (the paper\'s metric)'), ('truth', 'vs ground truth'))
-LABELS = {'mpc': 'MPC', 'pid': 'PID', 'preview_mpc': 'preview MPC'}
+LABELS = registry.labels()
 
 
 def present(records):

@@ -45,6 +45,7 @@ from xml.sax.saxutils import quoteattr
 
 import yaml
 
+from anafi_control import registry
 from anafi_sim import paths
 from anafi_sim.safe_yaml import load_yaml
 from anafi_sim.mission.model_following import OFFSET_FRAMES, YAW_MODES
@@ -57,7 +58,8 @@ FLEET_DIR = paths.config_path('fleets')
 """Directory of the shipped fleet files (anafi_sim/config/fleets)."""
 
 SOURCES = ('sim', 'sphinx')
-CONTROLLERS = ('mpc', 'pid', 'pid_single', 'preview_mpc', 'none')
+NO_CONTROLLER = 'none'
+"""A drone's ``controller:`` without a controller; the others: the names of anafi_control.registry."""
 DRONE_KEYS = ('name', 'source', 'start', 'controller', 'scenario', 'waypoint', 'target', 'offset',
               'telemetry_port', 'telemetry_command')
 DEFAULT_KEYS = tuple(k for k in DRONE_KEYS if k not in ('name', 'start', 'telemetry_port'))
@@ -132,8 +134,9 @@ def drone_from_dict(d, what='drone'):
     if source not in SOURCES:
         raise ValueError('%s: source must be one of %s, got %r' % (what, ', '.join(SOURCES), source))
     controller = d.get('controller', 'mpc')
-    if controller not in CONTROLLERS:
-        raise ValueError('%s: controller must be one of %s, got %r' % (what, ', '.join(CONTROLLERS), controller))
+    known = registry.names() + (NO_CONTROLLER,)
+    if controller not in known:
+        raise ValueError('%s: controller must be one of %s, got %r' % (what, ', '.join(known), controller))
     offset = _vector(d.get('offset', [0.0, 0.0, 0.0]), 3, what + ': offset')
     kinds = [k for k in ('scenario', 'waypoint', 'target') if d.get(k) is not None]
     if len(kinds) != 1:
@@ -445,13 +448,9 @@ def drone_launch_lines(drone, port, scenario_file, options):
         if drone.telemetry_command:
             args.append(('telemetry_command', drone.telemetry_command))
         out += _include('sphinx_gazebo.launch', args, 'the real Sphinx drone: its telemetry + mirror (no world)')
-    if drone.controller == 'mpc':
-        out += _include('mpc.launch', [('drone_name', n), ('output', options['output'])])
-    elif drone.controller == 'preview_mpc':     # the generator's preview, or the target estimator on a target
-        out += _include('preview_mpc.launch', [('drone_name', n), ('output', options['output'])])
-    elif drone.controller in ('pid', 'pid_single'):
-        out += _include('pid.launch', [('drone_name', n), ('output', options['output']),
-                                       ('mode', 'single' if drone.controller == 'pid_single' else 'distributed')])
+    if drone.controller != NO_CONTROLLER:    # its launch file (anafi_control.registry)
+        entry = registry.get(drone.controller)
+        out += _include(entry.launch, [('drone_name', n), ('output', options['output'])] + list(entry.launch_args))
     out.append('  <group ns=%s>' % quoteattr(n))
     if drone.target is None:
         out.append('    <node pkg="anafi_sim" type="trajectory_generator.py" name="trajectory_generator" '

@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """One tracking-controller node for every implementation of the controller contract (thin node).
 
-Stage: controllers -> piloting command. ``~controller`` picks the implementation (``anafi_control.contract``):
-``mpc`` = the paper's MPC (``anafi_control.mpc_tracking.MpcTracking``, run as node ``mpc_controller`` by
-mpc.launch), ``pid`` = the paper's PID framework in one process (``anafi_control.pid_framework.PidTracking``,
-node ``pid_framework``, pid.launch mode single), ``preview_mpc`` = the preview MPC beyond the paper
+Stage: controllers -> piloting command. ``~controller`` picks the implementation (``anafi_control.contract``)
+by its name in ``anafi_control.registry`` (any entry with a node adapter): ``mpc`` = the paper's MPC
+(``anafi_control.mpc_tracking.MpcTracking``, run as node ``mpc_controller`` by mpc.launch), ``pid`` = the
+paper's PID framework in one process (``anafi_control.pid_framework.PidTracking``, node ``pid_framework``,
+pid.launch mode single; ``pid_single`` is the same), ``preview_mpc`` = the preview MPC beyond the paper
 (``anafi_control.preview_mpc.PreviewMpc``, node ``preview_mpc_controller``, preview_mpc.launch; it also takes
 the trajectory generator's preview, ~reference_topic command/trajectory, trajectory_msgs/
 MultiDOFJointTrajectory, and publishes preview_mpc/{predicted,reference}_path and preview_mpc/stats; its
@@ -33,17 +34,19 @@ Namespace /<drone> (default /anafi). Topics, relative to the namespace:
       and waypoint positions z_k over the horizon; built only while someone subscribes), mpc/stats
       (anafi_sim/MpcStats), dynamic_reconfigure (cfg/Mpc.cfg: weights, limits, horizon,
       carry_cumulative_errors, applied live).
-Parameters: ~controller (mpc | pid), ~rate [Hz] (default the controller's RATE), ~command_rate [Hz] (pid),
-~state_timeout, ~waypoint_timeout [s], the flight envelope (anafi_control.envelope: ~geofence_radius,
+Parameters: ~controller (a registered name, default mpc), ~rate [Hz] (default the controller's RATE),
+~command_rate [Hz] (pid), ~state_timeout, ~waypoint_timeout [s], the flight envelope
+(anafi_control.envelope: ~geofence_radius,
 ~min_altitude, ~max_altitude, ~max_waypoint_jump [m], ~max_reference_speed, ~max_reference_vertical_speed [m/s],
 ~max_reference_acceleration [m/s^2], ~max_command_tilt_deg [deg]), ~stall_timeout [s of wall time without a
 cycle -> WARN 'stalled'], ~state_topic, ~waypoint_topic, ~waypoint_type, ~command_topic; mpc: the keys of
 anafi_sim/config/mpc.yaml; pid: ~<loop>/<pid param> of anafi_sim/config/pid.yaml. Bad parameters:
 logfatal, then the node stays up in ERROR (not respawned: docs/nodes.md).
 
-A new controller: a ``contract.Controller`` subclass and one line in ``ADAPTERS`` with an ``Adapter`` subclass
-naming it (``controller_class``); override ``build`` for more parameters and ``setup``/``after_cycle`` for
-extra topics (e.g. a preview MPC: ``class PreviewAdapter(MpcAdapter): controller_class = PreviewMpc``).
+A new controller: its ``contract.Controller`` subclass, its YAML and one entry in ``anafi_control.registry``
+(docs/architecture.md, "Adding a controller"); the generic ``Adapter`` runs it (its ``from_config`` reads the
+~params). Extra topics need an ``Adapter`` subclass in ``ADAPTERS`` (``setup``/``after_cycle``, e.g. the
+preview MPC's ``PreviewAdapter``) named by the entry's ``node``.
 
 Hosting (``anafi_sim.ros.context``): ``ControllerNode(controller, ctx)`` runs the instance ``ctx`` names (e.g.
 NodeContext('/anafi1/mpc_controller', bus) in a host process): its ~params, topics, dynamic_reconfigure
@@ -60,14 +63,14 @@ from nav_msgs.msg import Path
 
 import anafi_sim  # noqa: F401 (before anafi_control: checks it is the control library, README)
 from anafi_control.commanders import DOWN, LISTEN, RESUMED
-from anafi_control.contract import LEVEL_ERROR, LIMIT_DEFAULTS, OK, STALL_TIMEOUT, TIMEOUT_DEFAULTS, WAITING, health, \
+from anafi_control.contract import LEVEL_ERROR, OK, STALL_TIMEOUT, Controller, TIMEOUT_DEFAULTS, WAITING, health, \
     stalled
-from anafi_control.mpc import DEFAULT_PARAMS as MPC_DEFAULTS
-from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, RECONFIGURABLE, MpcTracking,
+from anafi_control import registry
+from anafi_control.mpc_tracking import (DEFAULTS as MPC_TRACKING_DEFAULTS, PARAM_NAMES, RECONFIGURABLE,
                                         predicted_positions, reference_positions)
-from anafi_control.pid_framework import DEFAULTS as PID_DEFAULTS, LOOP_NAMES, PidTracking
+from anafi_control.pid_framework import DEFAULTS as PID_DEFAULTS, LOOP_NAMES
 from anafi_control.preview_mpc import DEFAULTS as PREVIEW_DEFAULTS, RECONFIGURABLE as PREVIEW_RECONFIGURABLE, \
-    PredictionModel, PreviewMpc
+    PredictionModel
 from anafi_control.contract import ReferenceSample
 from anafi_control.frames import yaw_from_quaternion
 from anafi_sim.cfg import MpcConfig
@@ -95,22 +98,30 @@ def _mapping_param(ctx, name):
 
 
 class Adapter(object):
-    """What the node does for one kind of controller: ``build`` it from the ~params, and, optionally, extra
-    publishers (``setup``), per-cycle output (``cycle_info`` under the node's lock, ``after_cycle``) and
-    diagnostic values. The default builds ``controller_class`` with ~state_timeout and ~waypoint_timeout."""
-    label = 'controller'      # diagnostics name prefix and log prefix
-    controller_class = None   # the contract.Controller subclass
+    """What the node does for one kind of controller (the registry entry's ``node``: ``contract`` = this
+    generic one, enough for any controller of the contract): ``build`` it from the ~params, and, optionally,
+    extra publishers (``setup``), per-cycle output (``cycle_info`` under the node's lock, ``after_cycle``) and
+    diagnostic values. The default builds the entry's core with its ``from_config`` (the reader of its YAML
+    the engine uses too) over the ~params of its ``CONFIG_KEYS``, ~state_timeout and ~waypoint_timeout
+    checked here."""
+    label = None              # diagnostics name prefix and log prefix (None: the registry name)
+    controller_class = Controller   # the contract.Controller subclass (an instance's: its entry's core)
 
-    def __init__(self, node):
+    def __init__(self, node, entry):
         self.node = node
+        self.entry = entry
+        self.controller_class = entry.core_class()   # the contract.Controller subclass
+        self.label = self.label or entry.name
 
     def build(self, p):
         """The contract.Controller, from the node's ParamReader ``p`` (and the context's get_param for
         mappings)."""
-        return self.controller_class(state_timeout=p.positive('state_timeout', TIMEOUT_DEFAULTS['state_timeout']),
-                                     waypoint_timeout=p.number('waypoint_timeout', TIMEOUT_DEFAULTS['waypoint_timeout'],
-                                                               minimum=0.0),
-                                     limits=waypoint_limits(p))
+        ctx = self.node.ctx
+        config = dict((k, ctx.get_param(k)) for k in self.controller_class.CONFIG_KEYS if ctx.has_param(k))
+        config.update(state_timeout=p.positive('state_timeout', TIMEOUT_DEFAULTS['state_timeout']),
+                      waypoint_timeout=p.number('waypoint_timeout', TIMEOUT_DEFAULTS['waypoint_timeout'],
+                                                minimum=0.0))
+        return self.controller_class.from_config(config, limits=waypoint_limits(p))
 
     def setup(self):
         """Extra publishers, servers (the core exists, subscribers are not yet connected)."""
@@ -129,26 +140,22 @@ class Adapter(object):
 class MpcAdapter(Adapter):
     """The paper's MPC: mpc.yaml parameters, dynamic_reconfigure, mpc/stats and the predicted/reference paths."""
     label = 'mpc_controller'
-    controller_class = MpcTracking
     #: the parameters dynamic_reconfigure sets (cfg/Mpc.cfg)
     reconfigurable = RECONFIGURABLE
-    #: flat MPC parameter names read from ~params (v_max split per axis, as the reconfigure server has them)
-    PARAM_NAMES = tuple(k for k in MPC_DEFAULTS if k != 'v_max') + ('v_max_x', 'v_max_y', 'v_max_z')
 
     def build(self, p):
         ctx = self.node.ctx
-        mpc_params = dict((k, ctx.get_param(k)) for k in self.PARAM_NAMES if ctx.has_param(k))
+        config = dict((k, ctx.get_param(k)) for k in PARAM_NAMES if ctx.has_param(k))
         yaw_config = ctx.get_param('yaw', None)
         if yaw_config is not None and not isinstance(yaw_config, dict):
             raise ValueError('~yaw must be a mapping of pid parameters, got %r' % (yaw_config,))
         d = MPC_TRACKING_DEFAULTS
         self.frame_id = p.ros_name('frame_id', 'world')
-        return self.controller_class(mpc_params, yaw_config,
-                                     state_timeout=p.positive('state_timeout', d['state_timeout']),
-                                     waypoint_timeout=p.number('waypoint_timeout', d['waypoint_timeout'], minimum=0.0),
-                                     twist_in_child_frame=p.flag('twist_in_child_frame', d['twist_in_child_frame']),
-                                     cum_reset_distance=p.positive('cum_reset_distance', d['cum_reset_distance']),
-                                     limits=waypoint_limits(p))
+        config.update(yaw=yaw_config, state_timeout=p.positive('state_timeout', d['state_timeout']),
+                      waypoint_timeout=p.number('waypoint_timeout', d['waypoint_timeout'], minimum=0.0),
+                      twist_in_child_frame=p.flag('twist_in_child_frame', d['twist_in_child_frame']),
+                      cum_reset_distance=p.positive('cum_reset_distance', d['cum_reset_distance']))
+        return self.controller_class.from_config(config, limits=waypoint_limits(p))
 
     def setup(self):
         core, ctx = self.node.core, self.node.ctx
@@ -242,13 +249,12 @@ class MpcAdapter(Adapter):
 class PidAdapter(Adapter):
     """The paper's PID framework in one process: loop parameters ~<loop>/<pid param> (pid.yaml)."""
     label = 'pid_framework'
-    controller_class = PidTracking
 
     def build(self, p):
-        overrides = dict((loop, _mapping_param(self.node.ctx, loop)) for loop in LOOP_NAMES)
-        return self.controller_class(overrides, p.positive('state_timeout', PID_DEFAULTS['state_timeout']),
-                                     p.number('waypoint_timeout', PID_DEFAULTS['waypoint_timeout'], minimum=0.0),
-                                     limits=waypoint_limits(p))
+        config = dict((loop, _mapping_param(self.node.ctx, loop)) for loop in LOOP_NAMES)
+        config.update(state_timeout=p.positive('state_timeout', PID_DEFAULTS['state_timeout']),
+                      waypoint_timeout=p.number('waypoint_timeout', PID_DEFAULTS['waypoint_timeout'], minimum=0.0))
+        return self.controller_class.from_config(config, limits=waypoint_limits(p))
 
     def diagnostic_values(self):
         fw = self.node.core.framework
@@ -281,21 +287,18 @@ class PreviewAdapter(MpcAdapter):
     ~reference_topic (trajectory_msgs/MultiDOFJointTrajectory, default command/trajectory), dynamic_reconfigure
     (cfg/PreviewMpc.cfg), preview_mpc/stats (anafi_sim/MpcStats) and preview_mpc/{predicted,reference}_path."""
     label = 'preview_mpc'
-    controller_class = PreviewMpc
     reconfigurable = PREVIEW_RECONFIGURABLE
 
     def build(self, p):
         ctx = self.node.ctx
-        params = dict((k, ctx.get_param(k)) for k in PREVIEW_DEFAULTS if ctx.has_param(k))
-        for k in LIMIT_DEFAULTS:    # the flight envelope: waypoint_limits(p) below
-            params.pop(k, None)
+        config = dict((k, ctx.get_param(k)) for k in PREVIEW_DEFAULTS if ctx.has_param(k))
         model = PredictionModel.from_params(load_model_params(model_file_path(p.string('model_file', '') or DEFAULT_MODEL_FILE)),
                                             p.positive('max_tilt_deg', MAX_TILT_DEG),
                                             p.positive('max_vertical_speed', MAX_VERTICAL_SPEED),
                                             p.positive('max_yaw_rate_deg', MAX_YAW_RATE_DEG))
         self.frame_id = p.ros_name('frame_id', 'world')
         self.reference_topic = p.ros_name('reference_topic', names.REFERENCE_PREVIEW)
-        return PreviewMpc(model, params, limits=waypoint_limits(p))
+        return self.controller_class.from_config(config, limits=waypoint_limits(p), model=model)
 
     def setup(self):
         from trajectory_msgs.msg import MultiDOFJointTrajectory
@@ -338,8 +341,9 @@ class PreviewAdapter(MpcAdapter):
         return values
 
 
-#: ~controller -> adapter (the registry of controllers this node runs)
-ADAPTERS = {'mpc': MpcAdapter, 'pid': PidAdapter, 'preview_mpc': PreviewAdapter}
+#: node adapters by kind (a registry entry's ``node``; the controllers themselves: anafi_control.registry)
+ADAPTERS = {registry.GENERIC: Adapter, 'mpc_paths': MpcAdapter, 'pid_framework': PidAdapter,
+            'preview_paths': PreviewAdapter}
 
 
 class ControllerNode(object):
@@ -351,8 +355,9 @@ class ControllerNode(object):
         self.timers = []
         self.stopped = False
         p = private_params(ctx)
-        kind = p.choice('controller', controller or 'mpc', sorted(ADAPTERS))
-        self.adapter = ADAPTERS[kind](self)
+        kind = p.choice('controller', controller or 'mpc', registry.node_names())
+        entry = registry.get(kind)
+        self.adapter = ADAPTERS[entry.node](self, entry)
         #: the name the adapter's log lines give: its label (the node is named on /rosout, or, hosted, by the
         #: context's prefix)
         self.who = self.adapter.label

@@ -83,7 +83,7 @@ def test_restore_params_puts_back_only_missing_ones(monkeypatch):
 
 def test_long_running_nodes_respawn_in_the_launch_files():
     launch = os.path.join(paths.package_dir(), 'anafi_sim', 'launch')
-    for name, nodes in (('sim.launch', ('anafi_sim', 'interface')), ('mpc.launch', ('mpc_controller',)),
+    for name, nodes in (('sim.launch', ('anafi_sim', 'interface')), ('controller.launch', ('$(arg controller)_controller',)),
                         ('spawn_anafi.launch', ('gazebo_mirror',))):
         with open(os.path.join(launch, name)) as f:
             text = f.read()

@@ -59,7 +59,7 @@ ALLOWED_IMPORTS = {
     _TRUST: set(),
     _YAML: set(),
     _UNTR: set(),
-    'anafi_sim.launch_check': {_PATHS, _NUM, _RUN, _TRUST, _UNTR},
+    'anafi_sim.launch_check': {_CTL, _PATHS, _NUM, _RUN, _TRUST, _UNTR},
     _TLM: {_PATHS, _NUM},
     _SIM: {_TLM, _CTL, _PATHS, _NUM, _TRUST, _YAML},
     _IF: {_TLM, _CTL, _PATHS, _NUM, _TRUST},

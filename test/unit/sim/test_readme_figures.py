@@ -64,4 +64,6 @@ def test_live_tuning_is_documented_with_the_packaged_client():
     assert 'rosrun dynamic_reconfigure dynparam set /anafi/mpc_controller' in section
     assert 'tuning/changes' in section and 'run.yaml' in section
     launch = open(os.path.join(ROOT, 'anafi_sim', 'launch', 'mpc.launch')).read()
-    assert 'name="mpc_controller"' in launch
+    assert 'controller.launch' in launch and '<arg name="controller" value="mpc"/>' in launch
+    generic = open(os.path.join(ROOT, 'anafi_sim', 'launch', 'controller.launch')).read()
+    assert 'name="$(arg controller)_controller"' in generic        # /anafi/mpc_controller

@@ -269,8 +269,15 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
     parameters, FATAL every second) the node stays up instead, in ERROR (``stay_in_error``). What
     ``run()`` returns is the exit status: None (default) or True -> 0, False -> 1, an int -> that code.
     ``watch_master``: exit with ``MASTER_RESTART_EXIT`` when the ROS master restarts (see the module doc).
+    SIGINT / SIGTERM: rospy's own handlers replaced by ``install_shutdown_signals`` (unless the node passes
+    ``disable_signals=True`` and handles them itself).
     """
+    deferred = not init_args.get('disable_signals')
+    if deferred:
+        init_args['disable_signals'] = True
     rospy.init_node(name, **init_args)
+    if deferred:
+        install_shutdown_signals()
     try:
         node = factory()
     except fatal_errors as error:
@@ -278,7 +285,7 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
             stay_in_error(error)
         else:
             rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
-        if init_args.get('disable_signals'):
+        if not deferred:
             rospy.signal_shutdown('bad parameters')
         sys.exit(fatal_exit_code)
     watch = start_master_watch(saved_params()) if watch_master else None
@@ -288,6 +295,46 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
     if result is None or result is True:
         return
     sys.exit(1 if result is False else int(result))
+
+
+#: [s] wall time a node has to end after SIGINT / SIGTERM before it ends itself (os._exit): below roslaunch's 15 s
+#: before it escalates to SIGTERM and SIGKILL
+SIGNAL_EXIT_GRACE = 8.0
+
+
+def install_shutdown_signals(grace=SIGNAL_EXIT_GRACE, exit_code=0):
+    """SIGINT / SIGTERM -> ``rospy.signal_shutdown`` on a thread of its own, instead of rospy's handler, which runs
+    it inside the signal handler on top of whatever the main thread was doing: a signal that lands while the main
+    thread is in a call to the master (reading its parameters at start-up, a get_param later) deadlocks there, the
+    shutdown waiting for the master proxy's lock that the interrupted call holds; rospy also swallows SIGTERM, so
+    roslaunch can only SIGKILL it. Here the main thread finishes its call, sees ``rospy.is_shutdown()`` and ends
+    (rospy.spin, ``while not rospy.is_shutdown()`` loops). A node still running ``grace`` s after the first signal,
+    or at a second signal, ends at once (``exit_code``) with one line on stderr naming it."""
+    state = {'signals': 0, 'start': None}
+
+    def hard_exit(why):
+        try:
+            sys.stderr.write('%s: %s; ending now\n' % (rospy.get_name(), why))
+            sys.stderr.flush()
+        finally:
+            os._exit(exit_code)
+
+    def shut_down(signum):
+        rospy.signal_shutdown('signal-%d' % signum)
+        left = grace - (time.monotonic() - state['start'])
+        if left > 0.0:
+            time.sleep(left)
+        hard_exit('still running %g s after signal %d' % (grace, signum))
+
+    def handler(signum, _frame):
+        state['signals'] += 1
+        if state['signals'] > 1:
+            hard_exit('signal %d during shutdown' % signum)
+        state['start'] = time.monotonic()
+        threading.Thread(target=shut_down, args=(signum,), name='signal_shutdown', daemon=True).start()
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, handler)
 
 
 #: [s] wall time between the ERROR diagnostics of a node that stays up with bad parameters

@@ -5,7 +5,7 @@ For each N in ``--sizes`` (1 2 4 8 10 12), ``--repeats`` times (at least 2 for w
 ``--layouts`` (per_drone: a process per role and drone; shared: ``fleet_host.py`` processes hosting one role of
 every drone), interleaved run by run so the layouts see the same machine: a private ROS master,
 ``roslaunch anafi_sim fleet.launch drones:=N`` (``layout:=L`` for a layout other than per_drone; fleet
-``--fleet``, default three_circles: every drone with the MPC flying the circle r = 2 m, v = 1 m/s, 6 m apart;
+``--fleet``, default circles: every drone with the MPC flying the circle r = 2 m, v = 1 m/s, 6 m apart;
 kinematic world, one mirror per drone at 100 Hz, no evaluators), wait until every drone flies its scenario,
 ``--settle`` s, then a measurement window of ``--duration`` s of wall time:
 
@@ -330,7 +330,7 @@ def main(argv=None):
     which.add_argument('--layout', choices=fleet_report.LAYOUTS, help='one layout (default per_drone)')
     which.add_argument('--layouts', choices=fleet_report.LAYOUTS, nargs='+',
                        help='several layouts side by side, interleaved run by run')
-    ap.add_argument('--fleet', default='three_circles')
+    ap.add_argument('--fleet', default='circles')
     ap.add_argument('--duration', type=float, default=None, help='s of wall time measured (30; --calibrate-cap 20)')
     ap.add_argument('--settle', type=float, default=None, help='s (10; --calibrate-cap 5)')
     ap.add_argument('--start-timeout', type=float, default=240.0)

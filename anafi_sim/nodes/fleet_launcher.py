@@ -8,9 +8,12 @@ drone's scenario shifted by its offset and the generated launch file into ~out_d
 on that file (a child process in a session of its own, on the same master) until it ends or this node is
 stopped (SIGINT / SIGTERM: SIGINT to the child, which stops every drone's nodes; then SIGTERM, SIGKILL; the
 child also gets SIGINT from the kernel if this node is killed, so no drone is left running).
-Exits with the child's code; a bad fleet file or parameter: logfatal, exit code 2.
+When the child has ended it prints the fleet's summary, one table with a row per drone (its controller, the
+state of its evaluation, e_mu / e_max against estimate and ground truth: anafi_sim.mission.fleet_summary, from the
+evaluators' out_dir/NAME.yaml of this run) and exits with the child's code; a bad fleet file or parameter:
+logfatal, exit code 2.
 
-Parameters: ~fleet (name in anafi_sim/config/fleets or a path; three_circles), ~drones (0: the file's list;
+Parameters: ~fleet (name in anafi_sim/config/fleets or a path; circles), ~drones (0: the file's list;
 N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
 ~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false; true: rviz.launch
 per drone and rviz on the fleet's generated view ~out_dir/fleet.rviz, anafi_sim/mission/rviz_config.py),
@@ -40,12 +43,14 @@ import yaml
 
 from anafi_sim.mission.fleet import aggregator_analyzers, drone_scenario, fleet_path, launch_xml, load_fleet
 from anafi_sim.mission.fleet_layout import LAYOUTS, NodeSpec, check_layout, shared_layout
+from anafi_sim.mission.fleet_summary import fleet_summary
 from anafi_sim.mission.rviz_config import fleet_rviz
 from anafi_sim.mission.trajectory import scenario_from_dict
 from anafi_sim.processes import free_port, stop
 from anafi_sim.launch_check import fleet_size_problem
 
 DEFAULT_OUT_DIR = os.path.join(os.path.expanduser('~'), '.ros', 'anafi_fleet')
+DEFAULT_FLEET = 'circles'
 OUTPUTS = ('log', 'screen')
 
 
@@ -145,17 +150,22 @@ class FleetLauncherNode(object):
         self.rospy = rospy
         p = private_params()
         self.stop_timeout = p.positive('stop_timeout', 30.0)
-        self.path = generate(p.string('fleet', 'three_circles', allow_empty=False),
-                             p.integer('drones', 0, minimum=0), p.string('out_dir', DEFAULT_OUT_DIR, allow_empty=False),
-                             p.flag('evaluate', True), p.flag('mirror', True), p.positive('mirror_rate', 100.0),
+        self.started = time.time()
+        name, drones = p.string('fleet', DEFAULT_FLEET, allow_empty=False), p.integer('drones', 0, minimum=0)
+        self.out_dir = os.path.abspath(os.path.expanduser(p.string('out_dir', DEFAULT_OUT_DIR, allow_empty=False)))
+        self.evaluate = p.flag('evaluate', True)
+        self.path = generate(name, drones, self.out_dir, self.evaluate, p.flag('mirror', True),
+                             p.positive('mirror_rate', 100.0),
                              p.choice('output', 'log', OUTPUTS), p.flag('aggregator', False),
                              log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False),
                              conditions=p.string('conditions', '', allow_empty=True),
                              max_drones=p.integer('max_drones', 0, minimum=0),
                              layout=p.string('layout', ''),
                              world=p.flag('kinematic_world', False))   # ValueError: fatal, exit 2
+        self.fleet = load_fleet(name, drones)
         self.child = None
         self.code = 0
+        self.ended = 'stopped'
 
     def spin(self):
         rospy = self.rospy
@@ -165,6 +175,7 @@ class FleetLauncherNode(object):
             time.sleep(0.2)
         if self.child.poll() is not None:
             self.code = self.child.returncode
+            self.ended = 'ended (its roslaunch exited with code %d)' % self.code
             rospy.logerr('fleet_launcher: the fleet\'s roslaunch ended (exit code %d)', self.code)
 
     def cleanup(self):
@@ -177,9 +188,18 @@ class FleetLauncherNode(object):
             if left:
                 self.rospy.logwarn('fleet_launcher: processes still alive after stopping: %s', left)
 
+    def summary(self):
+        """The fleet's one table (anafi_sim.mission.fleet_summary): per drone, its evaluation of this run."""
+        return fleet_summary(self.fleet.name, [(d.name, d.controller) for d in self.fleet.drones], self.out_dir,
+                             self.evaluate, since=self.started, reason=self.ended)
+
     def run(self):
         from anafi_sim.ros.node import run_until_interrupted
-        run_until_interrupted(self.spin, self.cleanup, 'fleet stopped')
+        try:
+            run_until_interrupted(self.spin, self.cleanup, 'fleet stopped')
+        finally:
+            sys.stdout.write('\n' + self.summary())
+            sys.stdout.flush()
         return self.code
 
 

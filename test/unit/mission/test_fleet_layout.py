@@ -81,7 +81,7 @@ def test_layout_in_the_fleet_file(tmp_path):
     path = tmp_path / 'f.yaml'
     path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\nlayout: shared\n')
     assert load_fleet(str(path)).layout == 'shared'
-    assert load_fleet('three_circles').layout == 'per_drone'
+    assert load_fleet('circles').layout == 'per_drone'
     path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\nlayout: pooled\n')
     with pytest.raises(ValueError, match='layout must be one of per_drone, shared'):
         load_fleet(str(path))
@@ -120,7 +120,7 @@ def test_drones_per_host_in_the_fleet_file(tmp_path):
     path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\nlayout: shared\n'
                     'drones_per_host: {fleet_ground_truth: 2}\n')
     assert load_fleet(str(path)).drones_per_host == {'fleet_ground_truth': 2}
-    assert load_fleet('three_circles').drones_per_host == {}
+    assert load_fleet('circles').drones_per_host == {}
     for bad, problem in (('{fleet_world: 2}', 'not a host split by drone'), ('{fleet_drones: 0}', '>= 1'),
                          ('[2]', 'a mapping'), ('{fleet_drones: 2.5}', 'an integer')):
         path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\ndrones_per_host: %s\n' % bad)

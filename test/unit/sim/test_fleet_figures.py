@@ -53,7 +53,7 @@ def _run(n, repeat=0, layout='per_drone', cpu=20.0, **drone):
 
 
 def _data(runs, layouts=('per_drone',), repeats=2):
-    return {'format': 2, 'fleet': 'three_circles', 'settle': 5.0, 'duration': 10.0, 'repeats': repeats,
+    return {'format': 2, 'fleet': 'circles', 'settle': 5.0, 'duration': 10.0, 'repeats': repeats,
             'sizes': sorted(set(r['n'] for r in runs)), 'layouts': list(layouts), 'runs': runs, 'core_cost': None,
             'machine': {'date': '2026-01-01 00:00', 'python': '3.11.2', 'cores': 2, 'cpu_model': 'test'}}
 
@@ -111,7 +111,7 @@ def test_layouts_are_summed_apart_and_a_shared_host_is_a_role_of_its_own():
 
 
 def test_the_older_format_reads_as_one_run_per_size():
-    old = {'results': [dict(_run(2), **{'n': 2}), _run(4)], 'fleet': 'three_circles', 'settle': 10.0,
+    old = {'results': [dict(_run(2), **{'n': 2}), _run(4)], 'fleet': 'circles', 'settle': 10.0,
            'duration': 30.0, 'core_cost': [{'numpy (before)': 30.0, 'plain Python (shipped)': 15.0}, 1e-17]}
     for r in old['results']:
         for key in ('layout', 'repeat', 'other_jobs'):

@@ -6,7 +6,7 @@ loop, so fleet.launch starts this node (required): it reads the fleet file ~flee
 in a row from its defaults), picks a free telemetry port for each simulated drone that has none, writes each
 drone's scenario shifted by its offset and the generated launch file into ~out_dir, and runs ``roslaunch``
 on that file (a child process in a session of its own, on the same master) until it ends or this node is
-stopped (SIGINT / SIGTERM: SIGINT to the child, which stops every drone's nodes; then SIGTERM, SIGKILL; the
+stopped (SIGINT / SIGTERM: SIGINT to the child and to each of its nodes at once; then SIGTERM, SIGKILL; the
 child also gets SIGINT from the kernel if this node is killed, so no drone is left running).
 When the child has ended it prints the fleet's summary, one table with a row per drone (its controller, the
 state of its evaluation, e_mu / e_max against estimate and ground truth: anafi_sim.mission.fleet_summary, from the
@@ -17,7 +17,7 @@ Parameters: ~fleet (name in anafi_sim/config/fleets or a path; circles), ~drones
 N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
 ~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false; true: rviz.launch
 per drone and rviz on the fleet's generated view ~out_dir/fleet.rviz, anafi_sim/mission/rviz_config.py),
-~stop_timeout (30 s), ~max_drones (0: this machine's fleet cap, anafi_sim.launch_check.machine_cap: its own
+~stop_timeout (STOP_TIMEOUT, 11 s), ~max_drones (0: this machine's fleet cap, anafi_sim.launch_check.machine_cap: its own
 measurement cached under the ROS home, else the conservative default; a larger fleet is refused with a message
 naming the cap, its figure and where it came from).
 
@@ -143,13 +143,39 @@ def _child_setup():
         pass
 
 
+#: [s] wall time the fleet's roslaunch has to stop its nodes (then SIGTERM, SIGKILL): below the 15 s roslaunch
+#: gives this node before it escalates, so the summary is printed in any case
+STOP_TIMEOUT = 11.0
+#: [s] after SIGINT to the fleet's roslaunch, before SIGINT to each of its nodes: its process monitor is shut down
+#: by then, so it does not respawn a node that ends
+NODES_AFTER = 0.3
+
+
+def interrupt_nodes(child, after=NODES_AFTER):
+    """SIGINT to the fleet's roslaunch ``child``, then (``after`` s later) to every node it started, all at once:
+    roslaunch alone stops them ten at a time, each wave waiting for its slowest node; the nodes ignore its SIGINT
+    when it comes (anafi_sim.ros.node.install_shutdown_signals)."""
+    import psutil
+    try:
+        child.send_signal(signal.SIGINT)
+        time.sleep(after)
+        nodes = psutil.Process(child.pid).children()
+    except (OSError, psutil.Error):
+        return
+    for node in nodes:
+        try:
+            node.send_signal(signal.SIGINT)
+        except psutil.Error:
+            pass
+
+
 class FleetLauncherNode(object):
     def __init__(self):
         import rospy
         from anafi_sim.ros.node import private_params
         self.rospy = rospy
         p = private_params()
-        self.stop_timeout = p.positive('stop_timeout', 30.0)
+        self.stop_timeout = p.positive('stop_timeout', STOP_TIMEOUT)
         self.started = time.time()
         name, drones = p.string('fleet', DEFAULT_FLEET, allow_empty=False), p.integer('drones', 0, minimum=0)
         self.out_dir = os.path.abspath(os.path.expanduser(p.string('out_dir', DEFAULT_OUT_DIR, allow_empty=False)))
@@ -184,6 +210,7 @@ class FleetLauncherNode(object):
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, signal.SIG_IGN)
         if self.child is not None and self.child.poll() is None:
+            interrupt_nodes(self.child)
             left = stop(self.child, grace=self.stop_timeout)
             if left:
                 self.rospy.logwarn('fleet_launcher: processes still alive after stopping: %s', left)
@@ -196,7 +223,7 @@ class FleetLauncherNode(object):
     def run(self):
         from anafi_sim.ros.node import run_until_interrupted
         try:
-            run_until_interrupted(self.spin, self.cleanup, 'fleet stopped')
+            run_until_interrupted(self.spin, self.cleanup, 'fleet stopped', grace=self.stop_timeout + 3.0)
         finally:
             sys.stdout.write('\n' + self.summary())
             sys.stdout.flush()

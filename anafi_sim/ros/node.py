@@ -280,6 +280,9 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
         install_shutdown_signals()
     try:
         node = factory()
+    except KeyboardInterrupt:       # nodes that handle SIGINT themselves, stopped while starting
+        rospy.signal_shutdown('stopped while starting')
+        return
     except fatal_errors as error:
         if respawned:
             stay_in_error(error)
@@ -289,7 +292,13 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
             rospy.signal_shutdown('bad parameters')
         sys.exit(fatal_exit_code)
     watch = start_master_watch(saved_params()) if watch_master else None
-    result = node.run()
+    try:
+        result = node.run()
+    except (rospy.ROSException, KeyboardInterrupt):
+        # shutting down beside the main loop (install_shutdown_signals): a publish to a topic rospy closed meanwhile
+        if not (rospy.is_shutdown() or rospy.core.is_shutdown_requested()):
+            raise
+        result = None
     if watch is not None and watch.restarted:
         sys.exit(MASTER_RESTART_EXIT)
     if result is None or result is True:
@@ -309,7 +318,9 @@ def install_shutdown_signals(grace=SIGNAL_EXIT_GRACE, exit_code=0):
     shutdown waiting for the master proxy's lock that the interrupted call holds; rospy also swallows SIGTERM, so
     roslaunch can only SIGKILL it. Here the main thread finishes its call, sees ``rospy.is_shutdown()`` and ends
     (rospy.spin, ``while not rospy.is_shutdown()`` loops). A node still running ``grace`` s after the first signal,
-    or at a second signal, ends at once (``exit_code``) with one line on stderr naming it."""
+    or at SIGTERM after the first signal (roslaunch's escalation), ends at once (``exit_code``) with one line on
+    stderr naming it; another SIGINT meanwhile changes nothing (the fleet launcher signals every node of a fleet at
+    once, its roslaunch again later)."""
     state = {'signals': 0, 'start': None}
 
     def hard_exit(why):
@@ -329,6 +340,8 @@ def install_shutdown_signals(grace=SIGNAL_EXIT_GRACE, exit_code=0):
     def handler(signum, _frame):
         state['signals'] += 1
         if state['signals'] > 1:
+            if signum == signal.SIGINT:
+                return
             hard_exit('signal %d during shutdown' % signum)
         state['start'] = time.monotonic()
         threading.Thread(target=shut_down, args=(signum,), name='signal_shutdown', daemon=True).start()
@@ -426,16 +439,36 @@ def _raise_interrupt(signum, frame):
     raise KeyboardInterrupt('signal %d' % signum)
 
 
-def run_until_interrupted(spin, cleanup, reason):
+def _exit_when_signalled_again(grace=SIGNAL_EXIT_GRACE, exit_code=0):
+    """After the first SIGINT / SIGTERM of a node that cleans up itself: SIGINT ignored, SIGTERM (roslaunch's
+    escalation) or ``grace`` s more end the process at once (one line on stderr)."""
+    def hard_exit(why):
+        try:
+            sys.stderr.write('%s: %s; ending now\n' % (rospy.get_name(), why))
+            sys.stderr.flush()
+        finally:
+            os._exit(exit_code)
+
+    def later():
+        time.sleep(grace)
+        hard_exit('still cleaning up %g s after the signal' % grace)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, lambda signum, _frame: hard_exit('signal %d while cleaning up' % signum))
+    threading.Thread(target=later, name='exit_grace', daemon=True).start()
+
+
+def run_until_interrupted(spin, cleanup, reason, grace=SIGNAL_EXIT_GRACE):
     """The ``run()`` of a node started with ``disable_signals=True`` that must clean up through ROS (delete
     its Gazebo models): SIGINT or SIGTERM ends ``spin()``, ``cleanup()`` runs while ROS still works, then
-    rospy shuts down with ``reason``."""
+    rospy shuts down with ``reason``. Meanwhile another SIGINT is ignored; SIGTERM, or cleaning up longer than
+    ``grace`` s, ends the process at once."""
     signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         spin()
     except KeyboardInterrupt:
         pass
     finally:
+        _exit_when_signalled_again(grace)
         if not rospy.is_shutdown():
             cleanup()
         rospy.signal_shutdown(reason)

@@ -119,7 +119,15 @@ class Bench(object):
 
     def __init__(self, workdir):
         import rospy
+        import shutil
+        from anafi_sim import launch_check
         self.workdir = workdir
+        user_cache = launch_check.cap_cache_path()     # this machine's figures: the fleets split their hosts by them
+        if os.path.isfile(user_cache):
+            target = os.path.join(workdir, 'ros_home', *launch_check.CAP_CACHE)
+            os.makedirs(os.path.dirname(target), exist_ok=True)
+            shutil.copyfile(user_cache, target)
+        self.split = launch_check.machine_drones_per_host()
         self.procs = processes.Processes(workdir, grace=30.0)
         uri, self.env = processes.private_master(self.procs, os.path.join(workdir, 'ros_home'),
                                                os.path.join(workdir, 'log'), MASTER_PORTS, join=True)
@@ -172,6 +180,8 @@ class Bench(object):
                'load_after': window.load_after, 'busy': window.busy,
                'bench_cpu': 100.0 * window.bench_cpu / window.wall,
                'largest_processes': [[role, cpu] for role, cpu in procs[:LARGEST_PROCESSES]]}
+        if layout == 'shared':
+            run['drones_per_host'] = self.split[0]
         run['other_jobs'] = fleet_report.other_jobs(dict(run), os.cpu_count() or 1)
         return run
 
@@ -258,6 +268,9 @@ def report_run(r):
         print('    %-24s %5.1f %% (%d processes)' % (role, cpu, count), flush=True)
     print('    largest processes: %s' % ', '.join('%s %.1f %%' % (role, cpu) for role, cpu in
                                                    r.get('largest_processes', [])), flush=True)
+    if r.get('drones_per_host'):
+        print('    hosts split by: %s' % ', '.join('%s %d drones' % kv for kv in sorted(r['drones_per_host'].items())),
+              flush=True)
 
 
 def calibrate(args, layouts, bench_runs):
@@ -301,6 +314,13 @@ def calibrate(args, layouts, bench_runs):
             'other_jobs_max_pct_core': round(max([o for o in others if o is not None] or [0.0]), 1),
             'load_1min_max': round(max(max(r.get('load_before', [0])[0], r.get('load_after', [0])[0])
                                        for r in mine), 2)}
+        hosts = fleet_report.host_cpu_per_drone(data) if layout == 'shared' else None
+        if hosts and all(k in hosts for k in launch_check.REFERENCE_HOST_CPU_PER_DRONE):
+            figures[layout]['host_cpu_per_drone'] = dict((k, hosts[k]) for k in launch_check.REFERENCE_HOST_CPU_PER_DRONE)
+            print('shared layout: the hosts\' CPU per drone %s: split by %s drones (%g core per host at most)' % (
+                figures[layout]['host_cpu_per_drone'],
+                launch_check.drones_per_host(figures[layout]['host_cpu_per_drone']), launch_check.HOST_CORE_BUDGET),
+                flush=True)
     caps = dict((layout, launch_check.fleet_cap(cores, layout, launch_check.CapFigures(
         dict((k, v['cpu_per_drone']) for k, v in figures.items()),
         dict((k, v['failing_per_core']) for k, v in figures.items()), model, cores, '', ''))) for layout in figures)

@@ -206,6 +206,36 @@ def cap_cpu_per_drone(data, layout, rows=None):
     return round(best['spread']['cpu_per_drone'][1] / 100.0, 3)
 
 
+def host_kind(role):
+    """'host fleet_ground_truth_2' -> 'fleet_ground_truth' (a host of the shared layout's split); None otherwise."""
+    if not role.startswith('host '):
+        return None
+    name = role[len('host '):]
+    base, _, number = name.rpartition('_')
+    return base if number.isdigit() and base else name
+
+
+def host_cpu_per_drone(data, rows=None):
+    """[cores] {host kind: its CPU per drone} of the shared layout at the largest size holding real time (the
+    median over the runs of the hosts of that kind together over N; 3 decimals), the figures the split of the
+    hosts comes from (launch_check.drones_per_host); None when no size holds."""
+    rows = summary(data) if rows is None else rows
+    held = [r for r in rows if r['layout'] == 'shared' and r['holds']]
+    if not held:
+        return None
+    best = max(held, key=lambda r: r['n'])
+    per_run = []
+    for run in best['runs']:
+        kinds = {}
+        for role, (cpu, _count) in run.get('roles', {}).items():
+            kind = host_kind(role)
+            if kind:
+                kinds[kind] = kinds.get(kind, 0.0) + cpu
+        per_run.append(kinds)
+    kinds = sorted(set(k for r in per_run for k in r))
+    return dict((k, round(median([r.get(k, 0.0) for r in per_run]) / 100.0 / best['n'], 4)) for k in kinds) or None
+
+
 def role_order(rows):
     """The roles seen, per-drone roles first, then the shared layout's hosts, the shared roles, 'other'."""
     seen = set(ro for r in rows for ro in r['roles'])

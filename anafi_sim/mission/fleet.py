@@ -14,8 +14,8 @@ Fleet file schema (every key optional except ``drones`` unless ``drones:=N`` is 
     defaults: {controller: mpc, scenario: circle_r2_v1}   # every drone's settings unless it sets its own
     row: {spacing: 6.0, axis: y}    # drones:=N -> anafi1..anafiN, drone i at (i - 1) * spacing along axis
     layout: per_drone               # per_drone (a process per node) | shared (hosts: mission/fleet_layout.py)
-    drones_per_host: {fleet_ground_truth: 10}   # shared layout: split a host by this many drones (default:
-                                    # fleet_layout.DRONES_PER_HOST, 10 for fleet_drones and fleet_ground_truth)
+    drones_per_host: {fleet_ground_truth: 10}   # shared layout: split a host by this many drones (default: the
+                                    # machine's, each host within half a core: launch_check.machine_drones_per_host)
     drones:
       - name: anafi1                # a ROS name: namespace, tf prefix, models <name> and <name>_camera
         source: sim                 # sim (stand-in, default) | sphinx (the real Sphinx drone: at most one)

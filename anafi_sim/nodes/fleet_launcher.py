@@ -42,12 +42,12 @@ import time
 import yaml
 
 from anafi_sim.mission.fleet import aggregator_analyzers, drone_scenario, fleet_path, launch_xml, load_fleet
-from anafi_sim.mission.fleet_layout import LAYOUTS, NodeSpec, check_layout, shared_layout
+from anafi_sim.mission.fleet_layout import LAYOUTS, NodeSpec, check_layout, shared_layout, split_limits
 from anafi_sim.mission.fleet_summary import fleet_summary
 from anafi_sim.mission.rviz_config import fleet_rviz
 from anafi_sim.mission.trajectory import scenario_from_dict
 from anafi_sim.processes import free_port, stop
-from anafi_sim.launch_check import fleet_size_problem
+from anafi_sim.launch_check import fleet_size_problem, machine_drones_per_host
 
 DEFAULT_OUT_DIR = os.path.join(os.path.expanduser('~'), '.ros', 'anafi_fleet')
 DEFAULT_FLEET = 'circles'
@@ -96,7 +96,12 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
                      rviz=rviz, rviz_file=rviz_file, conditions=conditions, world=world)
     path = os.path.join(out_dir, 'fleet.launch')
     if layout == 'shared':
-        xml = shared_launch(xml, out_dir, output, fleet.name, fleet.drones_per_host)
+        machine, why = machine_drones_per_host()
+        limits = split_limits(machine, fleet.drones_per_host)
+        log('fleet %s: hosts split by %s (this machine: %s%s)\n' % (
+            fleet.name, ', '.join('%d drones (%s)' % (limits[h], h) for h in sorted(limits)), why,
+            '; the fleet file sets %s' % fleet.drones_per_host if fleet.drones_per_host else ''))
+        xml = shared_launch(xml, out_dir, output, fleet.name, limits)
     with open(path, 'w') as f:
         f.write(xml)
     for drone in fleet.drones:

@@ -236,3 +236,19 @@ def test_the_page_shows_the_largest_single_process_and_the_machine():
     assert 'test, 2 cores' in block and 'the largest process 41.0 / 43.0 / 45.0 % of a core' in block
     del runs[0]['largest_processes'], runs[1]['largest_processes']
     assert 'not recorded by the runs of this file' in report.markdown(data)
+
+
+def test_the_hosts_cpu_per_drone_adds_the_hosts_of_a_kind_at_the_largest_size_holding():
+    assert report.host_kind('host fleet_ground_truth_2') == 'fleet_ground_truth'
+    assert report.host_kind('host fleet_drones') == 'fleet_drones' and report.host_kind('mirror') is None
+
+    def shared(n, repeat, gt, drones, **kw):
+        run = _run(n, repeat, 'shared', **kw)
+        run['roles'] = {'host fleet_ground_truth_1': [gt / 2.0, 1], 'host fleet_ground_truth_2': [gt / 2.0, 1],
+                        'host fleet_drones': [drones, 1], 'telemetry CLI': [4.0, n]}
+        return run
+    runs = [shared(10, 0, 60.0, 50.0), shared(10, 1, 70.0, 40.0), shared(20, 0, 200.0, 200.0, rtf=0.5),
+            shared(20, 1, 200.0, 200.0)]
+    data = _data(runs, layouts=('shared',))
+    assert report.host_cpu_per_drone(data) == {'fleet_ground_truth': 0.065, 'fleet_drones': 0.045}  # N = 10
+    assert report.host_cpu_per_drone(_data([shared(4, 0, 10.0, 10.0, rtf=0.5)], layouts=('shared',))) is None

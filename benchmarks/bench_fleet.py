@@ -182,6 +182,7 @@ class Bench(object):
                'largest_processes': [[role, cpu] for role, cpu in procs[:LARGEST_PROCESSES]]}
         if layout == 'shared':
             run['drones_per_host'] = self.split[0]
+            run['processes'] = [[role, cpu] for role, cpu in procs]
         run['other_jobs'] = fleet_report.other_jobs(dict(run), os.cpu_count() or 1)
         return run
 
@@ -357,6 +358,10 @@ def main(argv=None):
     ap.add_argument('--max-size', action='append', default=[], metavar='LAYOUT=N',
                     help='run that layout only up to N drones (e.g. per_drone=10: larger ones never start in time)')
     ap.add_argument('--no-write', action='store_true')
+    ap.add_argument('--processes-page', default='', metavar='PATH',
+                    help='also write the per-process CPU of the shared layout\'s runs (every host process, the '
+                         'split, the machine and its load) to PATH (e.g. benchmarks/results/fleet_processes.md), '
+                         'with --no-write too')
     ap.add_argument('--calibrate-cap', action='store_true',
                     help='measure this machine\'s fleet cap (one run per size, sizes in order until one does not '
                          'hold; default sizes per layout %s, default layouts both) and write it into the cap cache '
@@ -425,6 +430,10 @@ def main(argv=None):
     print(fleet_report.markdown(data))
     if not args.no_write and data['runs']:
         write(data)
+    if args.processes_page and data['runs']:
+        data['command'] = 'python benchmarks/bench_fleet.py ' + ' '.join(argv if argv is not None else sys.argv[1:])
+        run_files.atomic_write_text(args.processes_page, fleet_report.processes_markdown(data))
+        print('written %s' % args.processes_page)
     if failed:
         print('FAILED: %d run(s) never had every drone flying (see above)' % failed, flush=True)
         return 1

@@ -2,13 +2,13 @@
 """rostest: Ctrl-C of a fleet ends it cleanly, with its summary table (see fleet_stop.test).
 
 For each layout: ``roslaunch -p PORT anafi_sim fleet.launch drones:=4`` (a free port: roslaunch starts the
-fleet's own master; ROS home, logs and the fleet's out_dir in a temporary folder), wait until every drone's
-models are in the world (the kinematic world's "spawned entity" lines), then SIGINT to roslaunch, as Ctrl-C.
+fleet's own master; ROS home, logs and the fleet's out_dir in a temporary folder), wait until every drone is up
+(its ground truth, evaluation summary and commands have a publisher), 5 s more, then SIGINT to roslaunch, as
+Ctrl-C.
 Checked in roslaunch's output: no escalation ("escalating to SIGTERM" / "SIGKILL", "required SIGKILL"), the
 summary table of anafi_sim.mission.fleet_summary with one row per drone, and roslaunch's exit status 0. No
 wall-clock figure is asserted (benchmarks/bench_fleet_stop.py measures it)."""
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -16,6 +16,7 @@ import tempfile
 import time
 import unittest
 
+import rosgraph
 import rostest
 
 from anafi_sim import processes
@@ -28,8 +29,15 @@ STOP_TIMEOUT = 120.0    # s until roslaunch has exited after the SIGINT (a hang,
 STATES = ('final', 'incomplete', 'measuring', 'waiting', 'error', 'no summary written')
 
 
-def _spawned(text):
-    return set(re.findall(r'Successfully spawned entity \[(anafi\d+)\]', text))
+def _up(uri, names):
+    """The drones of ``names`` whose ground truth and evaluation summary have a publisher on the master ``uri``
+    (every role of the drone is up, in either layout)."""
+    try:
+        publishers = dict(rosgraph.Master('/fleet_stop_test', master_uri=uri).getSystemState()[0])
+    except Exception:        # the master not up yet
+        return set()
+    return set(n for n in names if publishers.get('/%s/ground_truth/odom' % n)
+               and publishers.get('/%s/evaluation/summary' % n) and publishers.get('/%s/drone/rpyt' % n))
 
 
 class FleetStopTest(unittest.TestCase):
@@ -37,7 +45,8 @@ class FleetStopTest(unittest.TestCase):
         folder = tempfile.mkdtemp(prefix='fleet_stop_test_')
         self.addCleanup(shutil.rmtree, folder, True)
         port = processes.free_port()
-        env = processes.ros_env('http://127.0.0.1:%d' % port, os.path.join(folder, 'ros_home'),
+        uri = 'http://127.0.0.1:%d' % port
+        env = processes.ros_env(uri, os.path.join(folder, 'ros_home'),
                                 os.path.join(folder, 'log'))
         log = os.path.join(folder, 'fleet.log')
         with open(log, 'w') as out:
@@ -48,15 +57,13 @@ class FleetStopTest(unittest.TestCase):
         self.addCleanup(processes.stop, launch, 5.0)
         names = set('anafi%d' % (i + 1) for i in range(DRONES))
         end = time.monotonic() + START_TIMEOUT
-        while time.monotonic() < end and launch.poll() is None:
-            with open(log) as f:
-                if names <= _spawned(f.read()):
-                    break
+        while time.monotonic() < end and launch.poll() is None and not names <= _up(uri, names):
             time.sleep(1.0)
+        up = _up(uri, names)
         with open(log) as f:
             text = f.read()
-        self.assertTrue(names <= _spawned(text), '%s: not every drone in the world:\n%s' % (layout, text[-3000:]))
-        time.sleep(3.0)          # flying a little
+        self.assertTrue(names <= up, '%s: only %s up:\n%s' % (layout, sorted(up), text[-3000:]))
+        time.sleep(5.0)          # flying a little
         launch.send_signal(signal.SIGINT)
         code = launch.wait(STOP_TIMEOUT)
         with open(log) as f:

@@ -276,8 +276,7 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
     if deferred:
         init_args['disable_signals'] = True
     rospy.init_node(name, **init_args)
-    if deferred:
-        install_shutdown_signals()
+    shutdown_done = install_shutdown_signals() if deferred else None
     try:
         node = factory()
     except KeyboardInterrupt:       # nodes that handle SIGINT themselves, stopped while starting
@@ -299,6 +298,8 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
         if not (rospy.is_shutdown() or rospy.core.is_shutdown_requested()):
             raise
         result = None
+    if shutdown_done is not None:
+        shutdown_done(SIGNAL_EXIT_GRACE)
     if watch is not None and watch.restarted:
         sys.exit(MASTER_RESTART_EXIT)
     if result is None or result is True:
@@ -320,8 +321,10 @@ def install_shutdown_signals(grace=SIGNAL_EXIT_GRACE, exit_code=0):
     (rospy.spin, ``while not rospy.is_shutdown()`` loops). A node still running ``grace`` s after the first signal,
     or at SIGTERM after the first signal (roslaunch's escalation), ends at once (``exit_code``) with one line on
     stderr naming it; another SIGINT meanwhile changes nothing (the fleet launcher signals every node of a fleet at
-    once, its roslaunch again later)."""
+    once, its roslaunch again later). Returns ``wait(timeout)``: after a signal, waits until rospy's shutdown has
+    returned (the node unregistered), so that the main thread does not end the process in the middle of it."""
     state = {'signals': 0, 'start': None}
+    done = threading.Event()       # rospy's shutdown (unregistering from the master) has returned
 
     def hard_exit(why):
         try:
@@ -331,7 +334,10 @@ def install_shutdown_signals(grace=SIGNAL_EXIT_GRACE, exit_code=0):
             os._exit(exit_code)
 
     def shut_down(signum):
-        rospy.signal_shutdown('signal-%d' % signum)
+        try:
+            rospy.signal_shutdown('signal-%d' % signum)
+        finally:
+            done.set()
         left = grace - (time.monotonic() - state['start'])
         if left > 0.0:
             time.sleep(left)
@@ -348,6 +354,7 @@ def install_shutdown_signals(grace=SIGNAL_EXIT_GRACE, exit_code=0):
 
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, handler)
+    return lambda timeout: done.wait(timeout) if state['signals'] else True
 
 
 #: [s] wall time between the ERROR diagnostics of a node that stays up with bad parameters

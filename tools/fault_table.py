@@ -214,9 +214,9 @@ def refresh_rows(args, faults):
     fresh = shared_table(shared_rows(), results) if args.shared_only else table(faults, results)
     head, rest = text.split(begin, 1)
     block, tail = rest.split(end, 1)
-    note = '%s from the run of %s (`python -m pytest test/ros/test_fault_matrix.py -k <test>`%s).' % (
+    note = '%s from the run of %s (`%spython -m pytest test/ros/test_fault_matrix.py -k "%s"`).' % (
         ', '.join('`%s`' % n for n in args.rows), results.get('date', '?'),
-        ' with FAULT_MATRIX_LAYOUT=shared' if args.shared_only else '')
+        'FAULT_MATRIX_LAYOUT=shared ' if args.shared_only else '', ' or '.join(args.rows))
     text = head + begin + replace_rows(block, fresh, args.rows, note) + end + tail
     with open(args.doc, 'w') as f:
         f.write(text)

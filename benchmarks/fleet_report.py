@@ -236,6 +236,10 @@ def host_cpu_per_drone(data, rows=None):
     return dict((k, round(median([r.get(k, 0.0) for r in per_run]) / 100.0 / best['n'], 4)) for k in kinds) or None
 
 
+def _cell_text(text):
+    return str(text).replace('|', '/').replace('\n', ' ')
+
+
 def processes_markdown(data, budget=None):
     """The per-process page of shared-layout runs (bench_fleet.py --processes-page): per run the machine's load,
     the split of the hosts, whether it held real time and every process with its CPU [% of one core], the hosts
@@ -256,6 +260,9 @@ def processes_markdown(data, budget=None):
              '| N | run | holds | hosts split by | load (1 min) before / after | other jobs [% core] | largest host '
              '[% core] | within the budget |', '|---|---|---|---|---|---|---|---|']
     runs = [r for r in data['runs'] if r.get('layout') == 'shared' and 'error' not in r]
+    for r in data['runs']:
+        if r.get('layout') == 'shared' and 'error' in r:
+            lines.append('| %d | %d | no: %s | - | - | - | - | - |' % (r['n'], r['repeat'] + 1, _cell_text(r['error'])))
     for r in runs:
         hosts = [(role, cpu) for role, cpu in r.get('processes', []) if role.startswith('host ')]
         largest = max(hosts, key=lambda h: h[1]) if hosts else None

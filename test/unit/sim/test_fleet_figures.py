@@ -252,3 +252,18 @@ def test_the_hosts_cpu_per_drone_adds_the_hosts_of_a_kind_at_the_largest_size_ho
     data = _data(runs, layouts=('shared',))
     assert report.host_cpu_per_drone(data) == {'fleet_ground_truth': 0.065, 'fleet_drones': 0.045}  # N = 10
     assert report.host_cpu_per_drone(_data([shared(4, 0, 10.0, 10.0, rtf=0.5)], layouts=('shared',))) is None
+
+
+def test_the_processes_page_names_the_machine_the_load_the_split_and_each_host_against_the_budget():
+    run = _run(20, 0, 'shared')
+    run.update(processes=[['host fleet_ground_truth_1', 55.0], ['host fleet_drones_1', 40.0], ['telemetry CLI', 0.4],
+                          ['roslaunch', 2.0]], drones_per_host={'fleet_drones': 7, 'fleet_ground_truth': 8})
+    data = _data([run, {'layout': 'shared', 'n': 30, 'repeat': 0, 'error': 'timed out | never flew'}],
+                 layouts=('shared',))
+    data['machine']['load_start'] = [1.5, 2.0, 3.0]
+    text = report.processes_markdown(data, budget=0.5)
+    assert 'on test, 2 cores' in text and 'load average at the start 1.5 / 2.0 / 3.0' in text
+    assert '| 20 | 1 | yes | fleet_drones 7, fleet_ground_truth 8 | 0.5 / 0.6 | 0 | fleet_ground_truth_1 55.0 | no |' \
+        in text
+    assert '| 30 | 1 | no: timed out / never flew |' in text
+    assert '| host fleet_drones_1 | 40.0 |' in text and '| 1 other processes under 1 % each | 0.4 together |' in text

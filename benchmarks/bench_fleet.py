@@ -317,7 +317,8 @@ def calibrate(args, layouts, bench_runs):
                                        for r in mine), 2)}
         hosts = fleet_report.host_cpu_per_drone(data) if layout == 'shared' else None
         if hosts and all(k in hosts for k in launch_check.REFERENCE_HOST_CPU_PER_DRONE):
-            figures[layout]['host_cpu_per_drone'] = dict((k, hosts[k]) for k in launch_check.REFERENCE_HOST_CPU_PER_DRONE)
+            figures[layout]['host_cpu_per_drone'] = dict((k, hosts[k])
+                                                         for k in launch_check.REFERENCE_HOST_CPU_PER_DRONE)
             print('shared layout: the hosts\' CPU per drone %s: split by %s drones (%g core per host at most)' % (
                 figures[layout]['host_cpu_per_drone'],
                 launch_check.drones_per_host(figures[layout]['host_cpu_per_drone']), launch_check.HOST_CORE_BUDGET),

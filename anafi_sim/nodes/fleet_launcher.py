@@ -17,9 +17,9 @@ Parameters: ~fleet (name in anafi_sim/config/fleets or a path; circles), ~drones
 N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
 ~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false; true: rviz.launch
 per drone and rviz on the fleet's generated view ~out_dir/fleet.rviz, anafi_sim/mission/rviz_config.py),
-~stop_timeout (STOP_TIMEOUT, 11 s), ~max_drones (0: this machine's fleet cap, anafi_sim.launch_check.machine_cap: its own
-measurement cached under the ROS home, else the conservative default; a larger fleet is refused with a message
-naming the cap, its figure and where it came from).
+~stop_timeout (STOP_TIMEOUT, 11 s), ~max_drones (0: this machine's fleet cap, anafi_sim.launch_check.machine_cap:
+its own measurement cached under the ROS home, else the conservative default; a larger fleet is refused with a
+message naming the cap, its figure and where it came from).
 
 Also a command-line tool, to see or check what a fleet file starts without starting it:
 

@@ -307,9 +307,10 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
     sys.exit(1 if result is False else int(result))
 
 
-#: [s] wall time a node has to end after SIGINT / SIGTERM before it ends itself (os._exit): below roslaunch's 15 s
-#: before it escalates to SIGTERM and SIGKILL
-SIGNAL_EXIT_GRACE = 8.0
+#: [s] wall time a node has to end after SIGINT / SIGTERM (an experiment monitor writing its run files and plots
+#: included) before it ends itself (os._exit): below the 15 s roslaunch waits before it escalates to SIGTERM and
+#: SIGKILL
+SIGNAL_EXIT_GRACE = 12.0
 
 
 def install_shutdown_signals(grace=SIGNAL_EXIT_GRACE, exit_code=0):

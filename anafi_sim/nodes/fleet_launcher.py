@@ -216,7 +216,7 @@ class FleetLauncherNode(object):
             signal.signal(sig, signal.SIG_IGN)
         if self.child is not None and self.child.poll() is None:
             interrupt_nodes(self.child)
-            left = stop(self.child, grace=self.stop_timeout)
+            left = stop(self.child, grace=self.stop_timeout, kill_wait=0.5)
             if left:
                 self.rospy.logwarn('fleet_launcher: processes still alive after stopping: %s', left)
 
@@ -228,7 +228,8 @@ class FleetLauncherNode(object):
     def run(self):
         from anafi_sim.ros.node import run_until_interrupted
         try:
-            run_until_interrupted(self.spin, self.cleanup, 'fleet stopped', grace=self.stop_timeout + 3.0)
+            # the stop takes stop_timeout and at most ~3.5 s more (processes.stop's SIGTERM, SIGKILL, stragglers)
+            run_until_interrupted(self.spin, self.cleanup, 'fleet stopped', grace=self.stop_timeout + 4.5)
         finally:
             sys.stdout.write('\n' + self.summary())
             sys.stdout.flush()

@@ -17,7 +17,7 @@ Parameters: ~fleet (name in anafi_sim/config/fleets or a path; circles), ~drones
 N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
 ~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false; true: rviz.launch
 per drone and rviz on the fleet's generated view ~out_dir/fleet.rviz, anafi_sim/mission/rviz_config.py),
-~stop_timeout (STOP_TIMEOUT, 11 s), ~max_drones (0: this machine's fleet cap, anafi_sim.launch_check.machine_cap:
+~stop_timeout (STOP_TIMEOUT, 8 s), ~max_drones (0: this machine's fleet cap, anafi_sim.launch_check.machine_cap:
 its own measurement cached under the ROS home, else the conservative default; a larger fleet is refused with a
 message naming the cap, its figure and where it came from).
 
@@ -37,6 +37,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import yaml
@@ -148,9 +149,12 @@ def _child_setup():
         pass
 
 
-#: [s] wall time the fleet's roslaunch has to stop its nodes (then SIGTERM, SIGKILL): below the 15 s roslaunch
-#: gives this node before it escalates, so the summary is printed in any case
-STOP_TIMEOUT = 11.0
+#: [s] wall time the fleet's roslaunch has to stop its nodes (then SIGTERM, SIGKILL of what is left): with the
+#: summary and this node's own end, below the 15 s roslaunch gives this node before it escalates (a node on a quiet
+#: machine ends in about a second)
+STOP_TIMEOUT = 8.0
+#: [s] more for the SIGTERM / SIGKILL of what was left, before the summary is printed anyway
+KILL_TIME = 2.0
 #: [s] after SIGINT to the fleet's roslaunch, before SIGINT to each of its nodes: its process monitor is shut down
 #: by then, so it does not respawn a node that ends
 NODES_AFTER = 0.3
@@ -197,6 +201,7 @@ class FleetLauncherNode(object):
         self.child = None
         self.code = 0
         self.ended = 'stopped'
+        self.printed = False
 
     def spin(self):
         rospy = self.rospy
@@ -215,10 +220,27 @@ class FleetLauncherNode(object):
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, signal.SIG_IGN)
         if self.child is not None and self.child.poll() is None:
+            started = time.monotonic()
             interrupt_nodes(self.child)
-            left = stop(self.child, grace=self.stop_timeout, kill_wait=0.5)
-            if left:
-                self.rospy.logwarn('fleet_launcher: processes still alive after stopping: %s', left)
+            left = []
+            stopping = threading.Thread(target=lambda: left.extend(stop(self.child, grace=self.stop_timeout,
+                                                                        kill_wait=0.3)), daemon=True)
+            stopping.start()
+            stopping.join(self.stop_timeout + KILL_TIME)
+            took = time.monotonic() - started
+            if took > self.stop_timeout:
+                self.rospy.logwarn('fleet_launcher: the fleet had not stopped %.0f s after the signal: the rest '
+                                   'ended with SIGTERM / SIGKILL', self.stop_timeout)
+            if left or stopping.is_alive():
+                self.rospy.logwarn('fleet_launcher: processes still alive after stopping: %s', left or '(still '
+                                   'stopping)')
+        self.print_summary()
+
+    def print_summary(self):
+        if not self.printed:
+            self.printed = True
+            sys.stdout.write('\n' + self.summary())
+            sys.stdout.flush()
 
     def summary(self):
         """The fleet's one table (anafi_sim.mission.fleet_summary): per drone, its evaluation of this run."""
@@ -228,11 +250,10 @@ class FleetLauncherNode(object):
     def run(self):
         from anafi_sim.ros.node import run_until_interrupted
         try:
-            # the stop takes stop_timeout and at most ~3.5 s more (processes.stop's SIGTERM, SIGKILL, stragglers)
-            run_until_interrupted(self.spin, self.cleanup, 'fleet stopped', grace=self.stop_timeout + 4.5)
+            # the stop and the summary take stop_timeout + KILL_TIME at most; this node's own end some more
+            run_until_interrupted(self.spin, self.cleanup, 'fleet stopped', grace=self.stop_timeout + KILL_TIME + 3.0)
         finally:
-            sys.stdout.write('\n' + self.summary())
-            sys.stdout.flush()
+            self.print_summary()
         return self.code
 
 

@@ -155,6 +155,8 @@ def _child_setup():
 STOP_TIMEOUT = 8.0
 #: [s] more for the SIGTERM / SIGKILL of what was left, before the summary is printed anyway
 KILL_TIME = 2.0
+#: [s] for this node's own rospy shutdown after the summary
+END_TIME = 1.5
 #: [s] after SIGINT to the fleet's roslaunch, before SIGINT to each of its nodes: its process monitor is shut down
 #: by then, so it does not respawn a node that ends
 NODES_AFTER = 0.3
@@ -235,6 +237,13 @@ class FleetLauncherNode(object):
                 self.rospy.logwarn('fleet_launcher: processes still alive after stopping: %s', left or '(still '
                                    'stopping)')
         self.print_summary()
+        # this node's own end bounded too (rospy's shutdown unregisters from a master that may be busy with the
+        # whole fleet's): at most END_TIME s, then the process ends with the fleet's exit code
+        ending = threading.Thread(target=self.rospy.signal_shutdown, args=('fleet stopped',), daemon=True)
+        ending.start()
+        ending.join(END_TIME)
+        sys.stderr.flush()
+        os._exit(self.code)
 
     def print_summary(self):
         if not self.printed:

@@ -262,7 +262,8 @@ def processes_markdown(data, budget=None):
     runs = [r for r in data['runs'] if r.get('layout') == 'shared' and 'error' not in r]
     for r in data['runs']:
         if r.get('layout') == 'shared' and 'error' in r:
-            lines.append('| %d | %d | no: %s | - | - | - | - | - |' % (r['n'], r['repeat'] + 1, _cell_text(r['error'])))
+            lines.append('| %d | %d | no: %s | - | - | - | - | - |' % (r['n'], r['repeat'] + 1,
+                                                                   _cell_text(str(r['error']).splitlines()[0])))
     for r in runs:
         hosts = [(role, cpu) for role, cpu in r.get('processes', []) if role.startswith('host ')]
         largest = max(hosts, key=lambda h: h[1]) if hosts else None

@@ -93,8 +93,9 @@ def markdown(rows, args):
              'exited, whether it printed the fleet\'s summary table, what its output holds and what is left. '
              '"own master": a roscore of the benchmark (the '
              'fleet joins it, roslaunch does not stop it); "roslaunch\'s master": fleet.launch starts the master '
-             'and rosout and stops them last.' % (datetime.date.today().isoformat(), platform.python_version(),
-                                                 psutil.cpu_count(), args.fly), '',
+             'and rosout and stops them last.' % (datetime.date.today().isoformat(), processes.cpu_model(),
+                                                 platform.python_version(), psutil.cpu_count(), args.drones,
+                                                 args.fly), '',
              '| layout | master | stop [s] | load avg (1 min) | processes of the launch | summary table | tracebacks | '
              '"closed topic" | SIGTERM / SIGKILL escalations | processes left | nodes left on the master |',
              '|---|---|---|---|---|---|---|---|---|---|---|']

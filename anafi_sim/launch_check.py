@@ -148,6 +148,16 @@ CALIBRATE_COMMAND = 'python benchmarks/bench_fleet.py --calibrate-cap'
 #: the layout fleet.launch starts by default
 DEFAULT_LAYOUT = 'per_drone'
 
+#: [cores] the most CPU one host process of the shared layout (fleet_host.py) may take at real time, on the machine
+#: it runs on: one interpreter runs one thread at a time, and a host near a whole core falls behind (its simulators'
+#: loop, its 100 Hz ground truth) before the cores are full. The shared layout splits its hosts by drone so that
+#: each stays within it (``drones_per_host``).
+HOST_CORE_BUDGET = 0.5
+#: [cores] CPU per drone of each host split by drone, on the reference machine (benchmarks/results/fleet.json,
+#: shared layout, 20 drones: fleet_drones_1 + fleet_drones_2 1.5 + 1.6 % of a core per drone, fleet_ground_truth
+#: 2.7 %)
+REFERENCE_HOST_CPU_PER_DRONE = {'fleet_drones': 0.031, 'fleet_ground_truth': 0.027}
+
 CapFigures = collections.namedtuple('CapFigures', 'cpu_per_drone failing_per_core cpu_model cores date source')
 CapFigures.__doc__ = ('The figures a fleet cap comes from: cpu_per_drone {layout: core per drone}, failing_per_core '
                       '{layout: drones per core or None}, the machine that measured them (cpu_model, cores, date) '
@@ -298,6 +308,66 @@ def machine_cap(layout=DEFAULT_LAYOUT, cores=None, model=None, cache_path=None):
                REFERENCE_MACHINE['cores'], REFERENCE_MACHINE['date'], _cap_reason(reference, cores, layout, REFERENCE),
                where))
     return Cap(cap, cores, layout, REFERENCE, False, why)
+
+
+def drones_per_host(host_cpu_per_drone, budget=HOST_CORE_BUDGET):
+    """{host: the most drones whose CPU (``host_cpu_per_drone`` {host: core per drone}) fits in ``budget`` cores,
+    at least 1}."""
+    return dict((host, max(1, int(budget / cost + 1e-9))) for host, cost in host_cpu_per_drone.items())
+
+
+def _host_costs(entry):
+    """{host: core per drone} of a cache entry's shared layout (``host_cpu_per_drone``, as --calibrate-cap
+    measures it), None when it has none or one is not a number > 0."""
+    try:
+        figs = entry['layouts']['shared']['host_cpu_per_drone']
+        costs = dict((host, _number_or_none(figs[host])) for host in REFERENCE_HOST_CPU_PER_DRONE)
+    except (KeyError, TypeError, ValueError):
+        return None
+    return None if None in costs.values() else costs
+
+
+def host_costs(cores=None, model=None, cache_path=None):
+    """(host_cpu_per_drone {host: core per drone}, why) of this machine, the figures the shared layout's split
+    comes from: the hosts' own cost measured here (the cache's ``host_cpu_per_drone``); else the reference
+    machine's host costs scaled by this machine's measured cost of a drone in the shared layout over the
+    reference's (``cpu_per_drone``); else, unmeasured, the reference's divided by DEFAULT_CAP_SCALE."""
+    cores = available_cores() if cores is None else cores
+    model = cpu_model() if model is None else model
+    path = cap_cache_path() if cache_path is None else cache_path
+    entry = None
+    try:
+        import yaml
+        with open(path) as f:
+            entry = ((yaml.safe_load(f) or {}).get('machines') or {}).get(machine_key(model, cores))
+    except Exception:     # a missing or malformed cache: the default applies
+        entry = None
+    measured = _host_costs(entry) if isinstance(entry, dict) else None
+    if measured is not None:
+        return measured, 'the hosts\' CPU per drone measured here (%s)' % path
+    figures = None
+    if isinstance(entry, dict):
+        try:
+            figures = parse_cap_entry(entry, path)
+        except ValueError:
+            figures = None
+    if figures is not None and 'shared' in figures.cpu_per_drone:
+        scale = figures.cpu_per_drone['shared'] / CPU_PER_DRONE['shared']
+        return (dict((h, c * scale) for h, c in REFERENCE_HOST_CPU_PER_DRONE.items()),
+                'the reference\'s host costs x %.2f, this machine\'s CPU per drone (%.3f, measured here: %s) over '
+                'the reference\'s (%.3f)' % (scale, figures.cpu_per_drone['shared'], path, CPU_PER_DRONE['shared']))
+    return (dict((h, c / DEFAULT_CAP_SCALE) for h, c in REFERENCE_HOST_CPU_PER_DRONE.items()),
+            'conservative default, not measured on this machine: the reference\'s host costs / %g' % DEFAULT_CAP_SCALE)
+
+
+def machine_drones_per_host(cores=None, model=None, cache_path=None):
+    """({host: drones}, why): the shared layout's split on this machine, each host within HOST_CORE_BUDGET
+    (``drones_per_host`` of ``host_costs``)."""
+    costs, why = host_costs(cores, model, cache_path)
+    limits = drones_per_host(costs)
+    return limits, '%s per host (%s; %g core each at most): %s' % (
+        ' / '.join('%d drones for %s' % (limits[h], h) for h in sorted(limits)),
+        ', '.join('%s %.3f core per drone' % (h, costs[h]) for h in sorted(costs)), HOST_CORE_BUDGET, why)
 
 
 def _cap_reason(cap, cores, layout, figures):

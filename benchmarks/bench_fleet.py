@@ -5,7 +5,7 @@ For each N in ``--sizes`` (1 2 4 8 10 12), ``--repeats`` times (at least 2 for w
 ``--layouts`` (per_drone: a process per role and drone; shared: ``fleet_host.py`` processes hosting one role of
 every drone), interleaved run by run so the layouts see the same machine: a private ROS master,
 ``roslaunch anafi_sim fleet.launch drones:=N`` (``layout:=L`` for a layout other than per_drone; fleet
-``--fleet``, default three_circles: every drone with the MPC flying the circle r = 2 m, v = 1 m/s, 6 m apart;
+``--fleet``, default circles: every drone with the MPC flying the circle r = 2 m, v = 1 m/s, 6 m apart;
 kinematic world, one mirror per drone at 100 Hz, no evaluators), wait until every drone flies its scenario,
 ``--settle`` s, then a measurement window of ``--duration`` s of wall time:
 
@@ -119,7 +119,15 @@ class Bench(object):
 
     def __init__(self, workdir):
         import rospy
+        import shutil
+        from anafi_sim import launch_check
         self.workdir = workdir
+        user_cache = launch_check.cap_cache_path()     # this machine's figures: the fleets split their hosts by them
+        if os.path.isfile(user_cache):
+            target = os.path.join(workdir, 'ros_home', *launch_check.CAP_CACHE)
+            os.makedirs(os.path.dirname(target), exist_ok=True)
+            shutil.copyfile(user_cache, target)
+        self.split = launch_check.machine_drones_per_host()
         self.procs = processes.Processes(workdir, grace=30.0)
         uri, self.env = processes.private_master(self.procs, os.path.join(workdir, 'ros_home'),
                                                os.path.join(workdir, 'log'), MASTER_PORTS, join=True)
@@ -172,6 +180,9 @@ class Bench(object):
                'load_after': window.load_after, 'busy': window.busy,
                'bench_cpu': 100.0 * window.bench_cpu / window.wall,
                'largest_processes': [[role, cpu] for role, cpu in procs[:LARGEST_PROCESSES]]}
+        if layout == 'shared':
+            run['drones_per_host'] = self.split[0]
+            run['processes'] = [[role, cpu] for role, cpu in procs]
         run['other_jobs'] = fleet_report.other_jobs(dict(run), os.cpu_count() or 1)
         return run
 
@@ -258,6 +269,9 @@ def report_run(r):
         print('    %-24s %5.1f %% (%d processes)' % (role, cpu, count), flush=True)
     print('    largest processes: %s' % ', '.join('%s %.1f %%' % (role, cpu) for role, cpu in
                                                    r.get('largest_processes', [])), flush=True)
+    if r.get('drones_per_host'):
+        print('    hosts split by: %s' % ', '.join('%s %d drones' % kv for kv in sorted(r['drones_per_host'].items())),
+              flush=True)
 
 
 def calibrate(args, layouts, bench_runs):
@@ -301,6 +315,14 @@ def calibrate(args, layouts, bench_runs):
             'other_jobs_max_pct_core': round(max([o for o in others if o is not None] or [0.0]), 1),
             'load_1min_max': round(max(max(r.get('load_before', [0])[0], r.get('load_after', [0])[0])
                                        for r in mine), 2)}
+        hosts = fleet_report.host_cpu_per_drone(data) if layout == 'shared' else None
+        if hosts and all(k in hosts for k in launch_check.REFERENCE_HOST_CPU_PER_DRONE):
+            figures[layout]['host_cpu_per_drone'] = dict((k, hosts[k])
+                                                         for k in launch_check.REFERENCE_HOST_CPU_PER_DRONE)
+            print('shared layout: the hosts\' CPU per drone %s: split by %s drones (%g core per host at most)' % (
+                figures[layout]['host_cpu_per_drone'],
+                launch_check.drones_per_host(figures[layout]['host_cpu_per_drone']), launch_check.HOST_CORE_BUDGET),
+                flush=True)
     caps = dict((layout, launch_check.fleet_cap(cores, layout, launch_check.CapFigures(
         dict((k, v['cpu_per_drone']) for k, v in figures.items()),
         dict((k, v['failing_per_core']) for k, v in figures.items()), model, cores, '', ''))) for layout in figures)
@@ -330,13 +352,17 @@ def main(argv=None):
     which.add_argument('--layout', choices=fleet_report.LAYOUTS, help='one layout (default per_drone)')
     which.add_argument('--layouts', choices=fleet_report.LAYOUTS, nargs='+',
                        help='several layouts side by side, interleaved run by run')
-    ap.add_argument('--fleet', default='three_circles')
+    ap.add_argument('--fleet', default='circles')
     ap.add_argument('--duration', type=float, default=None, help='s of wall time measured (30; --calibrate-cap 20)')
     ap.add_argument('--settle', type=float, default=None, help='s (10; --calibrate-cap 5)')
     ap.add_argument('--start-timeout', type=float, default=240.0)
     ap.add_argument('--max-size', action='append', default=[], metavar='LAYOUT=N',
                     help='run that layout only up to N drones (e.g. per_drone=10: larger ones never start in time)')
     ap.add_argument('--no-write', action='store_true')
+    ap.add_argument('--processes-page', default='', metavar='PATH',
+                    help='also write the per-process CPU of the shared layout\'s runs (every host process, the '
+                         'split, the machine and its load) to PATH (e.g. benchmarks/results/fleet_processes.md), '
+                         'with --no-write too')
     ap.add_argument('--calibrate-cap', action='store_true',
                     help='measure this machine\'s fleet cap (one run per size, sizes in order until one does not '
                          'hold; default sizes per layout %s, default layouts both) and write it into the cap cache '
@@ -405,6 +431,10 @@ def main(argv=None):
     print(fleet_report.markdown(data))
     if not args.no_write and data['runs']:
         write(data)
+    if args.processes_page and data['runs']:
+        data['command'] = 'python benchmarks/bench_fleet.py ' + ' '.join(argv if argv is not None else sys.argv[1:])
+        run_files.atomic_write_text(args.processes_page, fleet_report.processes_markdown(data))
+        print('written %s' % args.processes_page)
     if failed:
         print('FAILED: %d run(s) never had every drone flying (see above)' % failed, flush=True)
         return 1

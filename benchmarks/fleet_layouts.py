@@ -24,7 +24,7 @@ Writes benchmarks/results/fleet_layouts.json (every run's raw figures) and fleet
 ``--no-write``: print only; ``--from-json``: rewrite the .md from the .json.
 
 Run (inside env.bash, in a network namespace of your own; about 4-5 minutes on 2 cores):
-    python benchmarks/fleet_layouts.py [--repeats 2] [--layouts per_drone shared] [--fleet three_circles]
+    python benchmarks/fleet_layouts.py [--repeats 2] [--layouts per_drone shared] [--fleet circles]
 """
 import argparse
 import datetime
@@ -283,7 +283,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--repeats', type=int, default=2, help='runs per layout (>= 2 for written results)')
     ap.add_argument('--layouts', choices=LAYOUTS, nargs='+', default=list(LAYOUTS))
-    ap.add_argument('--fleet', default='three_circles')
+    ap.add_argument('--fleet', default='circles')
     ap.add_argument('--timeout', type=float, default=100.0, help='s per run until every summary is final (a run takes ~40 s)')
     ap.add_argument('--no-in-process', action='store_true', help='skip the in-process reference')
     ap.add_argument('--no-write', action='store_true')

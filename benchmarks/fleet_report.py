@@ -206,6 +206,83 @@ def cap_cpu_per_drone(data, layout, rows=None):
     return round(best['spread']['cpu_per_drone'][1] / 100.0, 3)
 
 
+def host_kind(role):
+    """'host fleet_ground_truth_2' -> 'fleet_ground_truth' (a host of the shared layout's split); None otherwise."""
+    if not role.startswith('host '):
+        return None
+    name = role[len('host '):]
+    base, _, number = name.rpartition('_')
+    return base if number.isdigit() and base else name
+
+
+def host_cpu_per_drone(data, rows=None):
+    """[cores] {host kind: its CPU per drone} of the shared layout at the largest size holding real time (the
+    median over the runs of the hosts of that kind together over N; 3 decimals), the figures the split of the
+    hosts comes from (launch_check.drones_per_host); None when no size holds."""
+    rows = summary(data) if rows is None else rows
+    held = [r for r in rows if r['layout'] == 'shared' and r['holds']]
+    if not held:
+        return None
+    best = max(held, key=lambda r: r['n'])
+    per_run = []
+    for run in best['runs']:
+        kinds = {}
+        for role, (cpu, _count) in run.get('roles', {}).items():
+            kind = host_kind(role)
+            if kind:
+                kinds[kind] = kinds.get(kind, 0.0) + cpu
+        per_run.append(kinds)
+    kinds = sorted(set(k for r in per_run for k in r))
+    return dict((k, round(median([r.get(k, 0.0) for r in per_run]) / 100.0 / best['n'], 4)) for k in kinds) or None
+
+
+def _cell_text(text):
+    return str(text).replace('|', '/').replace('\n', ' ')
+
+
+def processes_markdown(data, budget=None):
+    """The per-process page of shared-layout runs (bench_fleet.py --processes-page): per run the machine's load,
+    the split of the hosts, whether it held real time and every process with its CPU [% of one core], the hosts
+    against the budget of one host (launch_check.HOST_CORE_BUDGET)."""
+    if budget is None:
+        from anafi_sim.launch_check import HOST_CORE_BUDGET as budget
+    machine = data.get('machine') or {}
+    cores = machine.get('cores')
+    lines = ['# Per-process CPU of the shared layout', '',
+             'Measured by `%s` on %s, %s cores (Python %s, %s; load average at the start %s). Figures of that '
+             'machine and that load, in %% of one core over %.0f s of wall time per run; a host process may take '
+             'at most %.0f %% of a core (`launch_check.HOST_CORE_BUDGET`), the split of the hosts comes from this '
+             'machine\'s figures (`launch_check.machine_drones_per_host`). Holds real time: %s.'
+             % (data.get('command', 'benchmarks/bench_fleet.py'), machine.get('cpu_model', '?'), cores,
+                machine.get('python', '?'), machine.get('date', '?'),
+                ' / '.join('%.1f' % v for v in machine.get('load_start', [])) or '?', data.get('duration', 0),
+                100.0 * budget, HOLD_TEXT), '',
+             '| N | run | holds | hosts split by | load (1 min) before / after | other jobs [% core] | largest host '
+             '[% core] | within the budget |', '|---|---|---|---|---|---|---|---|']
+    runs = [r for r in data['runs'] if r.get('layout') == 'shared' and 'error' not in r]
+    for r in data['runs']:
+        if r.get('layout') == 'shared' and 'error' in r:
+            lines.append('| %d | %d | no: %s | - | - | - | - | - |' % (r['n'], r['repeat'] + 1,
+                                                                   _cell_text(str(r['error']).splitlines()[0])))
+    for r in runs:
+        hosts = [(role, cpu) for role, cpu in r.get('processes', []) if role.startswith('host ')]
+        largest = max(hosts, key=lambda h: h[1]) if hosts else None
+        split = ', '.join('%s %d' % kv for kv in sorted((r.get('drones_per_host') or {}).items())) or '-'
+        lines.append('| %d | %d | %s | %s | %.1f / %.1f | %s | %s | %s |' % (
+            r['n'], r['repeat'] + 1, 'yes' if run_holds(r) else 'no', split, r['load_before'][0],
+            r['load_after'][0], fmt(other_jobs(r, cores), 0),
+            '%s %.1f' % (largest[0][len('host '):], largest[1]) if largest else '-',
+            '-' if not largest else ('yes' if largest[1] <= 100.0 * budget else 'no')))
+    for r in runs:
+        lines += ['', '## N = %d, run %d' % (r['n'], r['repeat'] + 1), '', '| process | % of one core |', '|---|---|']
+        lines += ['| %s | %.1f |' % (role, cpu) for role, cpu in r.get('processes', [])
+                  if role.startswith('host ') or cpu >= 1.0]
+        small = [cpu for role, cpu in r.get('processes', []) if not role.startswith('host ') and cpu < 1.0]
+        if small:
+            lines.append('| %d other processes under 1 %% each | %.1f together |' % (len(small), sum(small)))
+    return '\n'.join(lines) + '\n'
+
+
 def role_order(rows):
     """The roles seen, per-drone roles first, then the shared layout's hosts, the shared roles, 'other'."""
     seen = set(ro for r in rows for ro in r['roles'])

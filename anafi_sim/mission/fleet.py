@@ -9,13 +9,13 @@ pid.launch, sphinx_gazebo.launch) once per drone namespace. Units: m, deg for ya
 
 Fleet file schema (every key optional except ``drones`` unless ``drones:=N`` is given)::
 
-    name: three_circles             # default: the file name
+    name: circles                   # default: the file name
     description: text
     defaults: {controller: mpc, scenario: circle_r2_v1}   # every drone's settings unless it sets its own
     row: {spacing: 6.0, axis: y}    # drones:=N -> anafi1..anafiN, drone i at (i - 1) * spacing along axis
     layout: per_drone               # per_drone (a process per node) | shared (hosts: mission/fleet_layout.py)
-    drones_per_host: {fleet_ground_truth: 10}   # shared layout: split a host by this many drones (default:
-                                    # fleet_layout.DRONES_PER_HOST, 10 for fleet_drones and fleet_ground_truth)
+    drones_per_host: {fleet_ground_truth: 10}   # shared layout: split a host by this many drones (default: the
+                                    # machine's, each host within half a core: launch_check.machine_drones_per_host)
     drones:
       - name: anafi1                # a ROS name: namespace, tf prefix, models <name> and <name>_camera
         source: sim                 # sim (stand-in, default) | sphinx (the real Sphinx drone: at most one)
@@ -283,11 +283,16 @@ def check_fleet(fleet, min_separation=MIN_SEPARATION):
                                  % (a.name, b.name, gap, min_separation))
 
 
+#: former names of shipped fleets -> their names now (a fleet's name does not count its drones: drones:=N changes
+#: that count)
+FLEET_ALIASES = {'three_circles': 'circles'}
+
+
 def fleet_path(name_or_path):
-    """Path of a fleet file given a path or a name in ``FLEET_DIR``."""
+    """Path of a fleet file given a path or a name in ``FLEET_DIR`` (or a former name, ``FLEET_ALIASES``)."""
     if os.sep in name_or_path or name_or_path.endswith(('.yaml', '.yml')):
         return name_or_path
-    return os.path.join(FLEET_DIR, name_or_path + '.yaml')
+    return os.path.join(FLEET_DIR, FLEET_ALIASES.get(name_or_path, name_or_path) + '.yaml')
 
 
 def load_fleet(name_or_path, drones=0):

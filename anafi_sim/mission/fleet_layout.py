@@ -7,8 +7,9 @@ Stage: experiments (beside mission/fleet.py, which writes the per-drone launch).
   (anafi_sim/nodes/fleet_host.py): ``fleet_drones`` hosts every drone's simulator, controller and trajectory generator
   (their estimate, command and waypoint messages stay in the process), ``fleet_ground_truth`` every drone's
   interface and mirror, and the kinematic world when the fleet runs ours (the 100 Hz ground truth reaches the
-  mirror, and the mirror's model states the world, in the process); both split by ten drones (DRONES_PER_HOST:
-  ``fleet_drones_1``, ``fleet_drones_2``, ..., ``fleet_ground_truth_1``, ... the world in the first).
+  mirror, and the mirror's model states the world, in the process); both split by drone so that each host stays
+  within half a core of the machine it runs on (SPLIT_HOSTS, ``split_limits``: ``fleet_drones_1``,
+  ``fleet_drones_2``, ..., ``fleet_ground_truth_1``, ... the world in the first).
   Everything else (the
   distributed PID nodes, evaluators, model followers, rviz helpers, the telemetry CLIs the interfaces
   supervise) stays a process of its own, as does any node a launch file gives remappings, a launch prefix or
@@ -44,15 +45,14 @@ HOSTABLE = {
     'trajectory_generator.py': ('anafi_sim.nodes.trajectory_generator', 'TrajectoryGeneratorNode', ()),
 }
 
-DRONES_PER_HOST = {'fleet_drones': 10, 'fleet_ground_truth': 10}
-"""Hosts split by drone: at most this many drones' instances in one such host (<host>_1, <host>_2, ...; a fleet
-file's ``drones_per_host`` sets its own). One interpreter runs one thread at a time: in fleet_drones each
-simulator step's telemetry send and each controller's solve wait for it, and beyond about ten drones the
-simulators' loop falls behind; fleet_ground_truth (every interface and mirror at 100 Hz) took 53 % of a core
-at 20 drones on the reference machine (benchmarks/results/fleet.md) and about 74 % on a 2-core Intel Xeon,
-where those 20 drones no longer held real time. An instance outside the drones' namespaces (the kinematic
-world) goes to the first host of the split: the mirrors there reach it in the process, the others through its
-topic."""
+SPLIT_HOSTS = ('fleet_drones', 'fleet_ground_truth')
+"""Hosts split by drone: at most so many drones' instances in one such host (<host>_1, <host>_2, ...). One
+interpreter runs one thread at a time: in fleet_drones each simulator step's telemetry send and each controller's
+solve wait for it, fleet_ground_truth runs every interface and mirror at 100 Hz, and a host near a whole core falls
+behind real time before the cores are full. How many drones: ``split_limits`` (the machine's, each host within
+launch_check.HOST_CORE_BUDGET of a core: launch_check.machine_drones_per_host; a fleet file's ``drones_per_host``
+wins). An instance outside the drones' namespaces (the kinematic world) goes to the first host of the split: the
+mirrors there reach it in the process, the others through its topic."""
 
 NodeSpec = collections.namedtuple('NodeSpec', 'package type name namespace args output respawn respawn_delay '
                                               'required launch_prefix cwd env_args remap_args')
@@ -107,26 +107,33 @@ def drone_of(instance_name):
 
 
 def check_drones_per_host(value):
-    """A fleet file's ``drones_per_host`` ({host: drones >= 1}, hosts of DRONES_PER_HOST) -> a dict; ValueError
+    """A fleet file's ``drones_per_host`` ({host: drones >= 1}, hosts of SPLIT_HOSTS) -> a dict; ValueError
     naming what is wrong."""
     if value is None:
         return {}
     if not isinstance(value, dict):
         raise ValueError('drones_per_host must be a mapping {host: drones}, got %r' % (value,))
     for host, limit in value.items():
-        if host not in DRONES_PER_HOST:
+        if host not in SPLIT_HOSTS:
             raise ValueError('drones_per_host: %r is not a host split by drone (%s)'
-                             % (host, ', '.join(sorted(DRONES_PER_HOST))))
+                             % (host, ', '.join(sorted(SPLIT_HOSTS))))
         if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
             raise ValueError('drones_per_host.%s must be an integer >= 1, got %r' % (host, limit))
     return dict(value)
 
 
+def split_limits(machine, fleet_file=None):
+    """{host: drones} the hosts split by: the machine's (launch_check.machine_drones_per_host), a fleet file's
+    ``drones_per_host`` winning per host."""
+    return dict(machine or {}, **(fleet_file or {}))
+
+
 def split_by_drone(hosted, drones_per_host=None):
-    """{host: instances} with each host of DRONES_PER_HOST (``drones_per_host`` overrides) split into <host>_1,
-    <host>_2, ... of at most that many drones each (one name unchanged when it fits), the drones in launch order;
-    instances outside the drones' namespaces (the world) go with the first group."""
-    limits = dict(DRONES_PER_HOST, **(drones_per_host or {}))
+    """{host: instances} with each host of ``drones_per_host`` ({host: drones}, ``split_limits``) split into
+    <host>_1, <host>_2, ... of at most that many drones each (one name unchanged when it fits, or without a
+    limit), the drones in launch order; instances outside the drones' namespaces (the world) go with the first
+    group."""
+    limits = dict(drones_per_host or {})
     out = collections.OrderedDict()
     for host, instances in hosted.items():
         limit = limits.get(host)
@@ -181,7 +188,7 @@ def shared_layout(nodes, params, params_file, output='log', title='', drones_per
 
     ``nodes``: NodeSpecs; ``params``: {global name: value} (every parameter the launch sets, nodes' private
     ones included); ``params_file``: where the caller writes the params document (the XML loads it);
-    ``drones_per_host``: the fleet file's (split_by_drone).
+    ``drones_per_host``: {host: drones} the hosts are split by (``split_limits``; none: not split).
     The XML loads every parameter, starts each host with ``~instances`` (its nodes, in launch order; a host
     with none is not started) and every other node as it was."""
     hosted = collections.OrderedDict((host, []) for host in HOSTS)

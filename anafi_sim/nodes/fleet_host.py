@@ -177,8 +177,10 @@ class FleetHost(object):
             time.sleep(0.2)
 
     def shutdown(self):
-        """Every instance's clean-up through ROS (e.g. the mirrors delete their models), then ROS stops."""
-        for inst in self.instances:
+        """Every instance's clean-up through ROS (e.g. the mirrors delete their models), in reverse launch order as
+        roslaunch stops nodes (the world, first in its host, still serves the mirrors' deletions: stopped first, each
+        deletion would wait for its timeout), then ROS stops."""
+        for inst in reversed(self.instances):
             cleanup = getattr(inst.node, 'shutdown', None)
             if cleanup is not None:
                 try:

@@ -6,17 +6,20 @@ loop, so fleet.launch starts this node (required): it reads the fleet file ~flee
 in a row from its defaults), picks a free telemetry port for each simulated drone that has none, writes each
 drone's scenario shifted by its offset and the generated launch file into ~out_dir, and runs ``roslaunch``
 on that file (a child process in a session of its own, on the same master) until it ends or this node is
-stopped (SIGINT / SIGTERM: SIGINT to the child, which stops every drone's nodes; then SIGTERM, SIGKILL; the
+stopped (SIGINT / SIGTERM: SIGINT to the child and to each of its nodes at once; then SIGTERM, SIGKILL; the
 child also gets SIGINT from the kernel if this node is killed, so no drone is left running).
-Exits with the child's code; a bad fleet file or parameter: logfatal, exit code 2.
+When the child has ended it prints the fleet's summary, one table with a row per drone (its controller, the
+state of its evaluation, e_mu / e_max against estimate and ground truth: anafi_sim.mission.fleet_summary, from the
+evaluators' out_dir/NAME.yaml of this run) and exits with the child's code; a bad fleet file or parameter:
+logfatal, exit code 2.
 
-Parameters: ~fleet (name in anafi_sim/config/fleets or a path; three_circles), ~drones (0: the file's list;
+Parameters: ~fleet (name in anafi_sim/config/fleets or a path; circles), ~drones (0: the file's list;
 N > 0: N in a row), ~out_dir (~/.ros/anafi_fleet), ~evaluate (true), ~mirror (true), ~mirror_rate (100 Hz),
 ~output (log | screen), ~aggregator (false: diagnostic_aggregator, ROS Noetic only), ~rviz (false; true: rviz.launch
 per drone and rviz on the fleet's generated view ~out_dir/fleet.rviz, anafi_sim/mission/rviz_config.py),
-~stop_timeout (30 s), ~max_drones (0: this machine's fleet cap, anafi_sim.launch_check.machine_cap: its own
-measurement cached under the ROS home, else the conservative default; a larger fleet is refused with a message
-naming the cap, its figure and where it came from).
+~stop_timeout (STOP_TIMEOUT, 8 s), ~max_drones (0: this machine's fleet cap, anafi_sim.launch_check.machine_cap:
+its own measurement cached under the ROS home, else the conservative default; a larger fleet is refused with a
+message naming the cap, its figure and where it came from).
 
 Also a command-line tool, to see or check what a fleet file starts without starting it:
 
@@ -34,18 +37,21 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import yaml
 
 from anafi_sim.mission.fleet import aggregator_analyzers, drone_scenario, fleet_path, launch_xml, load_fleet
-from anafi_sim.mission.fleet_layout import LAYOUTS, NodeSpec, check_layout, shared_layout
+from anafi_sim.mission.fleet_layout import LAYOUTS, NodeSpec, check_layout, shared_layout, split_limits
+from anafi_sim.mission.fleet_summary import fleet_summary
 from anafi_sim.mission.rviz_config import fleet_rviz
 from anafi_sim.mission.trajectory import scenario_from_dict
 from anafi_sim.processes import free_port, stop
-from anafi_sim.launch_check import fleet_size_problem
+from anafi_sim.launch_check import fleet_size_problem, machine_drones_per_host
 
 DEFAULT_OUT_DIR = os.path.join(os.path.expanduser('~'), '.ros', 'anafi_fleet')
+DEFAULT_FLEET = 'circles'
 OUTPUTS = ('log', 'screen')
 
 
@@ -91,7 +97,12 @@ def generate(fleet_name, drones, out_dir, evaluate, mirror, mirror_rate, output,
                      rviz=rviz, rviz_file=rviz_file, conditions=conditions, world=world)
     path = os.path.join(out_dir, 'fleet.launch')
     if layout == 'shared':
-        xml = shared_launch(xml, out_dir, output, fleet.name, fleet.drones_per_host)
+        machine, why = machine_drones_per_host()
+        limits = split_limits(machine, fleet.drones_per_host)
+        log('fleet %s: hosts split by %s (this machine: %s%s)\n' % (
+            fleet.name, ', '.join('%d drones (%s)' % (limits[h], h) for h in sorted(limits)), why,
+            '; the fleet file sets %s' % fleet.drones_per_host if fleet.drones_per_host else ''))
+        xml = shared_launch(xml, out_dir, output, fleet.name, limits)
     with open(path, 'w') as f:
         f.write(xml)
     for drone in fleet.drones:
@@ -138,24 +149,61 @@ def _child_setup():
         pass
 
 
+#: [s] wall time the fleet's roslaunch has to stop its nodes (then SIGTERM, SIGKILL of what is left): with the
+#: summary and this node's own end, below the 15 s roslaunch gives this node before it escalates (a node on a quiet
+#: machine ends in about a second)
+STOP_TIMEOUT = 8.0
+#: [s] more for the SIGTERM / SIGKILL of what was left, before the summary is printed anyway
+KILL_TIME = 2.0
+#: [s] for this node's own rospy shutdown after the summary
+END_TIME = 1.5
+#: [s] after SIGINT to the fleet's roslaunch, before SIGINT to each of its nodes: its process monitor is shut down
+#: by then, so it does not respawn a node that ends
+NODES_AFTER = 0.3
+
+
+def interrupt_nodes(child, after=NODES_AFTER):
+    """SIGINT to the fleet's roslaunch ``child``, then (``after`` s later) to every node it started, all at once:
+    roslaunch alone stops them ten at a time, each wave waiting for its slowest node; the nodes ignore its SIGINT
+    when it comes (anafi_sim.ros.node.install_shutdown_signals)."""
+    import psutil
+    try:
+        child.send_signal(signal.SIGINT)
+        time.sleep(after)
+        nodes = psutil.Process(child.pid).children()
+    except (OSError, psutil.Error):
+        return
+    for node in nodes:
+        try:
+            node.send_signal(signal.SIGINT)
+        except psutil.Error:
+            pass
+
+
 class FleetLauncherNode(object):
     def __init__(self):
         import rospy
         from anafi_sim.ros.node import private_params
         self.rospy = rospy
         p = private_params()
-        self.stop_timeout = p.positive('stop_timeout', 30.0)
-        self.path = generate(p.string('fleet', 'three_circles', allow_empty=False),
-                             p.integer('drones', 0, minimum=0), p.string('out_dir', DEFAULT_OUT_DIR, allow_empty=False),
-                             p.flag('evaluate', True), p.flag('mirror', True), p.positive('mirror_rate', 100.0),
+        self.stop_timeout = p.positive('stop_timeout', STOP_TIMEOUT)
+        self.started = time.time()
+        name, drones = p.string('fleet', DEFAULT_FLEET, allow_empty=False), p.integer('drones', 0, minimum=0)
+        self.out_dir = os.path.abspath(os.path.expanduser(p.string('out_dir', DEFAULT_OUT_DIR, allow_empty=False)))
+        self.evaluate = p.flag('evaluate', True)
+        self.path = generate(name, drones, self.out_dir, self.evaluate, p.flag('mirror', True),
+                             p.positive('mirror_rate', 100.0),
                              p.choice('output', 'log', OUTPUTS), p.flag('aggregator', False),
                              log=lambda text: rospy.loginfo(text.rstrip()), rviz=p.flag('rviz', False),
                              conditions=p.string('conditions', '', allow_empty=True),
                              max_drones=p.integer('max_drones', 0, minimum=0),
                              layout=p.string('layout', ''),
                              world=p.flag('kinematic_world', False))   # ValueError: fatal, exit 2
+        self.fleet = load_fleet(name, drones)
         self.child = None
         self.code = 0
+        self.ended = 'stopped'
+        self.printed = False
 
     def spin(self):
         rospy = self.rospy
@@ -165,6 +213,7 @@ class FleetLauncherNode(object):
             time.sleep(0.2)
         if self.child.poll() is not None:
             self.code = self.child.returncode
+            self.ended = 'ended (its roslaunch exited with code %d)' % self.code
             rospy.logerr('fleet_launcher: the fleet\'s roslaunch ended (exit code %d)', self.code)
 
     def cleanup(self):
@@ -173,13 +222,47 @@ class FleetLauncherNode(object):
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, signal.SIG_IGN)
         if self.child is not None and self.child.poll() is None:
-            left = stop(self.child, grace=self.stop_timeout)
-            if left:
-                self.rospy.logwarn('fleet_launcher: processes still alive after stopping: %s', left)
+            started = time.monotonic()
+            interrupt_nodes(self.child)
+            left = []
+            stopping = threading.Thread(target=lambda: left.extend(stop(self.child, grace=self.stop_timeout,
+                                                                        kill_wait=0.3)), daemon=True)
+            stopping.start()
+            stopping.join(self.stop_timeout + KILL_TIME)
+            took = time.monotonic() - started
+            if took > self.stop_timeout:
+                self.rospy.logwarn('fleet_launcher: the fleet had not stopped %.0f s after the signal: the rest '
+                                   'ended with SIGTERM / SIGKILL', self.stop_timeout)
+            if left or stopping.is_alive():
+                self.rospy.logwarn('fleet_launcher: processes still alive after stopping: %s', left or '(still '
+                                   'stopping)')
+        self.print_summary()
+        # this node's own end bounded too (rospy's shutdown unregisters from a master that may be busy with the
+        # whole fleet's): at most END_TIME s, then the process ends with the fleet's exit code
+        ending = threading.Thread(target=self.rospy.signal_shutdown, args=('fleet stopped',), daemon=True)
+        ending.start()
+        ending.join(END_TIME)
+        sys.stderr.flush()
+        os._exit(self.code)
+
+    def print_summary(self):
+        if not self.printed:
+            self.printed = True
+            sys.stdout.write('\n' + self.summary())
+            sys.stdout.flush()
+
+    def summary(self):
+        """The fleet's one table (anafi_sim.mission.fleet_summary): per drone, its evaluation of this run."""
+        return fleet_summary(self.fleet.name, [(d.name, d.controller) for d in self.fleet.drones], self.out_dir,
+                             self.evaluate, since=self.started, reason=self.ended)
 
     def run(self):
         from anafi_sim.ros.node import run_until_interrupted
-        run_until_interrupted(self.spin, self.cleanup, 'fleet stopped')
+        try:
+            # the stop and the summary take stop_timeout + KILL_TIME at most; this node's own end some more
+            run_until_interrupted(self.spin, self.cleanup, 'fleet stopped', grace=self.stop_timeout + KILL_TIME + 3.0)
+        finally:
+            self.print_summary()
         return self.code
 
 

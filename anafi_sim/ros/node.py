@@ -269,25 +269,93 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
     parameters, FATAL every second) the node stays up instead, in ERROR (``stay_in_error``). What
     ``run()`` returns is the exit status: None (default) or True -> 0, False -> 1, an int -> that code.
     ``watch_master``: exit with ``MASTER_RESTART_EXIT`` when the ROS master restarts (see the module doc).
+    SIGINT / SIGTERM: rospy's own handlers replaced by ``install_shutdown_signals`` (unless the node passes
+    ``disable_signals=True`` and handles them itself).
     """
+    deferred = not init_args.get('disable_signals')
+    if deferred:
+        init_args['disable_signals'] = True
     rospy.init_node(name, **init_args)
+    shutdown_done = install_shutdown_signals() if deferred else None
     try:
         node = factory()
+    except KeyboardInterrupt:       # nodes that handle SIGINT themselves, stopped while starting
+        rospy.signal_shutdown('stopped while starting')
+        return
     except fatal_errors as error:
         if respawned:
             stay_in_error(error)
         else:
             rospy.logfatal('%s: bad parameters: %s', rospy.get_name(), error)
-        if init_args.get('disable_signals'):
+        if not deferred:
             rospy.signal_shutdown('bad parameters')
         sys.exit(fatal_exit_code)
     watch = start_master_watch(saved_params()) if watch_master else None
-    result = node.run()
+    try:
+        result = node.run()
+    except (rospy.ROSException, KeyboardInterrupt):
+        # shutting down beside the main loop (install_shutdown_signals): a publish to a topic rospy closed meanwhile
+        if not (rospy.is_shutdown() or rospy.core.is_shutdown_requested()):
+            raise
+        result = None
+    if shutdown_done is not None:
+        shutdown_done(SIGNAL_EXIT_GRACE)
     if watch is not None and watch.restarted:
         sys.exit(MASTER_RESTART_EXIT)
     if result is None or result is True:
         return
     sys.exit(1 if result is False else int(result))
+
+
+#: [s] wall time a node has to end after SIGINT / SIGTERM (an experiment monitor writing its run files and plots
+#: included) before it ends itself (os._exit): below the 15 s roslaunch waits before it escalates to SIGTERM and
+#: SIGKILL
+SIGNAL_EXIT_GRACE = 12.0
+
+
+def install_shutdown_signals(grace=SIGNAL_EXIT_GRACE, exit_code=0):
+    """SIGINT / SIGTERM -> ``rospy.signal_shutdown`` on a thread of its own, instead of rospy's handler, which runs
+    it inside the signal handler on top of whatever the main thread was doing: a signal that lands while the main
+    thread is in a call to the master (reading its parameters at start-up, a get_param later) deadlocks there, the
+    shutdown waiting for the master proxy's lock that the interrupted call holds; rospy also swallows SIGTERM, so
+    roslaunch can only SIGKILL it. Here the main thread finishes its call, sees ``rospy.is_shutdown()`` and ends
+    (rospy.spin, ``while not rospy.is_shutdown()`` loops). A node still running ``grace`` s after the first signal,
+    or at SIGTERM after the first signal (roslaunch's escalation), ends at once (``exit_code``) with one line on
+    stderr naming it; another SIGINT meanwhile changes nothing (the fleet launcher signals every node of a fleet at
+    once, its roslaunch again later). Returns ``wait(timeout)``: after a signal, waits until rospy's shutdown has
+    returned (the node unregistered), so that the main thread does not end the process in the middle of it."""
+    state = {'signals': 0, 'start': None}
+    done = threading.Event()       # rospy's shutdown (unregistering from the master) has returned
+
+    def hard_exit(why):
+        try:
+            sys.stderr.write('%s: %s; ending now\n' % (rospy.get_name(), why))
+            sys.stderr.flush()
+        finally:
+            os._exit(exit_code)
+
+    def shut_down(signum):
+        try:
+            rospy.signal_shutdown('signal-%d' % signum)
+        finally:
+            done.set()
+        left = grace - (time.monotonic() - state['start'])
+        if left > 0.0:
+            time.sleep(left)
+        hard_exit('still running %g s after signal %d' % (grace, signum))
+
+    def handler(signum, _frame):
+        state['signals'] += 1
+        if state['signals'] > 1:
+            if signum == signal.SIGINT:
+                return
+            hard_exit('signal %d during shutdown' % signum)
+        state['start'] = time.monotonic()
+        threading.Thread(target=shut_down, args=(signum,), name='signal_shutdown', daemon=True).start()
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, handler)
+    return lambda timeout: done.wait(timeout) if state['signals'] else True
 
 
 #: [s] wall time between the ERROR diagnostics of a node that stays up with bad parameters
@@ -379,16 +447,36 @@ def _raise_interrupt(signum, frame):
     raise KeyboardInterrupt('signal %d' % signum)
 
 
-def run_until_interrupted(spin, cleanup, reason):
+def _exit_when_signalled_again(grace=SIGNAL_EXIT_GRACE, exit_code=0):
+    """After the first SIGINT / SIGTERM of a node that cleans up itself: SIGINT ignored, SIGTERM (roslaunch's
+    escalation) or ``grace`` s more end the process at once (one line on stderr)."""
+    def hard_exit(why):
+        try:
+            sys.stderr.write('%s: %s; ending now\n' % (rospy.get_name(), why))
+            sys.stderr.flush()
+        finally:
+            os._exit(exit_code)
+
+    def later():
+        time.sleep(grace)
+        hard_exit('still cleaning up %g s after the signal' % grace)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, lambda signum, _frame: hard_exit('signal %d while cleaning up' % signum))
+    threading.Thread(target=later, name='exit_grace', daemon=True).start()
+
+
+def run_until_interrupted(spin, cleanup, reason, grace=SIGNAL_EXIT_GRACE):
     """The ``run()`` of a node started with ``disable_signals=True`` that must clean up through ROS (delete
     its Gazebo models): SIGINT or SIGTERM ends ``spin()``, ``cleanup()`` runs while ROS still works, then
-    rospy shuts down with ``reason``."""
+    rospy shuts down with ``reason``. Meanwhile another SIGINT is ignored; SIGTERM, or cleaning up longer than
+    ``grace`` s, ends the process at once."""
     signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         spin()
     except KeyboardInterrupt:
         pass
     finally:
+        _exit_when_signalled_again(grace)
         if not rospy.is_shutdown():
             cleanup()
         rospy.signal_shutdown(reason)

@@ -155,7 +155,7 @@ def test_the_run_plot_shows_the_wind(tmp_path):
 
 def test_fleet_drones_get_the_conditions():
     from anafi_sim.mission.fleet import launch_xml, load_fleet
-    fleet = load_fleet('three_circles', 0)
+    fleet = load_fleet('circles', 0)
     ports = dict((d.name, 9000 + i) for i, d in enumerate(fleet.drones))
     xml = launch_xml(fleet, ports, {}, '/tmp', conditions='real_flights')
     assert xml.count('<arg name="conditions" value="real_flights"/>') == len(fleet.drones)

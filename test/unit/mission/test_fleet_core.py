@@ -20,7 +20,7 @@ def drones_of(d, drones=0):
 
 def test_every_shipped_fleet_file_loads():
     names = sorted(os.path.splitext(f)[0] for f in os.listdir(fl.FLEET_DIR) if f.endswith('.yaml'))
-    assert {'three_circles', 'airship_formation', 'mixed_sphinx'} <= set(names)
+    assert {'circles', 'airship_formation', 'mixed_sphinx'} <= set(names)
     for name in names:
         fleet = fl.load_fleet(name)
         assert fleet.drones
@@ -132,7 +132,7 @@ def _includes(root, launch):
 
 
 def test_the_launch_xml_includes_each_drones_launch_files_in_its_namespace():
-    fleet = fl.load_fleet('three_circles')
+    fleet = fl.load_fleet('circles')
     root = _generated(fleet)
     sims = _includes(root, 'sim.launch')
     assert [s['drone_name'] for s in sims] == ['anafi1', 'anafi2', 'anafi3']
@@ -175,7 +175,7 @@ def test_a_preview_mpc_drone_gets_the_preview_mpc_launch():
 
 
 def test_launch_xml_needs_a_port_per_simulated_drone():
-    fleet = fl.load_fleet('three_circles')
+    fleet = fl.load_fleet('circles')
     with pytest.raises(ValueError, match='telemetry port'):
         fl.launch_xml(fleet, {}, {}, '/tmp')
 
@@ -220,7 +220,7 @@ def test_the_component_analyzers_match_every_drone():
 
 
 def test_the_generated_launch_starts_the_aggregator_when_asked():
-    fleet = fl.load_fleet('three_circles')
+    fleet = fl.load_fleet('circles')
     root = _generated(fleet, aggregator_file='/tmp/agg.yaml')
     node = root.find("node[@name='diagnostic_aggregator']")
     assert node.get('pkg') == 'diagnostic_aggregator'
@@ -234,8 +234,8 @@ SCRIPT = repo_path('anafi_sim', 'scripts', 'fleet_launcher.py')
 
 @pytest.mark.skipif(shutil.which('roslaunch') is None, reason='roslaunch not on PATH (source env.bash)')
 @pytest.mark.parametrize('fleet, drones, nodes', [
-    ('three_circles', 0, ['/anafi1/anafi_sim', '/anafi2/pid_framework', '/anafi3/mpc_controller']),
-    ('three_circles', 5, ['/anafi5/gazebo_mirror', '/anafi5/trajectory_generator']),
+    ('circles', 0, ['/anafi1/anafi_sim', '/anafi2/pid_framework', '/anafi3/mpc_controller']),
+    ('circles', 5, ['/anafi5/gazebo_mirror', '/anafi5/trajectory_generator']),
     ('airship_formation', 0, ['/left/model_follower', '/right/mpc_controller', '/behind/evaluator']),
     # mixed mode: the Sphinx drone has an interface and a mirror but no simulator
     ('mixed_sphinx', 0, ['/sphinx/interface', '/sphinx/gazebo_mirror', '/anafi2/anafi_sim']),
@@ -261,3 +261,8 @@ def test_the_launcher_tool_refuses_a_bad_fleet_file(tmp_path):
     out = subprocess.run([sys.executable, SCRIPT, str(bad), '--print'], stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, universal_newlines=True)
     assert out.returncode == 2 and 'exactly one of' in out.stderr and not out.stdout
+
+
+def test_a_former_fleet_name_still_loads():
+    assert fl.fleet_path('three_circles') == fl.fleet_path('circles')
+    assert fl.load_fleet('three_circles', 4).name == fl.load_fleet('circles', 4).name == 'circles'

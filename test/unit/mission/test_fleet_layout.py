@@ -81,7 +81,7 @@ def test_layout_in_the_fleet_file(tmp_path):
     path = tmp_path / 'f.yaml'
     path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\nlayout: shared\n')
     assert load_fleet(str(path)).layout == 'shared'
-    assert load_fleet('three_circles').layout == 'per_drone'
+    assert load_fleet('circles').layout == 'per_drone'
     path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\nlayout: pooled\n')
     with pytest.raises(ValueError, match='layout must be one of per_drone, shared'):
         load_fleet(str(path))
@@ -95,11 +95,12 @@ def _ground_truth(n, world=True):
     return out
 
 
-def test_the_ground_truth_host_splits_by_ten_drones_with_the_world_in_the_first():
-    assert fl.DRONES_PER_HOST['fleet_ground_truth'] == 10 and fl.DRONES_PER_HOST['fleet_drones'] == 10
-    hosts = fl.split_by_drone({'fleet_ground_truth': _ground_truth(10)})
+def test_the_ground_truth_host_splits_by_its_limit_with_the_world_in_the_first():
+    ten = {'fleet_ground_truth': 10, 'fleet_drones': 10}
+    hosts = fl.split_by_drone({'fleet_ground_truth': _ground_truth(10)}, ten)
     assert list(hosts) == ['fleet_ground_truth'] and len(hosts['fleet_ground_truth']) == 21   # fits: one host
-    hosts = fl.split_by_drone({'fleet_ground_truth': _ground_truth(25)})
+    assert list(fl.split_by_drone({'fleet_ground_truth': _ground_truth(25)})) == ['fleet_ground_truth']  # no limit
+    hosts = fl.split_by_drone({'fleet_ground_truth': _ground_truth(25)}, ten)
     assert list(hosts) == ['fleet_ground_truth_1', 'fleet_ground_truth_2', 'fleet_ground_truth_3']
     first = [i['name'] for i in hosts['fleet_ground_truth_1']]
     assert first[0] == '/kinematic_world' and len(first) == 21 and '/anafi10/gazebo_mirror' in first
@@ -120,9 +121,16 @@ def test_drones_per_host_in_the_fleet_file(tmp_path):
     path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\nlayout: shared\n'
                     'drones_per_host: {fleet_ground_truth: 2}\n')
     assert load_fleet(str(path)).drones_per_host == {'fleet_ground_truth': 2}
-    assert load_fleet('three_circles').drones_per_host == {}
+    assert load_fleet('circles').drones_per_host == {}
     for bad, problem in (('{fleet_world: 2}', 'not a host split by drone'), ('{fleet_drones: 0}', '>= 1'),
                          ('[2]', 'a mapping'), ('{fleet_drones: 2.5}', 'an integer')):
         path.write_text('drones: [{name: a1, waypoint: [0, 0, 1, 0]}]\ndrones_per_host: %s\n' % bad)
         with pytest.raises(ValueError, match=problem):
             load_fleet(str(path))
+
+
+def test_the_file_wins_over_the_machine_per_host():
+    machine = {'fleet_drones': 7, 'fleet_ground_truth': 8}
+    assert fl.split_limits(machine) == machine
+    assert fl.split_limits(machine, {'fleet_ground_truth': 2}) == {'fleet_drones': 7, 'fleet_ground_truth': 2}
+    assert fl.split_limits(None, {'fleet_drones': 3}) == {'fleet_drones': 3}

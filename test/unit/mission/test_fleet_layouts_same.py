@@ -1,7 +1,7 @@
 """Both layouts of a fleet start the same nodes with the same parameters (fleet_launcher.generate, expanded by
 roslaunch's own loader; no ROS master).
 
-The three_circles fleet is generated in the per-drone and in the shared layout into one directory (the same
+The circles fleet is generated in the per-drone and in the shared layout into one directory (the same
 scenario files, telemetry ports from one fixed sequence), each launch file is expanded with
 ``roslaunch.config.load_config_default`` and ``differences`` lists what the shared layout changes beyond
 moving nodes into hosts: every hosted instance's parameters in ``fleet.params.yaml`` (under its name) must
@@ -133,14 +133,14 @@ def _expand(path):
 
 @pytest.fixture(scope='module')
 def both_layouts(tmp_path_factory):
-    """three_circles generated per drone and shared into one directory: (per_drone, shared, document, out)."""
+    """circles generated per drone and shared into one directory: (per_drone, shared, document, out)."""
     launcher = _launcher()
     out = str(tmp_path_factory.mktemp('layouts'))
     expanded = {}
     for layout in fleet_layout.LAYOUTS:
         ports = itertools.count(47001)      # the same telemetry ports in both layouts
         launcher.free_port = lambda: next(ports)
-        path = launcher.generate('three_circles', 0, out, True, True, 100.0, 'log', False, log=lambda text: None,
+        path = launcher.generate('circles', 0, out, True, True, 100.0, 'log', False, log=lambda text: None,
                                  layout=layout)
         expanded[layout] = _expand(path)
         with open(path) as f:

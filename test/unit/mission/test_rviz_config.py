@@ -17,7 +17,7 @@ from conftest import ROOT
 
 
 
-def fleet_and_scenarios(name='three_circles', drones=0):
+def fleet_and_scenarios(name='circles', drones=0):
     fleet = load_fleet(name, drones)
     scenarios = {}
     for drone in fleet.drones:
@@ -41,7 +41,7 @@ def test_the_single_drone_config_does_not_show_a_fleet():
     assert config['Visualization Manager']['Views']['Current']['Target Frame'] == 'anafi/base_link'
 
 
-@pytest.mark.parametrize('name,drones', [('three_circles', 0), ('three_circles', 3), ('three_circles', 5),
+@pytest.mark.parametrize('name,drones', [('circles', 0), ('circles', 3), ('circles', 5),
                                          ('airship_formation', 0)])
 def test_fleet_config_has_a_model_and_markers_per_drone_and_a_fixed_view(name, drones):
     fleet, scenarios = fleet_and_scenarios(name, drones)
@@ -65,7 +65,7 @@ def test_fleet_config_has_a_model_and_markers_per_drone_and_a_fixed_view(name, d
 def test_every_drone_and_its_path_is_inside_the_view(drones):
     """Projected with rviz's camera (45 deg vertical field of view) into the 3D view's size, every take-off
     point and every waypoint of every drone lands inside the view, and the drones are apart on the screen."""
-    fleet, scenarios = fleet_and_scenarios('three_circles', drones)
+    fleet, scenarios = fleet_and_scenarios('circles', drones)
     text, view = rviz_config.fleet_rviz(fleet, scenarios)
     width, height = rviz_config.view_size(yaml.safe_load(text))
     points = rviz_config.fleet_points(fleet, scenarios)
@@ -100,7 +100,7 @@ def test_fleet_view_refuses_nonsense():
 
 
 def test_generated_launch_starts_rviz_once_on_the_fleet_view(tmp_path):
-    fleet = load_fleet('three_circles', 3)
+    fleet = load_fleet('circles', 3)
     ports = dict((d.name, 9100 + i) for i, d in enumerate(fleet.drones))
     files = dict((d.name, str(tmp_path / ('%s.yaml' % d.name))) for d in fleet.drones)
     rviz_file = str(tmp_path / 'fleet.rviz')
@@ -123,7 +123,7 @@ def test_fleet_launcher_writes_the_view(tmp_path):
     import subprocess
     import sys
     script = os.path.join(ROOT, 'anafi_sim', 'scripts', 'fleet_launcher.py')
-    out = subprocess.run([sys.executable, script, 'three_circles', '--drones', '3', '--rviz', 'true', '--out-dir',
+    out = subprocess.run([sys.executable, script, 'circles', '--drones', '3', '--rviz', 'true', '--out-dir',
                           str(tmp_path), '--write-only'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          universal_newlines=True, check=True)
     assert out.stdout.strip() == str(tmp_path / 'fleet.launch')

@@ -27,7 +27,7 @@ def _run(n, layout, holds, cpu_per_drone=9.0):
 
 
 def _args(tmp_path, **kw):
-    values = dict(fleet='three_circles', settle=5.0, duration=20.0, sizes=None, no_write=False,
+    values = dict(fleet='circles', settle=5.0, duration=20.0, sizes=None, no_write=False,
                   cap_cache=str(tmp_path / 'ros' / 'anafi_sim' / 'fleet_cap.yaml'))
     values.update(kw)
     return argparse.Namespace(**values)

@@ -53,7 +53,7 @@ def _run(n, repeat=0, layout='per_drone', cpu=20.0, **drone):
 
 
 def _data(runs, layouts=('per_drone',), repeats=2):
-    return {'format': 2, 'fleet': 'three_circles', 'settle': 5.0, 'duration': 10.0, 'repeats': repeats,
+    return {'format': 2, 'fleet': 'circles', 'settle': 5.0, 'duration': 10.0, 'repeats': repeats,
             'sizes': sorted(set(r['n'] for r in runs)), 'layouts': list(layouts), 'runs': runs, 'core_cost': None,
             'machine': {'date': '2026-01-01 00:00', 'python': '3.11.2', 'cores': 2, 'cpu_model': 'test'}}
 
@@ -111,7 +111,7 @@ def test_layouts_are_summed_apart_and_a_shared_host_is_a_role_of_its_own():
 
 
 def test_the_older_format_reads_as_one_run_per_size():
-    old = {'results': [dict(_run(2), **{'n': 2}), _run(4)], 'fleet': 'three_circles', 'settle': 10.0,
+    old = {'results': [dict(_run(2), **{'n': 2}), _run(4)], 'fleet': 'circles', 'settle': 10.0,
            'duration': 30.0, 'core_cost': [{'numpy (before)': 30.0, 'plain Python (shipped)': 15.0}, 1e-17]}
     for r in old['results']:
         for key in ('layout', 'repeat', 'other_jobs'):
@@ -236,3 +236,34 @@ def test_the_page_shows_the_largest_single_process_and_the_machine():
     assert 'test, 2 cores' in block and 'the largest process 41.0 / 43.0 / 45.0 % of a core' in block
     del runs[0]['largest_processes'], runs[1]['largest_processes']
     assert 'not recorded by the runs of this file' in report.markdown(data)
+
+
+def test_the_hosts_cpu_per_drone_adds_the_hosts_of_a_kind_at_the_largest_size_holding():
+    assert report.host_kind('host fleet_ground_truth_2') == 'fleet_ground_truth'
+    assert report.host_kind('host fleet_drones') == 'fleet_drones' and report.host_kind('mirror') is None
+
+    def shared(n, repeat, gt, drones, **kw):
+        run = _run(n, repeat, 'shared', **kw)
+        run['roles'] = {'host fleet_ground_truth_1': [gt / 2.0, 1], 'host fleet_ground_truth_2': [gt / 2.0, 1],
+                        'host fleet_drones': [drones, 1], 'telemetry CLI': [4.0, n]}
+        return run
+    runs = [shared(10, 0, 60.0, 50.0), shared(10, 1, 70.0, 40.0), shared(20, 0, 200.0, 200.0, rtf=0.5),
+            shared(20, 1, 200.0, 200.0)]
+    data = _data(runs, layouts=('shared',))
+    assert report.host_cpu_per_drone(data) == {'fleet_ground_truth': 0.065, 'fleet_drones': 0.045}  # N = 10
+    assert report.host_cpu_per_drone(_data([shared(4, 0, 10.0, 10.0, rtf=0.5)], layouts=('shared',))) is None
+
+
+def test_the_processes_page_names_the_machine_the_load_the_split_and_each_host_against_the_budget():
+    run = _run(20, 0, 'shared')
+    run.update(processes=[['host fleet_ground_truth_1', 55.0], ['host fleet_drones_1', 40.0], ['telemetry CLI', 0.4],
+                          ['roslaunch', 2.0]], drones_per_host={'fleet_drones': 7, 'fleet_ground_truth': 8})
+    data = _data([run, {'layout': 'shared', 'n': 30, 'repeat': 0, 'error': 'timed out | never flew'}],
+                 layouts=('shared',))
+    data['machine']['load_start'] = [1.5, 2.0, 3.0]
+    text = report.processes_markdown(data, budget=0.5)
+    assert 'on test, 2 cores' in text and 'load average at the start 1.5 / 2.0 / 3.0' in text
+    assert '| 20 | 1 | yes | fleet_drones 7, fleet_ground_truth 8 | 0.5 / 0.6 | 0 | fleet_ground_truth_1 55.0 | no |' \
+        in text
+    assert '| 30 | 1 | no: timed out / never flew |' in text
+    assert '| host fleet_drones_1 | 40.0 |' in text and '| 1 other processes under 1 % each | 0.4 together |' in text

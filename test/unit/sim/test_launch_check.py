@@ -280,3 +280,38 @@ def test_an_included_file_does_not_refuse_the_arguments_of_the_file_that_include
     out = _roslaunch(tmp_path, '--nodes', 'anafi_sim', 'experiment.launch', 'controller:=pid', 'mirror:=false')
     assert out.returncode == 0 and 'not an argument' not in out.stdout, out.stdout[-3000:]
     assert '/anafi/experiment_monitor' in out.stdout.split(), out.stdout[-3000:]
+
+
+def test_each_split_host_stays_within_the_budget_of_a_core():
+    assert launch_check.HOST_CORE_BUDGET == 0.5
+    assert launch_check.drones_per_host({'fleet_drones': 0.05, 'fleet_ground_truth': 0.062}) == \
+        {'fleet_drones': 10, 'fleet_ground_truth': 8}
+    assert launch_check.drones_per_host({'fleet_ground_truth': 0.9}) == {'fleet_ground_truth': 1}   # at least one
+    for cost in (0.01, 0.031, 0.027, 0.062, 0.07, 0.125, 0.3):
+        n = launch_check.drones_per_host({'h': cost})['h']
+        assert n * cost <= launch_check.HOST_CORE_BUDGET + 1e-12 < (n + 1) * cost
+
+
+def test_the_split_comes_from_the_hosts_cost_measured_here_else_the_drones_cost_else_the_default(tmp_path):
+    path = str(tmp_path / 'fleet_cap.yaml')
+    ref = launch_check.REFERENCE_HOST_CPU_PER_DRONE
+    # unmeasured: the reference's host costs / DEFAULT_CAP_SCALE (a machine twice as slow)
+    limits, why = launch_check.machine_drones_per_host(2, 'Test CPU', path)
+    assert limits == launch_check.drones_per_host(dict((h, c / launch_check.DEFAULT_CAP_SCALE) for h, c in
+                                                       ref.items()))
+    assert 'conservative default' in why
+    # the shared layout's cost of a drone measured here: the reference's host costs scaled by it
+    _write_cache(path, layouts={'shared': {'cpu_per_drone': 2 * launch_check.CPU_PER_DRONE['shared'],
+                                           'failing_per_core': None}})
+    scaled, why = launch_check.host_costs(2, 'Test CPU', path)
+    assert all(abs(scaled[h] - 2 * ref[h]) < 1e-12 for h in ref) and 'x 2.00' in why and path in why
+    # the hosts' own costs measured here win
+    _write_cache(path, layouts={'shared': {'cpu_per_drone': 0.1, 'failing_per_core': None,
+                                           'host_cpu_per_drone': {'fleet_drones': 0.05, 'fleet_ground_truth': 0.062}}})
+    limits, why = launch_check.machine_drones_per_host(2, 'Test CPU', path)
+    assert limits == {'fleet_drones': 10, 'fleet_ground_truth': 8} and 'measured here' in why
+    # another machine, or a host cost that is not one: not these figures
+    assert launch_check.host_costs(4, 'Test CPU', path)[1].startswith('conservative default')
+    _write_cache(path, layouts={'shared': {'cpu_per_drone': 0.1, 'failing_per_core': None,
+                                           'host_cpu_per_drone': {'fleet_drones': -1, 'fleet_ground_truth': 0.06}}})
+    assert 'x ' in launch_check.host_costs(2, 'Test CPU', path)[1]

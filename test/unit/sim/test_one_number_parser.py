@@ -62,7 +62,7 @@ def test_check_and_node_agree_on_any_text(text):
 
 def test_fleet_launch_checks_the_fleet_file_before_anything_starts(tmp_path, monkeypatch):
     monkeypatch.setenv('ROS_HOME', str(tmp_path))      # the conservative cap, not this machine's measured one
-    assert check([('fleet', 'three_circles'), ('drones', '0')]) == []
+    assert check([('fleet', 'circles'), ('drones', '0')]) == []
     hostile = tmp_path / 'hostile.yaml'
     hostile.write_text('drones:\n  - name: a\n    target: {model: "$(eval exec(\'import os\'))"}\n')
     errors = check([('fleet', str(hostile)), ('drones', '0')])

@@ -98,7 +98,8 @@ def test_private_params_reads_tilde_names(monkeypatch):
 
 def _stub_start_up(monkeypatch):
     log = []
-    monkeypatch.setattr(rospy, 'init_node', lambda name: log.append(('init', name)))
+    monkeypatch.setattr(rospy, 'init_node', lambda name, **kw: log.append(('init', name)))
+    monkeypatch.setattr(node, 'install_shutdown_signals', lambda: None)    # the test process keeps its handlers
     monkeypatch.setattr(rospy, 'get_name', lambda: '/anafi/x')
     monkeypatch.setattr(rospy, 'logfatal', lambda fmt, *args: log.append(('fatal', fmt % args)))
     return log
@@ -272,3 +273,58 @@ def test_the_timer_survives_time_going_back_counts_it_and_survives_a_failing_cal
     assert warned == ['/anafi/mpc_controller: ROS time moved backwards by 5.100 s (1 times): control timer kept '
                       'running']
     assert timer.callback_errors == 1 and 'RuntimeError: bad cycle' in errors[0]
+
+
+_SIGNALLED_NODE = r'''
+import sys, threading, time
+import rospy
+from anafi_sim.ros import node
+
+master_lock = threading.Lock()       # as rospy's master proxy lock: held by the main thread in a call to the master
+stuck = sys.argv[1] == 'stuck'
+
+
+def signal_shutdown(reason):
+    with master_lock:                # rospy's shutdown unregisters through the same proxy
+        print('shutdown: %s' % reason, flush=True)
+        rospy.core._shutdown_flag = True
+
+
+rospy.signal_shutdown = signal_shutdown
+node.install_shutdown_signals(grace=float(sys.argv[2]))
+with master_lock:
+    print('in a call to the master', flush=True)
+    time.sleep(1.0)                  # the signal lands here
+while not rospy.is_shutdown() or stuck:
+    time.sleep(0.05)
+print('main loop ended', flush=True)
+'''
+
+
+@pytest.mark.parametrize('case', ['ends', 'stuck', 'second signal'])
+def test_a_signal_during_a_call_to_the_master_ends_the_node(tmp_path, case):
+    """SIGINT while the main thread holds the master proxy's lock: the shutdown runs beside it (rospy's handler,
+    run on top of the main thread, would wait for that lock forever); a node that does not end by itself ends
+    after the grace, or at a second signal, with one line naming why."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    script = tmp_path / 'signalled_node.py'
+    script.write_text(_SIGNALLED_NODE)
+    proc = subprocess.Popen([sys.executable, str(script), 'stuck' if case != 'ends' else 'ends',
+                             '0.5' if case == 'stuck' else '600'], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, universal_newlines=True)
+    assert proc.stdout.readline().strip() == 'in a call to the master'
+    proc.send_signal(signal.SIGINT)
+    if case == 'second signal':
+        assert proc.stdout.readline().strip() == 'shutdown: signal-2'
+        proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0
+    if case == 'ends':
+        assert out.splitlines()[-2:] == ['shutdown: signal-2', 'main loop ended'] and err == ''
+    elif case == 'stuck':
+        assert 'main loop ended' not in out and 'still running 0.5 s after signal 2; ending now' in err
+    else:
+        assert 'signal %d during shutdown; ending now' % signal.SIGTERM in err

@@ -10,9 +10,9 @@ benchmarks/results/engine.yaml so that a step can be rerun alone and the report 
   factor per run, speed-up against the ROS batch's wall time (benchmarks/results/experiments.yaml meta.wall_s);
 - ``determinism``: the same run twice with the same seed (wind gusts on) -> the summary YAML files compared
   byte for byte (and a different seed differs);
-- ``sweep``: anafi_sim/config/sweeps/wind_circles.yaml (2 controllers x 5 circles x 20 gust seeds = 200 runs)
+- ``sweep``: anafi_lab/sweeps/wind_circles.yaml (2 controllers x 5 circles x 20 gust seeds = 200 runs)
   -> benchmarks/results/sweep_wind_circles/ (runs.csv, summary.md, e_mu.png); wall time;
-- ``phases``: anafi_sim/config/sweeps/schedule_phases.yaml (every scenario and controller over a 4 x 4 grid of
+- ``phases``: anafi_lab/sweeps/schedule_phases.yaml (every scenario and controller over a 4 x 4 grid of
   the generator's and the controller's timer phases) -> benchmarks/results/sweep_schedule_phases/: the band
   of e_mu a ROS run can fall into, for the cross-validation;
 - ``profile``: cProfile of one MPC run and one PID run: where the time goes.
@@ -38,7 +38,7 @@ import time
 from anafi_sim.run_files import read_yaml, write_yaml
 
 import bench_sync
-from anafi_sim import paths, processes
+from anafi_sim import processes
 from anafi_lab.engine import runs, sweep
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, Engine
@@ -99,11 +99,11 @@ def step_determinism(args, figures):
 
 
 def step_sweep(args, figures, name, key):
-    spec = sweep.load_spec(paths.config_path('sweeps', name + '.yaml'))
+    spec = sweep.load_spec(name)
     out = os.path.join(RESULTS, 'sweep_' + name)
     table, files, meta = sweep.run_sweep(spec, out, workers=args.workers,
                                          command='benchmarks/bench_engine.py --steps %s' % key)
-    figures[key] = {'spec': 'anafi_sim/config/sweeps/%s.yaml' % name, 'runs': len(table),
+    figures[key] = {'spec': 'anafi_lab/sweeps/%s.yaml' % name, 'runs': len(table),
                     'ok': sum(1 for r in table if r['ok']), 'wall_s': round(meta['wall_s'], 1),
                     'sim_s': round(meta['sim_s'], 1), 'workers': args.workers,
                     'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M')}

@@ -407,12 +407,12 @@ def log_figures(log):
 
 
 def replay_real(log, settings, seed=0, model_params=None):
-    """Closed-loop replay of a real log with the fidelity method (``anafi_lab.fidelity.replay``: the
+    """Closed-loop replay of a real log with the fidelity method (``anafi_lab.engine.replay``: the
     log's waypoint stream to its controller on the stand-in, resampled at the log's times) under the
     simulator ``settings`` (wind, gusts, wind handling); no initial state (a real log has no ground truth:
     the drone starts settled at its hover point) and no stall replay. (figures of the replay (``log_figures``)
     or None, error text)."""
-    from anafi_lab.fidelity import replay as fidelity
+    from anafi_lab.engine import replay as fidelity
     plan = fidelity.replay_plan(log, initial_state=False, stalls=False)
     variant = None
     if model_params is not None:

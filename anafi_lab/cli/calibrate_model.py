@@ -18,7 +18,7 @@ Where the files go:
 The report's "Real flights" section (calibrate_conditions.py's) is kept from the report being replaced, else from
 the committed docs/calibration.md. The fits are anafi_lab/calibration/ (fit.py puts them together), the texts
 anafi_lab/reports/calibration_report.py with its templates anafi_lab/reports/templates/calibration.md and
-anafi_model.yaml, the figure anafi_lab/calibration/plot.py; this script only wires them to files (the texts
+anafi_model.yaml, the figure anafi_lab/reports/calibration_plot.py; this script only wires them to files (the texts
 each written atomically).
 """
 import argparse
@@ -30,7 +30,8 @@ import sys
 import yaml
 
 from anafi_sim import paths, run_files
-from anafi_lab.calibration import conditions, fit, plot
+from anafi_lab.calibration import conditions, fit
+from anafi_lab.reports import calibration_plot as plot
 from anafi_lab.reports import calibration_report as report
 from anafi_sim.mission.reference_log import read_log
 

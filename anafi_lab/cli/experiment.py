@@ -14,7 +14,7 @@
         -> DIR/experiments.yaml (the ROS batch's schema) and DIR/report.md (the paper's tables), plots.
     experiment.py sweep NAME|SPEC.yaml [--workers N] [--scheduler ADDRESS] [--conditions C] [--no-plot] --out DIR
         -> DIR/runs.csv (every run's metrics), DIR/summary.md, DIR/e_mu.png. NAME: a spec of
-           anafi_sim/config/sweeps/ (e.g. wind_circles); a relative path missing here is looked up in the package.
+           anafi_lab/sweeps/ (e.g. wind_circles); a relative path missing here is looked up in the package.
 
 ``--conditions NAME|PATH``: a flight-conditions profile (anafi_sim/config/conditions/, e.g. real_flights: the
 wind, gusts and firmware wind handling of the paper's outdoor flights) under the run's settings; ``--wind`` and
@@ -23,7 +23,7 @@ the gust options override its wind. For a sweep it overrides the spec's ``condit
 
 The in-process engine (anafi_lab.engine.engine) needs no ROS master: the same cores as the nodes on
 virtual time, bit-for-bit deterministic for a seed. ``--engine ros`` runs the real graph instead
-(experiment.launch through anafi_lab/engine/ros_batch.py: needs a ROS environment, takes the seed and wind of
+(experiment.launch through anafi_lab/cli/ros_batch.py: needs a ROS environment, takes the seed and wind of
 sim.yaml; ``--sync``: in lockstep, experiment.launch sync:=true, so that its results do not depend on the
 machine's load). Workers: processes on this machine (concurrent.futures); ``--scheduler`` sends the same tasks to a
 Dask distributed scheduler (python3-distributed; the workers need this package importable). Progress: a
@@ -77,7 +77,7 @@ def _wind(args):
 
 
 def _ros_batch(out_dir, scenarios, controllers, runs_dir, extra=()):
-    cmd = [sys.executable, '-m', 'anafi_lab.engine.ros_batch', '--controllers', ','.join(controllers), '--scenarios',
+    cmd = [sys.executable, '-m', 'anafi_lab.cli.ros_batch', '--controllers', ','.join(controllers), '--scenarios',
            ','.join(scenarios), '--runs-dir', runs_dir, '--report', os.path.join(out_dir, 'experiments.md')]
     cmd += list(extra)
     return subprocess.call(cmd)
@@ -255,7 +255,7 @@ def parser():
     bat.set_defaults(func=cmd_batch)
 
     swp = sub.add_parser('sweep', help='a grid or list of runs from a YAML spec')
-    swp.add_argument('spec', help='sweep spec: a name in anafi_sim/config/sweeps (e.g. wind_circles) or a path')
+    swp.add_argument('spec', help='sweep spec: a name in anafi_lab/sweeps (e.g. wind_circles) or a path')
     swp.add_argument('--workers', type=int, default=1, help='processes (default 1)')
     swp.add_argument('--scheduler', default=None, help='Dask distributed scheduler address')
     swp.add_argument('--conditions', default=None, metavar='NAME|PATH',

@@ -46,10 +46,10 @@ import yaml
 
 from anafi_sim import paths, processes, run_files
 from anafi_lab.calibration import conditions, estimate, fit
-from anafi_lab.fidelity import replay as F
+from anafi_lab.engine import replay as F
 from anafi_lab.fidelity import held_out as H
 from anafi_lab.fidelity import variants as V
-from anafi_lab.fidelity.plot import plot_replay
+from anafi_lab.reports.fidelity_plot import plot_replay
 from anafi_lab.reports import fidelity_report as report
 from anafi_lab.engine.engine import mpc_config
 from anafi_sim.mission.reference_log import read_log

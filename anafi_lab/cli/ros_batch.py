@@ -11,7 +11,7 @@ the static waypoints' overshoot and settling from the exported CSV, draws one PN
 (default benchmarks/results/experiments.md, plots under benchmarks/results/plots/) plus the raw
 records (experiments.yaml beside the report; ``--from-records`` re-renders a report from it).
 
-    python -m anafi_lab.engine.ros_batch [--controllers mpc,pid] [--scenarios all|NAME,...] [--rtf 2] [--jobs 1]
+    python -m anafi_lab.cli.ros_batch [--controllers mpc,pid] [--scenarios all|NAME,...] [--rtf 2] [--jobs 1]
                        [--mirror true|false] [--pid-mode distributed|single] [--runs-dir DIR]
                        [--report PATH] [--no-plots] [--record true|false] [--retries 1]
 
@@ -313,7 +313,7 @@ def main(argv=None):
             processes.stop(run.proc)
         raise
     wall = time.monotonic() - t_start
-    cmd = 'anafi_lab/engine/ros_batch.py' + (' ' + ' '.join(argv if argv is not None else sys.argv[1:])).rstrip()
+    cmd = 'anafi_lab/cli/ros_batch.py' + (' ' + ' '.join(argv if argv is not None else sys.argv[1:])).rstrip()
     meta = {'command': cmd.strip(), 'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M'),
             'machine': processes.machine(load), 'rtf': '%g' % args.rtf, 'wall_s': round(wall, 1),
             'mirror': args.mirror, 'pid_mode': args.pid_mode, 'sync': bool(args.sync)}

@@ -63,7 +63,7 @@ generator_phase       0.080 s   the trajectory generator's ticks (``~timer_phase
                                 (before the nodes aligned their timers each ROS start-up drew one: 15 ms in a
                                 recorded circle_r1_v1 run, 95 ms in one of straight_2). The MPC tracks the
                                 waypoint as received (no extrapolation over its age), so on fast trajectories
-                                e_mu moves with this phase (config/sweeps/schedule_phases.yaml measures how
+                                e_mu moves with this phase (anafi_lab/sweeps/schedule_phases.yaml measures how
                                 much)
 relative_state_phase  0.0 s     pid_relative_state's timer (not recorded; its cycles then fall on the
                                 estimate's ticks)
@@ -504,7 +504,7 @@ class Engine(object):
     SCENARIO_CONTROLLER); max_sim_time: give up after this many simulated seconds (default: the scenario's
     duration + 120 s); actions: [(s > 0 after the scenario's start, fn(engine))], called at those simulated
     times before the physics step of that instant, whose state then shows the action (e.g. the fidelity
-    replay's initial state, ``anafi_lab.fidelity.replay``); conditions: a flight-conditions profile NAME or
+    replay's initial state, ``anafi_lab.engine.replay``); conditions: a flight-conditions profile NAME or
     PATH (``anafi_sim.sim.conditions_profile``: wind, gusts, the firmware's wind handling) under ``settings``
     and ``wind`` (None: sim.yaml as it is).
     """

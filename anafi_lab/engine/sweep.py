@@ -2,7 +2,7 @@
 Markdown summary with a plot (pure, no ROS).
 
 Stage: experiments (on top of ``anafi_lab.engine.runs``; ``experiment.py sweep SPEC.yaml``). Example
-specs, one per concern: anafi_sim/config/sweeps/.
+specs, one per concern: anafi_lab/sweeps/.
 
 Spec (YAML)::
 
@@ -36,6 +36,7 @@ plot) and ``e_mu.png`` (the distribution of e_mu per scenario and controller ove
 import collections
 import csv
 import datetime
+import importlib.util
 import itertools
 import json
 import os
@@ -43,7 +44,7 @@ import time
 
 import yaml
 
-from anafi_sim import paths, processes
+from anafi_sim import processes
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import CONTROLLERS, WIND_KEYS, make_schedule, simulator_config, wind_settings
 from anafi_lab.engine.runs import execute, make_task, run_task
@@ -62,16 +63,26 @@ METRICS = (('e_mu', 'estimate', 'e_mu'), ('e_max', 'estimate', 'e_max'), ('e_sig
 
 
 # ---------------------------------------------------------------------------------------------- spec
+def specs_dir():
+    """The folder of the shipped sweep specs: ``sweeps/`` of the anafi_lab package (package data, installed with
+    it: devel and install spaces alike)."""
+    for folder in importlib.util.find_spec('anafi_lab').submodule_search_locations:
+        path = os.path.join(folder, 'sweeps')
+        if os.path.isdir(path):
+            return path
+    raise RuntimeError('cannot find the sweep specs (anafi_lab/sweeps) of the anafi_lab package')
+
+
 def sweep_path(name_or_path):
-    """Path of a sweep spec given by name (``real_flights``: ``anafi_sim/config/sweeps/real_flights.yaml``) or by
-    a path; a relative path that does not exist from the current folder is looked up in the package
-    (``anafi_sim/config/sweeps/x.yaml`` works from any folder). ValueError naming the known specs when none."""
+    """Path of a sweep spec given by name (``real_flights``: ``anafi_lab/sweeps/real_flights.yaml``) or by a
+    path; a relative path that does not exist from the current folder is looked up beside the anafi_lab package
+    (``anafi_lab/sweeps/x.yaml`` works from any folder). ValueError naming the known specs when none."""
     if os.path.isfile(name_or_path):
         return name_or_path
     if os.sep not in name_or_path and not name_or_path.endswith(('.yaml', '.yml')):
-        path = paths.config_path('sweeps', name_or_path + '.yaml')
+        path = os.path.join(specs_dir(), name_or_path + '.yaml')
     elif not os.path.isabs(name_or_path):
-        path = os.path.join(paths.package_dir(), name_or_path)
+        path = os.path.join(os.path.dirname(os.path.dirname(specs_dir())), name_or_path)
     else:
         path = name_or_path
     if os.path.isfile(path):
@@ -80,8 +91,8 @@ def sweep_path(name_or_path):
 
 
 def list_specs():
-    """Names of the shipped sweep specs (anafi_sim/config/sweeps)."""
-    folder = paths.config_path('sweeps')
+    """Names of the shipped sweep specs (anafi_lab/sweeps)."""
+    folder = specs_dir()
     return sorted(os.path.splitext(f)[0] for f in os.listdir(folder) if f.endswith('.yaml'))
 
 

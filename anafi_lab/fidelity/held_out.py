@@ -15,7 +15,7 @@ import pkgutil
 import numpy as np
 import yaml
 
-from anafi_lab.fidelity.replay import within
+from anafi_lab.engine.replay import within
 from anafi_lab.reports import paper_tables as report
 
 RatioRange = collections.namedtuple('RatioRange', 'controller source scenarios range group inferred')

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from anafi_lab.fidelity.held_out import FAST_CIRCLES, HELD_OUT_BAND, HELD_OUT_CELLS, held_out_bounds, held_out_score
-from anafi_lab.fidelity.replay import CELLS, within
+from anafi_lab.engine.replay import CELLS, within
 from anafi_lab.fidelity.variants import FUSION_GAIN_ROLES
 from anafi_lab.reports import paper_tables as report
 

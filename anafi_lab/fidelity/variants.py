@@ -15,7 +15,7 @@ import collections
 import numpy as np
 
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, Engine
-from anafi_lab.fidelity.replay import (CELLS, Variant, _controller_params, _num, compare, latest_waypoint,
+from anafi_lab.engine.replay import (CELLS, Variant, _controller_params, _num, compare, latest_waypoint,
                                        reference_cells, replay_plan, run_log, run_replay, waypoint_arrivals)
 from anafi_lab.reports import paper_tables as report
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, load_model_params

@@ -3,7 +3,7 @@
 Stage: experiments (a section of a sweep's summary.md, ``anafi_lab.engine.sweep``). One row per
 conditions x scenario x controller over the runs (the gust seeds): mean +- std [min, max] of each metric
 against the drone's estimate (the paper's e). Under ``real_flights`` these are the stand-in's prediction of
-the paper's real-flight columns of Tables 4 and 5 (anafi_sim/config/sweeps/real_flights.yaml), made from the
+the paper's real-flight columns of Tables 4 and 5 (anafi_lab/sweeps/real_flights.yaml), made from the
 four real static logs, the Sphinx logs and physics (docs/calibration.md, "Real flights").
 """
 import collections

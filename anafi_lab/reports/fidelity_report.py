@@ -10,7 +10,7 @@ import yaml
 
 from anafi_lab.calibration.estimate import FusionProfileRow
 from anafi_lab.fidelity import held_out as H
-from anafi_lab.fidelity import replay as R
+from anafi_lab.engine import replay as R
 from anafi_lab.fidelity import scores as S
 from anafi_lab.fidelity import variants as V
 from anafi_lab.reports import fidelity_tables as T

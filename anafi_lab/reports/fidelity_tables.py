@@ -6,7 +6,7 @@ import collections
 import math
 
 from anafi_lab.fidelity.held_out import FAST_CIRCLES, HELD_OUT_BAND, HELD_OUT_CELLS, held_out_bounds, held_out_score
-from anafi_lab.fidelity.replay import CELLS, DEFAULT_RATE, SOURCES, parse_name, within
+from anafi_lab.engine.replay import CELLS, DEFAULT_RATE, SOURCES, parse_name, within
 from anafi_lab.fidelity.scores import BANDS, cell_key, combined, record_ratios, score
 from anafi_lab.reports import paper_tables as report
 from anafi_sim.numeric import fmt

@@ -1,6 +1,6 @@
 """Experiment batch report (pure Python, no ROS): the paper's Tables 3-5 from run summaries, as Markdown.
 
-Stage: evaluation output -> report (anafi_lab/engine/ros_batch.py writes
+Stage: evaluation output -> report (anafi_lab/cli/ros_batch.py writes
 benchmarks/results/experiments.md with it). Units: errors [m] (e = |waypoint - position|, ENU),
 times [s], speeds [m/s].
 

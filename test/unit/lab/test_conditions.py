@@ -7,7 +7,7 @@ import os
 import pytest
 
 from anafi_lab.calibration import conditions as cond
-from anafi_lab.fidelity import replay as fidelity
+from anafi_lab.engine import replay as fidelity
 from anafi_lab.engine.engine import Engine
 from anafi_sim.sim.conditions_profile import PROFILE_KEYS, list_conditions, load_conditions, profile_path
 from anafi_sim.sim.drone_model import load_model_params
@@ -111,8 +111,7 @@ def test_engine_runs_in_conditions(tmp_path):
 
 def test_sweep_spec_conditions_reach_every_task_and_row():
     from anafi_lab.engine import sweep
-    spec = sweep.load_spec(os.path.join(os.path.dirname(profile_path('real_flights')), os.pardir, 'sweeps',
-                                        'real_flights.yaml'))
+    spec = sweep.load_spec('real_flights')
     tasks = sweep.expand(spec)
     assert len(tasks) == 9 * 3 * 10
     assert all(t['conditions'] == 'real_flights' for t in tasks)

@@ -19,7 +19,7 @@ import pytest
 
 from anafi_sim import paths
 from anafi_lab.fidelity import held_out as H
-from anafi_lab.fidelity import replay as F
+from anafi_lab.engine import replay as F
 from anafi_lab.fidelity import scores as S
 from anafi_lab.fidelity import variants as V
 from anafi_lab.reports import fidelity_tables as T

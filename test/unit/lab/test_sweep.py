@@ -9,7 +9,6 @@ import sys
 import pytest
 import yaml
 
-from anafi_sim import paths
 from anafi_lab.engine import runs
 from anafi_lab.engine import sweep
 from conftest import ROOT
@@ -37,7 +36,7 @@ def short(tmp_path):
 
 
 def test_example_specs_expand():
-    specs = sorted(glob.glob(paths.config_path('sweeps', '*.yaml')))
+    specs = sorted(glob.glob(os.path.join(sweep.specs_dir(), '*.yaml')))
     assert len(specs) >= 3
     counts = dict((os.path.basename(p), len(sweep.expand(sweep.load_spec(p)))) for p in specs)
     assert counts['wind_circles.yaml'] == 200
@@ -156,17 +155,17 @@ def test_median_is_the_middle_of_an_even_count():
 
 
 def test_sweep_spec_found_by_name_or_by_package_path_from_any_folder(tmp_path, monkeypatch):
-    """`experiment.py sweep wind_circles` and the README's `anafi_sim/config/sweeps/wind_circles.yaml` from a
+    """`experiment.py sweep wind_circles` and the README's `anafi_lab/sweeps/wind_circles.yaml` from a
     folder other than the repository root (before: 'No such file' from anywhere but the root; no names)."""
     monkeypatch.chdir(str(tmp_path))
-    shipped = paths.config_path('sweeps', 'wind_circles.yaml')
+    shipped = os.path.join(sweep.specs_dir(), 'wind_circles.yaml')
     assert sweep.sweep_path('wind_circles') == shipped
-    assert os.path.samefile(sweep.sweep_path('anafi_sim/config/sweeps/wind_circles.yaml'), shipped)
+    assert os.path.samefile(sweep.sweep_path('anafi_lab/sweeps/wind_circles.yaml'), shipped)
     assert sweep.load_spec('wind_circles')['name'] == 'wind_circles'
-    own = tmp_path / 'anafi_sim' / 'config' / 'sweeps'          # a file here wins over the package's
+    own = tmp_path / 'anafi_lab' / 'sweeps'       # a file here wins over the package's
     own.mkdir(parents=True)
     (own / 'wind_circles.yaml').write_text('name: mine\nscenarios: [circle_r1_v1]\ncontrollers: [mpc]\n')
-    assert sweep.load_spec('anafi_sim/config/sweeps/wind_circles.yaml')['name'] == 'mine'
+    assert sweep.load_spec('anafi_lab/sweeps/wind_circles.yaml')['name'] == 'mine'
     with pytest.raises(ValueError) as error:
         sweep.sweep_path('no_such_sweep')
     assert 'wind_circles' in str(error.value)        # the known names are listed

@@ -1,8 +1,10 @@
-"""The paper's experiments as data: its controllers, scenario groups and published simulation figures."""
+"""The paper's experiments as data: its controllers (and their names in tables and titles), scenario groups and
+published simulation figures. The bottom room of the lab: every other room reads the paper from here."""
 
 CONTROLLERS = ('mpc', 'pid')                  # the paper's two: every batch runs them
 BEYOND = ('preview_mpc',)                     # beyond the paper: a column where the batch has it
 KNOWN_CONTROLLERS = CONTROLLERS + BEYOND
+LABELS = {'mpc': 'MPC', 'pid': 'PID', 'preview_mpc': 'preview MPC'}   # the controllers' names in tables and titles
 STATIC = ('static_wp0', 'static_wp1')
 STRAIGHT_SPEEDS = (1, 2, 3, 4, 5)
 STRAIGHT = tuple('straight_%d' % v for v in STRAIGHT_SPEEDS)

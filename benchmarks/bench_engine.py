@@ -40,6 +40,7 @@ from anafi_sim.run_files import read_yaml, write_yaml
 import bench_sync
 from anafi_sim import processes
 from anafi_lab.engine import runs, sweep
+from anafi_lab.reports import batch_report, sweep_report
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, Engine
 from anafi_sim.numeric import fmt
@@ -56,8 +57,8 @@ def step_batch(args, figures):
     out = os.path.join(RESULTS, 'inprocess')
     runs_dir = tempfile.mkdtemp(prefix='anafi_inprocess_runs_')
     t0 = time.perf_counter()
-    records, meta, _ = runs.batch(out, workers=args.workers, runs_dir=runs_dir,
-                                  command='benchmarks/bench_engine.py --steps batch (runs.batch, %d workers)'
+    records, meta, _ = batch_report.batch(out, workers=args.workers, runs_dir=runs_dir,
+                                  command='benchmarks/bench_engine.py --steps batch (batch_report.batch, %d workers)'
                                   % args.workers)
     wall = time.perf_counter() - t0
     ros = read_yaml(ROS_BATCH, {}) or {}
@@ -101,7 +102,7 @@ def step_determinism(args, figures):
 def step_sweep(args, figures, name, key):
     spec = sweep.load_spec(name)
     out = os.path.join(RESULTS, 'sweep_' + name)
-    table, files, meta = sweep.run_sweep(spec, out, workers=args.workers,
+    table, files, meta = sweep_report.run_sweep(spec, out, workers=args.workers,
                                          command='benchmarks/bench_engine.py --steps %s' % key)
     figures[key] = {'spec': 'anafi_lab/sweeps/%s.yaml' % name, 'runs': len(table),
                     'ok': sum(1 for r in table if r['ok']), 'wall_s': round(meta['wall_s'], 1),

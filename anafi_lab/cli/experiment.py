@@ -40,8 +40,10 @@ import yaml
 from anafi_sim import paths, run_files
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import CONTROLLERS, make_schedule, wind_settings
-from anafi_lab.engine.runs import SYNC_SCHEDULE, batch, make_task, result_line, run_task, task_name
-from anafi_lab.engine.sweep import GROUPS, load_spec, run_sweep, unflatten
+from anafi_lab.engine.runs import SYNC_SCHEDULE, make_task, result_line, run_task, task_name
+from anafi_lab.reports.batch_report import batch
+from anafi_lab.engine.sweep import GROUPS, load_spec, unflatten
+from anafi_lab.reports.sweep_report import run_sweep
 from anafi_sim.mission.trajectory import list_scenarios
 from anafi_sim.sim.conditions_profile import load_conditions
 

@@ -14,17 +14,16 @@ import yaml
 
 from anafi_lab.calibration import conditions as cond
 from anafi_lab.reports.render import na, render
+from anafi_sim.numeric import summary_stats
 
 METRICS = ('e_max', 'e_mu', 'e_sigma')
 
 
 def _stats(values):
-    v = [float(x) for x in values if x is not None and x != '' and math.isfinite(float(x))]
-    if not v:
-        return None
-    mean = sum(v) / len(v)
-    std = math.sqrt(sum((x - mean) ** 2 for x in v) / (len(v) - 1)) if len(v) > 1 else 0.0
-    return mean, std, min(v), max(v), len(v)
+    """(mean, std, min, max, n) of the finite values, None when there are none; std is the sample standard deviation
+    of the seeds (ddof 1, ``anafi_sim.numeric.summary_stats``)."""
+    s = summary_stats([x for x in values if x != ''], sample=True)
+    return (s['mean'], s['std'], s['min'], s['max'], s['n']) if s else None
 
 
 def cells(table):

@@ -80,7 +80,7 @@ def step_batch(args, figures):
 
 def step_determinism(args, figures):
     tmp = tempfile.mkdtemp(prefix='anafi_determinism_')
-    wind = {'x': 1.6, 'y': 1.2, 'gust': 1.0, 'gust_vertical': 0.3}
+    wind = {'wind_x': 1.6, 'wind_y': 1.2, 'gust_std_horizontal': 1.0, 'gust_std_vertical': 0.3}
     out = []
     for controller in ('mpc', 'pid'):
         files = []

@@ -69,8 +69,8 @@ def _wind(args):
         values = [float(v) for v in args.wind.split(',')]
         if len(values) not in (2, 3):
             raise ValueError('--wind X,Y[,Z] [m/s], got %r' % args.wind)
-        wind.update(zip(('x', 'y', 'z'), values))
-    for key, value in (('gust', args.gust), ('gust_vertical', args.gust_vertical),
+        wind.update(zip(('wind_x', 'wind_y', 'wind_z'), values))
+    for key, value in (('gust_std_horizontal', args.gust), ('gust_std_vertical', args.gust_vertical),
                        ('gust_time_constant', args.gust_tau)):
         if value is not None:
             wind[key] = value

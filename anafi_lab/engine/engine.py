@@ -134,10 +134,9 @@ _RATE_KEYS = ('physics_rate', 'telemetry_rate', 'truth_rate', 'estimate_rate', '
 #: preview_mpc.yaml, the calibrated model and the bridge limits of the run); or 'package.module:Class'
 CONTROLLERS = ('mpc', 'pid', 'pid_single', 'preview_mpc')
 
-#: wind keys (``Engine(wind={...})``) -> simulator settings (anafi_sim/config/sim.yaml)
-WIND_KEYS = collections.OrderedDict([('x', 'wind_x'), ('y', 'wind_y'), ('z', 'wind_z'),
-                                     ('gust', 'gust_std_horizontal'), ('gust_vertical', 'gust_std_vertical'),
-                                     ('gust_time_constant', 'gust_time_constant')])
+#: the wind's simulator settings (anafi_sim/config/sim.yaml, the flight-conditions profiles): one vocabulary for a
+#: wind spec (``Engine(wind={...})``, a sweep's ``wind:``) and a sweep's CSV columns
+WIND_KEYS = ('wind_x', 'wind_y', 'wind_z', 'gust_std_horizontal', 'gust_std_vertical', 'gust_time_constant')
 
 Odom = collections.namedtuple('Odom', 'stamp position orientation twist')
 """A nav_msgs/Odometry in numbers: stamp [s], position [m], orientation (x, y, z, w), linear twist [m/s] in
@@ -174,8 +173,8 @@ def make_schedule(overrides=None):
 
 
 def wind_settings(wind):
-    """Simulator settings of a wind spec: None, or {x, y, z [m/s], gust, gust_vertical [m/s std],
-    gust_time_constant [s]} (missing keys: sim.yaml's values)."""
+    """Simulator settings of a wind spec: None, or {wind_x, wind_y, wind_z [m/s], gust_std_horizontal,
+    gust_std_vertical [m/s std], gust_time_constant [s]} (the settings' own names; missing keys: sim.yaml's values)."""
     if not wind:
         return {}
     if not isinstance(wind, dict):
@@ -183,7 +182,7 @@ def wind_settings(wind):
     unknown = sorted(set(wind) - set(WIND_KEYS))
     if unknown:
         raise ValueError('unknown wind key(s) %s (known: %s)' % (', '.join(unknown), ', '.join(WIND_KEYS)))
-    return dict((WIND_KEYS[k], float(v)) for k, v in wind.items())
+    return dict((k, float(v)) for k, v in wind.items())
 
 
 def simulator_config(settings=None):

@@ -12,8 +12,9 @@ Spec (YAML)::
                                              #   vertical (anafi_lab.reports.paper_tables)
     controllers: [mpc, pid]                  # or a mapping: controller -> {params: GRID, schedule: GRID}
     seeds: {range: [0, 20]}                  # an int, a list, or {range: [start, stop]} / {range: N}
-    wind:                                    # wind cases (a list; one mapping = one case); keys x, y, z [m/s],
-      - {x: 1.0, y: 0.0, gust: 0.5}          #   gust, gust_vertical [m/s std], gust_time_constant [s]
+    wind:                                    # wind cases (a list; one mapping = one case); the simulator's keys
+      - {wind_x: 1.0, gust_std_horizontal: 0.5}  # wind_x, wind_y, wind_z [m/s], gust_std_horizontal,
+                                             #   gust_std_vertical [m/s std], gust_time_constant [s]
     schedule: {generator_phase: [0.0, 0.05]} # GRID of engine schedule overrides (every controller)
     state_source: estimate                   # or truth: the controllers' state (ground_truth/odom)
     group_by: [wind]                         # extra columns of the summary table: wind, or a factor column
@@ -268,17 +269,18 @@ def _wind_values(wind, conditions=None):
     settings = dict(load_conditions(conditions))
     settings.update(wind_settings(wind))
     settings = simulator_config(settings)[1]
-    return collections.OrderedDict((k, settings[v]) for k, v in WIND_KEYS.items())
+    return collections.OrderedDict((k, settings[k]) for k in WIND_KEYS)
 
 
 def wind_label(wind, conditions=None):
     """'calm' or e.g. 'wind (1, 0, 0) m/s, gusts 0.5 m/s' (of the wind case over the conditions)."""
     v = _wind_values(wind, conditions)
-    if not any(v[k] for k in ('x', 'y', 'z', 'gust', 'gust_vertical')):
+    if not any(v[k] for k in WIND_KEYS[:5]):
         return 'calm'
-    text = 'wind (%g, %g, %g) m/s' % (v['x'], v['y'], v['z'])
-    if v['gust'] or v['gust_vertical']:
-        text += ', gusts %g/%g m/s (tau %g s)' % (v['gust'], v['gust_vertical'], v['gust_time_constant'])
+    text = 'wind (%g, %g, %g) m/s' % (v['wind_x'], v['wind_y'], v['wind_z'])
+    if v['gust_std_horizontal'] or v['gust_std_vertical']:
+        text += ', gusts %g/%g m/s (tau %g s)' % (v['gust_std_horizontal'], v['gust_std_vertical'],
+                                                 v['gust_time_constant'])
     return text
 
 
@@ -303,8 +305,7 @@ def rows(tasks, records):
                                        ('controller', task['controller']),
                                        ('seed', info.get('seed', task.get('seed')))])
         row['conditions'] = conditions_label(task.get('conditions'))
-        for k, v in _wind_values(task.get('wind'), task.get('conditions')).items():
-            row['wind_' + k if k in ('x', 'y', 'z') else k] = v
+        row.update(_wind_values(task.get('wind'), task.get('conditions')))
         params = dict(_flatten(task.get('params')))
         for path in param_keys:
             row['param:' + path] = params.get(path, '')

@@ -18,7 +18,8 @@ WIND = (-3.0, -4.0)          # m/s, world ENU (5 m/s)
 def synthetic_log(gain, gust=0.0, seed=1):
     """The stand-in hovering at static_wp0's waypoint in a known wind (paper's MPC), recorded like the real logs
     (20 Hz, half floats, estimate only matters)."""
-    engine = Engine('static_wp0', 'mpc', wind={'x': WIND[0], 'y': WIND[1], 'gust': gust}, seed=seed,
+    engine = Engine('static_wp0', 'mpc', wind={'wind_x': WIND[0], 'wind_y': WIND[1], 'gust_std_horizontal': gust},
+                    seed=seed,
                     settings={'wind_compensation': gain, 'wind_compensation_time_constant': 0.5})
     assert engine.run().ok
     return fidelity.run_log(engine, name='synthetic_mpc')
@@ -104,7 +105,7 @@ def test_engine_runs_in_conditions(tmp_path):
     path.write_text('wind_x: 2.0\nwind_y: 0.0\nwind_compensation: 1.0\n')
     engine = Engine('static_wp0', 'mpc', conditions=str(path))
     assert engine.settings['wind_x'] == 2.0 and engine.settings['wind_compensation'] == 1.0
-    engine = Engine('static_wp0', 'mpc', conditions=str(path), wind={'x': -1.0})
+    engine = Engine('static_wp0', 'mpc', conditions=str(path), wind={'wind_x': -1.0})
     assert engine.settings['wind_x'] == -1.0 and engine.settings['wind_compensation'] == 1.0
     assert Engine('static_wp0', 'mpc').settings['wind_x'] == 0.0
 

@@ -47,7 +47,8 @@ def test_example_specs_expand():
 
 
 def test_grid_expansion_per_controller_and_seeds(short):
-    spec = {'scenarios': short, 'seeds': {'range': [3, 5]}, 'wind': [{'x': 1.0}, {'x': 2.0, 'gust': 0.5}],
+    spec = {'scenarios': short, 'seeds': {'range': [3, 5]},
+            'wind': [{'wind_x': 1.0}, {'wind_x': 2.0, 'gust_std_horizontal': 0.5}],
             'controllers': {'mpc': {'params': {'r': [0.1, 0.2]}},
                             'pid': {'params': {'x_outer': {'Kp': [0.5, 1.0]}},
                                     'schedule': {'pid_command_phase': 0.05}}},
@@ -81,7 +82,7 @@ def _check_sweep_outputs(out, n):
 
 def test_small_sweep_on_two_worker_processes(short, tmp_path):
     spec = {'name': 'small', 'scenarios': short, 'controllers': ['mpc', 'pid'], 'seeds': [0, 1],
-            'wind': [{'x': 0.5, 'gust': 0.5}]}
+            'wind': [{'wind_x': 0.5, 'gust_std_horizontal': 0.5}]}
     out = str(tmp_path / 'sweep')
     table, files, meta = sweep_report.run_sweep(spec, out, workers=2, progress=runs.Progress(8, bar=False))
     assert os.path.isfile(files['plot']) and os.path.getsize(files['plot']) > 1000

@@ -7,6 +7,7 @@ import os
 import pytest
 
 from anafi_lab.calibration import conditions as cond
+from anafi_lab.reports import conditions_report
 from anafi_lab.engine import replay as fidelity
 from anafi_lab.engine.engine import Engine
 from anafi_sim.sim.conditions_profile import PROFILE_KEYS, list_conditions, load_conditions, profile_path
@@ -67,11 +68,12 @@ def test_wind_speed_for_force_inverts_the_drag(model):
 
 
 def test_the_section_replaces_itself():
-    text = 'head\n\n' + cond.SECTION_BEGIN + '\nold\n' + cond.SECTION_END + '\n\n## next\n'
-    new = cond.replace_section(text, cond.SECTION_BEGIN + '\nnew\n' + cond.SECTION_END + '\n')
+    begin, end = conditions_report.SECTION_BEGIN, conditions_report.SECTION_END
+    text = 'head\n\n' + begin + '\nold\n' + end + '\n\n## next\n'
+    new = conditions_report.replace_section(text, begin + '\nnew\n' + end + '\n')
     assert 'old' not in new and 'new' in new and new.startswith('head') and new.rstrip().endswith('## next')
-    assert cond.existing_section(new).startswith(cond.SECTION_BEGIN)
-    assert cond.replace_section('only', 'S\n') == 'only\n\nS\n'
+    assert conditions_report.existing_section(new).startswith(conditions_report.SECTION_BEGIN)
+    assert conditions_report.replace_section('only', 'S\n') == 'only\n\nS\n'
 
 
 # ------------------------------------------------------------------------------------------------ profiles
@@ -177,9 +179,8 @@ def test_the_replays_store_round_trips_and_renders():
         name = 'log_mpc'
     refs = {'log_mpc': collections.OrderedDict((('e_mu', 1.0), ('e_max', 6.2), ('tilt_mean', 0.25),
                                                 ('e_hold', 0.2)))}
-    from anafi_lab.reports import conditions_report
     text = conditions_report.fidelity_section([Log()], back, 0, refs, [0, 1], 'cmd')
-    assert text.startswith(cond.FIDELITY_BEGIN) and cond.FIDELITY_END in text
+    assert text.startswith(conditions_report.FIDELITY_BEGIN) and conditions_report.FIDELITY_END in text
     assert '| log_mpc | 0.800 [0.800, 0.800] vs 1.000 (0.80) |' in text
 
 

@@ -682,10 +682,11 @@ def test_the_report_rerenders_byte_identical_from_the_stored_figures():
     with open(os.path.join(repo, 'docs', 'fidelity.md')) as stream:
         committed = stream.read()
     # the "real flights" section is calibrate_conditions.py's (re-rendered from its own figures: test_conditions.py)
-    from anafi_lab.calibration import conditions
-    kept = conditions.existing_section(committed, conditions.FIDELITY_BEGIN, conditions.FIDELITY_END)
+    from anafi_lab.reports import conditions_report
+    begin, end = conditions_report.FIDELITY_BEGIN, conditions_report.FIDELITY_END
+    kept = conditions_report.existing_section(committed, begin, end)
     if kept:
-        text = conditions.replace_section(text, kept, conditions.FIDELITY_BEGIN, conditions.FIDELITY_END)
+        text = conditions_report.replace_section(text, kept, begin, end)
     assert text == committed, ('docs/fidelity.md differs from its re-render: '
                                'python anafi_lab/cli/measure_fidelity.py --steps ,')
 

@@ -41,7 +41,7 @@ import bench_sync
 from anafi_sim import processes
 from anafi_lab.engine import runs, sweep
 from anafi_lab.reports import batch_report, sweep_report
-from anafi_lab.reports import paper_tables as report
+from anafi_lab import paper
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, Engine
 from anafi_sim.numeric import fmt
 
@@ -181,8 +181,8 @@ def cross_validation():
                 (read_yaml(os.path.join(RESULTS, 'inprocess', 'experiments.yaml'), {}) or {}).get('records', []))
     bands = _phase_bands()
     out = []
-    for scenario in report.ALL_SCENARIOS:
-        for controller in report.CONTROLLERS:
+    for scenario in paper.ALL_SCENARIOS:
+        for controller in paper.CONTROLLERS:
             a, b = mine.get((scenario, controller)), ros.get((scenario, controller))
             if not a or not b or not a.get('summary') or not b.get('summary'):
                 continue
@@ -230,7 +230,7 @@ def batch_section(b):
     """The paper's batch in-process: wall time, speed-up over ROS, achieved real-time factor per run."""
     lines = []
     rtfs = sorted(p['rtf'] for p in b['per_run'] if p['rtf'])
-    per = dict((c, [p['rtf'] for p in b['per_run'] if p['run'].endswith('_' + c)]) for c in report.CONTROLLERS)
+    per = dict((c, [p['rtf'] for p in b['per_run'] if p['run'].endswith('_' + c)]) for c in paper.CONTROLLERS)
     lines += ['## The paper\'s batch in-process', '',
               '16 scenarios x PID and MPC = %d runs (%d ok) on %d worker processes (%s), per-run plots '
               'included: **%.1f s wall** (target < 60 s) for %.0f s of simulated time. The ROS batch '

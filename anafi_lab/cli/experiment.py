@@ -38,6 +38,7 @@ import sys
 import yaml
 
 from anafi_sim import paths, run_files
+from anafi_lab import paper
 from anafi_lab.reports import paper_tables as report
 from anafi_lab.engine.engine import CONTROLLERS, make_schedule, wind_settings
 from anafi_lab.engine.runs import SYNC_SCHEDULE, make_task, result_line, run_task, task_name
@@ -162,7 +163,7 @@ def command_line(argv=None):
 
 def cmd_batch(args):
     scenarios = _selection(args.scenarios, GROUPS, set(list_scenarios()), 'scenario')
-    controllers = _selection(args.controllers or BATCH_CONTROLLERS[args.engine], {}, set(report.KNOWN_CONTROLLERS),
+    controllers = _selection(args.controllers or BATCH_CONTROLLERS[args.engine], {}, set(paper.KNOWN_CONTROLLERS),
                              'controller')
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)

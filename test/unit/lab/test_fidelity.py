@@ -23,7 +23,7 @@ from anafi_lab.engine import replay as F
 from anafi_lab.fidelity import scores as S
 from anafi_lab.fidelity import variants as V
 from anafi_lab.reports import fidelity_tables as T
-from anafi_lab.reports import paper_tables as report
+from anafi_lab import paper
 from anafi_lab.reports.render import environment
 from anafi_sim.numeric import fmt
 from anafi_sim.mission.reference_log import COLUMNS, ReferenceLog, as_logged, read_log
@@ -385,7 +385,7 @@ def test_the_held_out_data_file_gives_the_compared_figures_and_the_stated_ranges
     assert fd[('mpc', 'estimate')]['vertical_r2_v1'] == 0.2029 and fd[('mpc', 'truth')]['circle_r1_v1'] == 0.5836
     assert fd[('pid', 'truth')]['vertical_r2_v2'] == 1.1426 and fd[('pid', 'estimate')]['circle_r2_v2'] == 2.3173
     for cells in fd.values():
-        assert sorted(cells) == sorted(report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS)
+        assert sorted(cells) == sorted(paper.CIRCLE_SCENARIOS + paper.VERTICAL_SCENARIOS)
     # the stated ranges, in order: PID est / truth, MPC vertical, fast circles, other circles (inferred), truth
     assert [g[3] for g in H.RATIO_RANGES] == [(0.78, 1.0), (0.78, 1.0), (1.3, 1.9), (0.69, 0.71), (0.75, 1.25),
                                               (0.50, 0.84)]

@@ -98,12 +98,12 @@ def table3_table(t3, columns):
         head += ['%s [m]' % t, 'ratio']
     rows = []
     for c in paper.CONTROLLERS:
-        for k, paper in enumerate(paper.PAPER_TABLE3[c]):
+        for k, published in enumerate(paper.PAPER_TABLE3[c]):
             parts = []
             for _, pid_v, mpc_v in columns:
                 r = t3.get((mpc_v if c == 'mpc' else pid_v, c, k + 1))
                 v = r.get('e_mu') if r and r.get('ok') else None
-                parts += [fmt(v, 3), ratio_text(v / paper if v is not None else None)]
+                parts += [fmt(v, 3), ratio_text(v / published if v is not None else None)]
             rows.append([paper.LABELS[c], '%d' % (k + 1), '%.2f' % paper] + parts)
     return Table(head, rows)
 

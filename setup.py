@@ -16,7 +16,8 @@ ROOTS = ('anafi_sim', 'anafi_control', 'anafi_lab')
 setup(**generate_distutils_setup(
     packages=sorted(find_packages(HERE, include=[p for r in ROOTS for p in (r, r + '.*')])),
     package_dir={'': '.'},
-    # the report templates and the fidelity room's data files (installed with the package)
-    package_data={'anafi_lab.reports': ['templates/*.md', 'templates/*.yaml', 'templates/*/*.md'],
+    # the lab's sweep specs, the report templates and the fidelity room's data files (installed with the package)
+    package_data={'anafi_lab': ['sweeps/*.yaml'],
+                  'anafi_lab.reports': ['templates/*.md', 'templates/*.yaml', 'templates/*/*.md'],
                   'anafi_lab.fidelity': ['*.yaml']},
 ))

@@ -1,9 +1,11 @@
-"""The paper's experiments as data: its controllers, scenario groups and published simulation figures."""
+"""The paper's experiments as data: its controllers (and their names in tables and titles), scenario groups and
+published simulation figures. The bottom room of the lab: every other room reads the paper from here."""
 from anafi_control import registry
 
 CONTROLLERS = registry.batch_names('paper')   # the paper's two (mpc, pid): every batch runs them
 BEYOND = registry.batch_names('beyond')       # beyond the paper: a column where the batch has it
 KNOWN_CONTROLLERS = CONTROLLERS + BEYOND
+LABELS = registry.labels()                    # the controllers' names in tables and titles
 STATIC = ('static_wp0', 'static_wp1')
 STRAIGHT_SPEEDS = (1, 2, 3, 4, 5)
 STRAIGHT = tuple('straight_%d' % v for v in STRAIGHT_SPEEDS)

@@ -1,7 +1,9 @@
 """Summary statistics of a series and numbers as text: the one place for both (pure Python).
 
 Used by the mission's cores (evaluation, monitor), the lab (runs, sweeps, reports) and the benchmarks, so that a
-mean, a standard deviation or a table cell is computed and written the same way everywhere.
+mean, a standard deviation, a median or a table cell is computed and written the same way everywhere (numpy arrays:
+``np.std`` is ddof 0 too). One convention for a spread: ``std`` is the population standard deviation (ddof 0) unless
+a table says it is the spread of a sample (``summary_stats(values, sample=True)``, ddof 1).
 
 Numbers from text (``parse_number``, ``parse_integer``): the one parser of the launch check
 (anafi_sim/launch_check.py) and the nodes' parameters (anafi_sim/ros/params.py), so both accept the same
@@ -10,6 +12,7 @@ values (``1e0``, ``-2.5``; ASCII digits only, finite) and both hold them to the 
 import collections
 import math
 import re
+import statistics
 
 _DECIMAL = re.compile(r'^[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?$')
 _INTEGER = re.compile(r'^[+-]?[0-9]+$')
@@ -74,24 +77,29 @@ def finite(values):
     return out
 
 
-def summary_stats(values):
-    """{'n', 'mean', 'std' (population), 'min', 'max'} of the finite values (an OrderedDict), or None when
-    there are none."""
+def summary_stats(values, sample=False):
+    """{'n', 'mean', 'std', 'min', 'max'} of the finite values (an OrderedDict), or None when there are none.
+
+    ``std`` is the population standard deviation (ddof 0: the spread of the values themselves, as the runs'
+    e_sigma), or with ``sample`` the sample one (ddof 1, 0.0 for one value: the spread of a population of which
+    the values are a sample, as the seeds of a predicted cell). The sums run left to right in plain floats (not
+    ``statistics.fmean`` / ``pstdev``, whose exact sums move the last bits of the published figures)."""
     v = finite(values)
     if not v:
         return None
     mean = sum(v) / len(v)
-    std = math.sqrt(sum((x - mean) ** 2 for x in v) / len(v))
+    squares = sum((x - mean) ** 2 for x in v)
+    if sample:
+        std = math.sqrt(squares / (len(v) - 1)) if len(v) > 1 else 0.0
+    else:
+        std = math.sqrt(squares / len(v))
     return collections.OrderedDict([('n', len(v)), ('mean', mean), ('std', std), ('min', min(v)), ('max', max(v))])
 
 
 def median(values):
     """The median of the finite values (the mean of the two middle ones for an even count); None when empty."""
-    v = sorted(finite(values))
-    if not v:
-        return None
-    mid = len(v) // 2
-    return v[mid] if len(v) % 2 else 0.5 * (v[mid - 1] + v[mid])
+    v = finite(values)
+    return statistics.median(v) if v else None
 
 
 def fmt(value, digits=2, missing='-'):

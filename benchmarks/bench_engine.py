@@ -10,9 +10,9 @@ benchmarks/results/engine.yaml so that a step can be rerun alone and the report 
   factor per run, speed-up against the ROS batch's wall time (benchmarks/results/experiments.yaml meta.wall_s);
 - ``determinism``: the same run twice with the same seed (wind gusts on) -> the summary YAML files compared
   byte for byte (and a different seed differs);
-- ``sweep``: anafi_sim/config/sweeps/wind_circles.yaml (2 controllers x 5 circles x 20 gust seeds = 200 runs)
+- ``sweep``: anafi_lab/sweeps/wind_circles.yaml (2 controllers x 5 circles x 20 gust seeds = 200 runs)
   -> benchmarks/results/sweep_wind_circles/ (runs.csv, summary.md, e_mu.png); wall time;
-- ``phases``: anafi_sim/config/sweeps/schedule_phases.yaml (every scenario and controller over a 4 x 4 grid of
+- ``phases``: anafi_lab/sweeps/schedule_phases.yaml (every scenario and controller over a 4 x 4 grid of
   the generator's and the controller's timer phases) -> benchmarks/results/sweep_schedule_phases/: the band
   of e_mu a ROS run can fall into, for the cross-validation;
 - ``profile``: cProfile of one MPC run and one PID run: where the time goes.
@@ -38,9 +38,10 @@ import time
 from anafi_sim.run_files import read_yaml, write_yaml
 
 import bench_sync
-from anafi_sim import paths, processes
+from anafi_sim import processes
 from anafi_lab.engine import runs, sweep
-from anafi_lab.reports import paper_tables as report
+from anafi_lab.reports import batch_report, sweep_report
+from anafi_lab import paper
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, Engine
 from anafi_sim.numeric import fmt
 
@@ -56,8 +57,8 @@ def step_batch(args, figures):
     out = os.path.join(RESULTS, 'inprocess')
     runs_dir = tempfile.mkdtemp(prefix='anafi_inprocess_runs_')
     t0 = time.perf_counter()
-    records, meta, _ = runs.batch(out, workers=args.workers, runs_dir=runs_dir,
-                                  command='benchmarks/bench_engine.py --steps batch (runs.batch, %d workers)'
+    records, meta, _ = batch_report.batch(out, workers=args.workers, runs_dir=runs_dir,
+                                  command='benchmarks/bench_engine.py --steps batch (batch_report.batch, %d workers)'
                                   % args.workers)
     wall = time.perf_counter() - t0
     ros = read_yaml(ROS_BATCH, {}) or {}
@@ -79,7 +80,7 @@ def step_batch(args, figures):
 
 def step_determinism(args, figures):
     tmp = tempfile.mkdtemp(prefix='anafi_determinism_')
-    wind = {'x': 1.6, 'y': 1.2, 'gust': 1.0, 'gust_vertical': 0.3}
+    wind = {'wind_x': 1.6, 'wind_y': 1.2, 'gust_std_horizontal': 1.0, 'gust_std_vertical': 0.3}
     out = []
     for controller in ('mpc', 'pid'):
         files = []
@@ -99,11 +100,11 @@ def step_determinism(args, figures):
 
 
 def step_sweep(args, figures, name, key):
-    spec = sweep.load_spec(paths.config_path('sweeps', name + '.yaml'))
+    spec = sweep.load_spec(name)
     out = os.path.join(RESULTS, 'sweep_' + name)
-    table, files, meta = sweep.run_sweep(spec, out, workers=args.workers,
+    table, files, meta = sweep_report.run_sweep(spec, out, workers=args.workers,
                                          command='benchmarks/bench_engine.py --steps %s' % key)
-    figures[key] = {'spec': 'anafi_sim/config/sweeps/%s.yaml' % name, 'runs': len(table),
+    figures[key] = {'spec': 'anafi_lab/sweeps/%s.yaml' % name, 'runs': len(table),
                     'ok': sum(1 for r in table if r['ok']), 'wall_s': round(meta['wall_s'], 1),
                     'sim_s': round(meta['sim_s'], 1), 'workers': args.workers,
                     'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M')}
@@ -180,8 +181,8 @@ def cross_validation():
                 (read_yaml(os.path.join(RESULTS, 'inprocess', 'experiments.yaml'), {}) or {}).get('records', []))
     bands = _phase_bands()
     out = []
-    for scenario in report.ALL_SCENARIOS:
-        for controller in report.CONTROLLERS:
+    for scenario in paper.ALL_SCENARIOS:
+        for controller in paper.CONTROLLERS:
             a, b = mine.get((scenario, controller)), ros.get((scenario, controller))
             if not a or not b or not a.get('summary') or not b.get('summary'):
                 continue
@@ -229,7 +230,7 @@ def batch_section(b):
     """The paper's batch in-process: wall time, speed-up over ROS, achieved real-time factor per run."""
     lines = []
     rtfs = sorted(p['rtf'] for p in b['per_run'] if p['rtf'])
-    per = dict((c, [p['rtf'] for p in b['per_run'] if p['run'].endswith('_' + c)]) for c in report.CONTROLLERS)
+    per = dict((c, [p['rtf'] for p in b['per_run'] if p['run'].endswith('_' + c)]) for c in paper.CONTROLLERS)
     lines += ['## The paper\'s batch in-process', '',
               '16 scenarios x PID and MPC = %d runs (%d ok) on %d worker processes (%s), per-run plots '
               'included: **%.1f s wall** (target < 60 s) for %.0f s of simulated time. The ROS batch '

@@ -40,7 +40,8 @@ VARIANTS = {
 }
 DEFAULT_LABELS = 'preview_mpc,preview_mpc (no preview),mpc,pid'
 AIRSHIP_LABELS = ['preview_mpc (no preview)', 'mpc', 'pid']   # a seen target: no preview
-WIND = {'x': 3.2, 'y': 2.4, 'gust': 1.0, 'gust_vertical': 0.3, 'gust_time_constant': 2.0}   # |mean| 4 m/s
+WIND = {'wind_x': 3.2, 'wind_y': 2.4, 'gust_std_horizontal': 1.0, 'gust_std_vertical': 0.3,   # |mean| 4 m/s
+        'gust_time_constant': 2.0}
 
 
 def run_one(job):

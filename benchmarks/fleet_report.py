@@ -21,6 +21,7 @@ import re
 import jinja2
 
 from anafi_sim.mission import fleet_realtime
+from anafi_sim.numeric import median
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 #: a fleet holds real time when, in every run, every drone has at least these: simulator RTF (sim time / wall
@@ -130,14 +131,6 @@ def run_figures(run):
     return {'rtf_min': _min(run, 'rtf'), 'truth_min': _min(run, 'truth_hz'), 'mirror_min': _min(run, 'mirror_hz'),
             'cpu_total': total, 'cpu_per_drone': None if total is None else total / run['n'],
             'largest_process': largest[1], 'largest_role': largest[0], 'holds': run_holds(run)}
-
-
-def median(values):
-    v = sorted(values)
-    if not v:
-        return None
-    mid = len(v) // 2
-    return v[mid] if len(v) % 2 else 0.5 * (v[mid - 1] + v[mid])
 
 
 def spread(values):

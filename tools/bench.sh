@@ -3,7 +3,7 @@
 # controllers and one Markdown report with plots.
 #   bench.sh inprocess [--update] - the in-process engine (anafi_lab/cli/experiment.py batch, virtual time, all
 #                                   cores): experiments.yaml, report.md, plots/, runs/
-#   bench.sh ros [--update]       - the ROS graph (anafi_lab/engine/ros_batch.py, experiment.launch per run):
+#   bench.sh ros [--update]       - the ROS graph (anafi_lab/cli/ros_batch.py, experiment.launch per run):
 #                                   experiments.{md,yaml}, plots/, runs/
 # Where: a new run folder run/bench-<date>-<time>-<pid>/ (run/bench-ros-... for ros; run/latest links to the
 # newest), so the committed results stay as they are. With --update (UPDATE=1 make bench) the report goes over the
@@ -33,7 +33,7 @@ case "$mode" in
     [ "$update" = 1 ] || report=(--report "$run_dir/experiments.md")
     echo "[bench] report in ${report[1]:-$ANAFI_SIM_ROOT/benchmarks/results/experiments.md}, runs in $run_dir/runs"
     # shellcheck disable=SC2086
-    exec python "$ANAFI_SIM_ROOT/anafi_lab/engine/ros_batch.py" --runs-dir "$run_dir/runs" "${report[@]}" \
+    exec python "$ANAFI_SIM_ROOT/anafi_lab/cli/ros_batch.py" --runs-dir "$run_dir/runs" "${report[@]}" \
       ${BENCH_ARGS:-} "$@" ;;
   *)
     echo "usage: bench.sh inprocess|ros [--update] [runner arguments]" >&2; exit 2 ;;

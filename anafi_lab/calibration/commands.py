@@ -23,15 +23,17 @@ CommandTrace.__doc__ = ('Reconstructed firmware setpoints at the command instant
                         'start_index = first log sample with the waypoint set (hover command before).')
 
 
-def reconstruct_pid_commands(log, cycle_rate=30.0, output_rate=10.0, framework=None, mapping=None):
+def reconstruct_pid_commands(log, cycle_rate=30.0, output_rate=10.0, framework=None, mapping=None, from_start=False):
     """Replay the paper's PID framework on the logged estimate and waypoint; ``CommandTrace``.
 
     The loops (``anafi_control.pid_framework.PidFramework``, Table 2 gains)
     run at ``cycle_rate`` on the latest logged sample (zero-order hold) from
     the first sample whose waypoint differs from the first row (the logs start
-    in hover before the waypoint is published); the command is sampled at
-    ``output_rate`` and quantised to whole PCMD percents as the bridge does
-    (``anafi_sim.sim.bridge.PilotingMapping``). Only meaningful for the *_pid logs.
+    in hover before the waypoint is published), or with ``from_start`` from the
+    first sample on (a real flight's log has its waypoint from its start); the
+    command is sampled at ``output_rate`` and quantised to whole PCMD percents as
+    the bridge does (``anafi_sim.sim.bridge.PilotingMapping``). Only meaningful for
+    the *_pid logs.
     """
     if framework is None:
         from anafi_control.pid_framework import PidFramework
@@ -42,11 +44,12 @@ def reconstruct_pid_commands(log, cycle_rate=30.0, output_rate=10.0, framework=N
     wp = log.waypoint()
     changed = np.any(wp != wp[0], axis=1)
     start = int(np.argmax(changed)) if changed.any() else 0
-    cycles = np.arange(log.t[start], log.t[-1], 1.0 / cycle_rate)
+    begin = 0 if from_start else start
+    cycles = np.arange(log.t[begin], log.t[-1], 1.0 / cycle_rate)
     index = np.searchsorted(log.t, cycles, side='right') - 1
     every = max(1, int(round(cycle_rate / output_rate)))
-    times = [log.t[0]] if start > 0 else []
-    setpoints = [(0.0, 0.0, 0.0, 0.0)] if start > 0 else []
+    times = [log.t[0]] if begin > 0 else []
+    setpoints = [(0.0, 0.0, 0.0, 0.0)] if begin > 0 else []
     for k, (tc, i) in enumerate(zip(cycles, index)):
         framework.update(float(tc), (log.x_anafi[i], log.y_anafi[i], log.z_anafi[i]),
                          (log.vx_anafi[i], log.vy_anafi[i], log.vz_anafi[i]), float(log.yaw_anafi[i]),

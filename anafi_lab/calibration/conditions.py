@@ -28,10 +28,8 @@ import math
 import numpy as np
 from scipy.signal import savgol_filter
 
-from anafi_control.mpc import CumulativeErrorMpc, attitude_from_acceleration
-from anafi_control.pid_framework import PidFramework
 from anafi_lab.paper import CONTROLLERS
-from anafi_sim.sim.bridge import PilotingMapping
+from anafi_lab.calibration.commands import reconstruct_mpc_commands, reconstruct_pid_commands
 
 GRAVITY = 9.81
 ACCEL_WINDOW = 9          # samples of the Savitzky-Golay derivative (0.45 s at 20 Hz)
@@ -40,10 +38,6 @@ EDGE = 0.5                # s dropped at each end of a window (filter edges)
 GUST_SMOOTHING = 1.0      # s, moving mean of the tilt-implied wind before its std (cuts the attitude noise)
 NOISE_WINDOW = 2.0        # s, high-pass of the position-minus-integrated-velocity residual
 TAU_GRID = (0.0, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)   # s, estimator time constants compared
-
-CommandTrace = collections.namedtuple('CommandTrace', 't roll pitch')
-CommandTrace.__doc__ = 'Recomputed attitude setpoints: t [s, log time], roll, pitch [rad, FLU] (numpy arrays).'
-
 
 def controller_of(log):
     """'pid' or 'mpc' from the log's name (``..._pid`` / ``..._mpc``); ValueError otherwise."""
@@ -55,45 +49,17 @@ def controller_of(log):
 
 
 def commands(log, controller=None, mapping=None):
-    """``CommandTrace`` of the commands the paper's controller (``controller`` or the log's name) computed
-    from the logged estimate and waypoint, from the first sample on (the real logs have their waypoint from
-    the start). PID: the framework at 30 Hz, sampled at 10 Hz; MPC: one solve every 0.1 s (eq. 15: no
-    memory), roll/pitch at the logged yaw. Quantised to whole PCMD percents (the bridge)."""
+    """``commands.CommandTrace`` of the commands the paper's controller (``controller`` or the log's name)
+    computed from the logged estimate and waypoint, from the first sample on (the real logs have their waypoint
+    from the start): the calibration's one reconstruction (``anafi_lab.calibration.commands``). PID: the
+    framework at 30 Hz, sampled at 10 Hz; MPC: one solve every 0.1 s (eq. 15: no memory), roll/pitch at the
+    logged yaw. Quantised to whole PCMD percents (the bridge)."""
     controller = controller or controller_of(log)
-    mapping = mapping or PilotingMapping()
-    wp = log.waypoint()
-    t = log.t
-    times, roll, pitch = [], [], []
     if controller == 'pid':
-        framework = PidFramework()
-        cycles = np.arange(t[0], t[-1], 1.0 / 30.0)
-        index = np.searchsorted(t, cycles, side='right') - 1
-        for k, (tc, i) in enumerate(zip(cycles, index)):
-            framework.update(float(tc), (log.x_anafi[i], log.y_anafi[i], log.z_anafi[i]),
-                             (log.vx_anafi[i], log.vy_anafi[i], log.vz_anafi[i]), float(log.yaw_anafi[i]),
-                             tuple(float(v) for v in wp[i]))
-            if k % 3 == 0:
-                sp = mapping.command_to_setpoints(*framework.command())
-                times.append(float(tc))
-                roll.append(sp[0])
-                pitch.append(sp[1])
-    elif controller == 'mpc':
-        mpc = CumulativeErrorMpc()
-        cycles = np.arange(t[0], t[-1], 0.1)
-        index = np.searchsorted(t, cycles, side='right') - 1
-        for tc, i in zip(cycles, index):
-            result = mpc.solve(np.array([log.x_anafi[i], log.y_anafi[i], log.z_anafi[i]]),
-                               np.array([log.vx_anafi[i], log.vy_anafi[i], log.vz_anafi[i]]), wp[i][:3], wp[i][3:6])
-            if not result.ok:
-                continue
-            r, p = attitude_from_acceleration(result.u0[0], result.u0[1], float(log.yaw_anafi[i]), mpc.gravity)
-            sp = mapping.command_to_setpoints(r, p, 0.0, result.vz_command)
-            times.append(float(tc))
-            roll.append(sp[0])
-            pitch.append(sp[1])
-    else:
-        raise ValueError("controller must be 'pid' or 'mpc', got %r" % (controller,))
-    return CommandTrace(np.array(times), np.array(roll), np.array(pitch))
+        return reconstruct_pid_commands(log, mapping=mapping, from_start=True)
+    if controller == 'mpc':
+        return reconstruct_mpc_commands(log, mapping=mapping)
+    raise ValueError("controller must be 'pid' or 'mpc', got %r" % (controller,))
 
 
 def _lowpass(t, u, tau, initial):
@@ -408,12 +374,12 @@ def log_figures(log):
 
 
 def replay_real(log, settings, seed=0, model_params=None):
-    """Closed-loop replay of a real log with the fidelity method (``anafi_lab.fidelity.replay``: the
+    """Closed-loop replay of a real log with the fidelity method (``anafi_lab.engine.replay``: the
     log's waypoint stream to its controller on the stand-in, resampled at the log's times) under the
     simulator ``settings`` (wind, gusts, wind handling); no initial state (a real log has no ground truth:
     the drone starts settled at its hover point) and no stall replay. (figures of the replay (``log_figures``)
     or None, error text)."""
-    from anafi_lab.fidelity import replay as fidelity
+    from anafi_lab.engine import replay as fidelity
     plan = fidelity.replay_plan(log, initial_state=False, stalls=False)
     variant = None
     if model_params is not None:
@@ -513,34 +479,6 @@ def score(grid, index, references, stats=SCORED):
 
 
 # ------------------------------------------------------------------------------------------- the report
-SECTION_BEGIN = '<!-- conditions: generated by anafi_lab/cli/calibrate_conditions.py -->'
-SECTION_END = '<!-- /conditions -->'
-
-
-FIDELITY_BEGIN = '<!-- real flights: generated by anafi_lab/cli/calibrate_conditions.py -->'
-FIDELITY_END = '<!-- /real flights -->'
-
-
-def replace_section(text, section, begin_marker=SECTION_BEGIN, end_marker=SECTION_END):
-    """``text`` with its section (``begin_marker``..``end_marker``) replaced by ``section``, or ``section``
-    appended when it has none."""
-    begin = text.find(begin_marker)
-    end = text.find(end_marker)
-    if begin >= 0 and end > begin:
-        tail = text[end + len(end_marker):].lstrip('\n')
-        return text[:begin] + section.rstrip('\n') + '\n' + (('\n' + tail) if tail else '')
-    return text.rstrip('\n') + '\n\n' + section
-
-
-def existing_section(text, begin_marker=SECTION_BEGIN, end_marker=SECTION_END):
-    """The section of ``text`` between the markers ('' when it has none)."""
-    begin = text.find(begin_marker)
-    end = text.find(end_marker)
-    if begin >= 0 and end > begin:
-        return text[begin:end + len(end_marker)] + '\n'
-    return ''
-
-
 def profile_text(settings, combined, handling, command):
     """The conditions profile YAML: simulator settings (sim.yaml keys) with their provenance."""
     comments = {

@@ -161,14 +161,14 @@ def fit_tilt_attenuation_speed(logs, model, trim=0.0, tolerance=0.05):
 
     Per log: the mean MPC pitch command recomputed on the log (``reconstruct_mpc_commands``) against the mean
     delivered pitch (+ ``trim``, the drag fit's offset of the thrust axis), divided by the same ratio on the
-    stand-in's closed-loop replay of that log (``anafi_lab.fidelity.replay``) with ``model`` (a model dict
+    stand-in's closed-loop replay of that log (``anafi_lab.engine.replay``) with ``model`` (a model dict
     without the attenuation, which delivers exactly what is commanded). The recomputation's own bias (the
     10 Hz waypoint's sawtooth at the log's sample phase) is the same in both and cancels; what remains is the
     firmware's gain relative to the stand-in's 1. v1 = the speed of the fastest log, a = 1 - its relative gain,
     v0 = the speed of the fastest slower log whose relative gain is within ``tolerance`` of 1 (or above).
     Between v0 and v1 the model ramps linearly: the logs have no speed in between to tell the shape.
     """
-    from anafi_lab.fidelity import replay as fidelity
+    from anafi_lab.engine import replay as fidelity
     rows = collections.OrderedDict()
     variant = fidelity.Variant('no_attenuation', 'no attenuation', dict(model))
     for log in sorted((log for log in logs if log.name.startswith('x_straight') and log.name.endswith('_mpc')

@@ -97,11 +97,12 @@ def main(argv=None):
                                                         chosen, references, seeds, off_index, COMMAND,
                                                         conditions_report.load_findings(args.findings))
         text = open(args.report).read() if os.path.exists(args.report) else ''
-        write(args.report, cond.replace_section(text, section))
+        write(args.report, conditions_report.replace_section(text, section))
     if args.fidelity:
         section = conditions_report.fidelity_section(logs, grid, chosen, references, seeds, COMMAND)
         text = open(args.fidelity).read() if os.path.exists(args.fidelity) else ''
-        write(args.fidelity, cond.replace_section(text, section, cond.FIDELITY_BEGIN, cond.FIDELITY_END))
+        write(args.fidelity, conditions_report.replace_section(text, section, conditions_report.FIDELITY_BEGIN,
+                                                               conditions_report.FIDELITY_END))
     print('wall %.0f s' % (time.time() - t0))
     return 0
 

@@ -18,7 +18,7 @@ Where the files go:
 The report's "Real flights" section (calibrate_conditions.py's) is kept from the report being replaced, else from
 the committed docs/calibration.md. The fits are anafi_lab/calibration/ (fit.py puts them together), the texts
 anafi_lab/reports/calibration_report.py with its templates anafi_lab/reports/templates/calibration.md and
-anafi_model.yaml, the figure anafi_lab/calibration/plot.py; this script only wires them to files (the texts
+anafi_model.yaml, the figure anafi_lab/reports/calibration_plot.py; this script only wires them to files (the texts
 each written atomically).
 """
 import argparse
@@ -30,8 +30,9 @@ import sys
 import yaml
 
 from anafi_sim import paths, run_files
-from anafi_lab.calibration import conditions, fit, plot
-from anafi_lab.reports import calibration_report as report
+from anafi_lab.calibration import fit
+from anafi_lab.reports import calibration_plot as plot
+from anafi_lab.reports import calibration_report as report, conditions_report
 from anafi_sim.mission.reference_log import read_log
 
 #: (option, committed path below the checkout, file name in a run folder): the files a calibration writes
@@ -127,9 +128,9 @@ def main(argv=None):
     if args.report:
         # the real flights' section (calibrate_conditions.py) is kept as it is
         source = args.report if os.path.exists(args.report) else committed('report')
-        kept = conditions.existing_section(open(source).read()) if os.path.exists(source) else ''
+        kept = conditions_report.existing_section(open(source).read()) if os.path.exists(source) else ''
         text = report.render_report(stored['report'])
-        write(args.report, conditions.replace_section(text, kept) if kept else text)
+        write(args.report, conditions_report.replace_section(text, kept) if kept else text)
     if args.run_dir:
         print('run folder %s (the committed files are left as they are; UPDATE=1 make calibrate or --update '
               'rewrites them):' % args.run_dir)

@@ -16,7 +16,7 @@
         -> DIR/experiments.yaml (the ROS batch's schema) and DIR/report.md (the paper's tables), plots.
     experiment.py sweep NAME|SPEC.yaml [--workers N] [--scheduler ADDRESS] [--conditions C] [--no-plot] --out DIR
         -> DIR/runs.csv (every run's metrics), DIR/summary.md, DIR/e_mu.png. NAME: a spec of
-           anafi_sim/config/sweeps/ (e.g. wind_circles); a relative path missing here is looked up in the package.
+           anafi_lab/sweeps/ (e.g. wind_circles); a relative path missing here is looked up in the package.
 
 ``--conditions NAME|PATH``: a flight-conditions profile (anafi_sim/config/conditions/, e.g. real_flights: the
 wind, gusts and firmware wind handling of the paper's outdoor flights) under the run's settings; ``--wind`` and
@@ -25,7 +25,7 @@ the gust options override its wind. For a sweep it overrides the spec's ``condit
 
 The in-process engine (anafi_lab.engine.engine) needs no ROS master: the same cores as the nodes on
 virtual time, bit-for-bit deterministic for a seed. ``--engine ros`` runs the real graph instead
-(experiment.launch through anafi_lab/engine/ros_batch.py: needs a ROS environment, takes the seed and wind of
+(experiment.launch through anafi_lab/cli/ros_batch.py: needs a ROS environment, takes the seed and wind of
 sim.yaml; ``--sync``: in lockstep, experiment.launch sync:=true, so that its results do not depend on the
 machine's load). Workers: processes on this machine (concurrent.futures); ``--scheduler`` sends the same tasks to a
 Dask distributed scheduler (python3-distributed; the workers need this package importable). Progress: a
@@ -41,17 +41,20 @@ import yaml
 
 from anafi_sim import paths, run_files
 from anafi_sim.run_files import FIGURE_DPI, FIGURE_FORMATS
+from anafi_lab import paper
 from anafi_lab.reports import paper_tables as report
 from anafi_control import registry
 from anafi_lab.engine.engine import make_schedule, wind_settings
-from anafi_lab.engine.runs import SYNC_SCHEDULE, batch, make_task, result_line, run_task, task_name
-from anafi_lab.engine.sweep import GROUPS, load_spec, run_sweep, unflatten
+from anafi_lab.engine.runs import SYNC_SCHEDULE, make_task, result_line, run_task, task_name
+from anafi_lab.reports.batch_report import batch
+from anafi_lab.engine.sweep import GROUPS, load_spec, unflatten
+from anafi_lab.reports.sweep_report import run_sweep
 from anafi_sim.mission.trajectory import list_scenarios
 from anafi_sim.sim.conditions_profile import conditions_label, load_conditions
 
 
 #: the batch's controllers by engine (the ROS batch runs the paper's two); README's run counts come from these
-BATCH_CONTROLLERS = {'inprocess': ','.join(report.KNOWN_CONTROLLERS), 'ros': ','.join(report.CONTROLLERS)}
+BATCH_CONTROLLERS = {'inprocess': ','.join(paper.KNOWN_CONTROLLERS), 'ros': ','.join(paper.CONTROLLERS)}
 
 
 def _key_values(items, what):
@@ -71,8 +74,8 @@ def _wind(args):
         values = [float(v) for v in args.wind.split(',')]
         if len(values) not in (2, 3):
             raise ValueError('--wind X,Y[,Z] [m/s], got %r' % args.wind)
-        wind.update(zip(('x', 'y', 'z'), values))
-    for key, value in (('gust', args.gust), ('gust_vertical', args.gust_vertical),
+        wind.update(zip(('wind_x', 'wind_y', 'wind_z'), values))
+    for key, value in (('gust_std_horizontal', args.gust), ('gust_std_vertical', args.gust_vertical),
                        ('gust_time_constant', args.gust_tau)):
         if value is not None:
             wind[key] = value
@@ -81,7 +84,7 @@ def _wind(args):
 
 
 def _ros_batch(out_dir, scenarios, controllers, runs_dir, extra=()):
-    cmd = [sys.executable, '-m', 'anafi_lab.engine.ros_batch', '--controllers', ','.join(controllers), '--scenarios',
+    cmd = [sys.executable, '-m', 'anafi_lab.cli.ros_batch', '--controllers', ','.join(controllers), '--scenarios',
            ','.join(scenarios), '--runs-dir', runs_dir, '--report', os.path.join(out_dir, 'experiments.md')]
     cmd += list(extra)
     return subprocess.call(cmd)
@@ -112,7 +115,7 @@ def cmd_run(args):
     load_conditions(args.conditions)
     name = task_name(task)
     if args.engine == 'ros':
-        if args.controller not in report.CONTROLLERS or wind or params or schedule or args.seed is not None \
+        if args.controller not in paper.CONTROLLERS or wind or params or schedule or args.seed is not None \
                 or args.state_source != 'estimate' or args.name or args.conditions:
             raise ValueError('--engine ros runs experiment.launch as it is: controller mpc or pid, the seed and wind '
                              'of sim.yaml, no --param / --schedule / --state-source / --name / --conditions '
@@ -170,7 +173,7 @@ def command_line(argv=None):
 
 def cmd_batch(args):
     scenarios = _selection(args.scenarios, GROUPS, set(list_scenarios()), 'scenario')
-    controllers = _selection(args.controllers or BATCH_CONTROLLERS[args.engine], {}, set(report.KNOWN_CONTROLLERS),
+    controllers = _selection(args.controllers or BATCH_CONTROLLERS[args.engine], {}, set(paper.KNOWN_CONTROLLERS),
                              'controller')
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
@@ -268,7 +271,7 @@ def parser():
     bat.set_defaults(func=cmd_batch)
 
     swp = sub.add_parser('sweep', help='a grid or list of runs from a YAML spec')
-    swp.add_argument('spec', help='sweep spec: a name in anafi_sim/config/sweeps (e.g. wind_circles) or a path')
+    swp.add_argument('spec', help='sweep spec: a name in anafi_lab/sweeps (e.g. wind_circles) or a path')
     swp.add_argument('--workers', type=int, default=1, help='processes (default 1)')
     swp.add_argument('--scheduler', default=None, help='Dask distributed scheduler address')
     swp.add_argument('--conditions', default=None, metavar='NAME|PATH',

@@ -45,12 +45,12 @@ import time
 import yaml
 
 from anafi_sim import paths, processes, run_files
-from anafi_lab.calibration import conditions, estimate, fit
-from anafi_lab.fidelity import replay as F
+from anafi_lab.calibration import estimate, fit
+from anafi_lab.engine import replay as F
 from anafi_lab.fidelity import held_out as H
 from anafi_lab.fidelity import variants as V
-from anafi_lab.fidelity.plot import plot_replay
-from anafi_lab.reports import fidelity_report as report
+from anafi_lab.reports.fidelity_plot import plot_replay
+from anafi_lab.reports import conditions_report, fidelity_report as report
 from anafi_lab.engine.engine import mpc_config
 from anafi_sim.mission.reference_log import read_log
 from anafi_sim.sim.drone_model import EFFECTS_OFF, load_model_params
@@ -173,9 +173,10 @@ def render(args):
 def with_real_flights(text, out):
     """``text`` with the "real flights" section of the report at ``out`` kept as it is (calibrate_conditions.py
     writes it from its own measured figures)."""
-    kept = conditions.existing_section(open(out).read(), conditions.FIDELITY_BEGIN, conditions.FIDELITY_END) \
+    begin, end = conditions_report.FIDELITY_BEGIN, conditions_report.FIDELITY_END
+    kept = conditions_report.existing_section(open(out).read(), begin, end) \
         if os.path.exists(out) else ''
-    return conditions.replace_section(text, kept, conditions.FIDELITY_BEGIN, conditions.FIDELITY_END) if kept else text
+    return conditions_report.replace_section(text, kept, begin, end) if kept else text
 
 
 Plan = collections.namedtuple('Plan', 'log_paths chosen variants run_variants ablation phases scen_variants')

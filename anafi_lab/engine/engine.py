@@ -63,7 +63,7 @@ generator_phase       0.080 s   the trajectory generator's ticks (``~timer_phase
                                 (before the nodes aligned their timers each ROS start-up drew one: 15 ms in a
                                 recorded circle_r1_v1 run, 95 ms in one of straight_2). The MPC tracks the
                                 waypoint as received (no extrapolation over its age), so on fast trajectories
-                                e_mu moves with this phase (config/sweeps/schedule_phases.yaml measures how
+                                e_mu moves with this phase (anafi_lab/sweeps/schedule_phases.yaml measures how
                                 much)
 relative_state_phase  0.0 s     pid_relative_state's timer (not recorded; its cycles then fall on the
                                 estimate's ticks)
@@ -131,10 +131,9 @@ WALL_KEYS = ('monitor_period', 'message_latency', 'clock_latency', 'mpc_latency'
 _RATE_KEYS = ('physics_rate', 'telemetry_rate', 'truth_rate', 'estimate_rate', 'generator_rate',
               'relative_state_rate', 'pid_command_rate')
 
-#: wind keys (``Engine(wind={...})``) -> simulator settings (anafi_sim/config/sim.yaml)
-WIND_KEYS = collections.OrderedDict([('x', 'wind_x'), ('y', 'wind_y'), ('z', 'wind_z'),
-                                     ('gust', 'gust_std_horizontal'), ('gust_vertical', 'gust_std_vertical'),
-                                     ('gust_time_constant', 'gust_time_constant')])
+#: the wind's simulator settings (anafi_sim/config/sim.yaml, the flight-conditions profiles): one vocabulary for a
+#: wind spec (``Engine(wind={...})``, a sweep's ``wind:``) and a sweep's CSV columns
+WIND_KEYS = ('wind_x', 'wind_y', 'wind_z', 'gust_std_horizontal', 'gust_std_vertical', 'gust_time_constant')
 
 Odom = collections.namedtuple('Odom', 'stamp position orientation twist')
 """A nav_msgs/Odometry in numbers: stamp [s], position [m], orientation (x, y, z, w), linear twist [m/s] in
@@ -187,8 +186,8 @@ def make_schedule(overrides=None):
 
 
 def wind_settings(wind):
-    """Simulator settings of a wind spec: None, or {x, y, z [m/s], gust, gust_vertical [m/s std],
-    gust_time_constant [s]} (missing keys: sim.yaml's values)."""
+    """Simulator settings of a wind spec: None, or {wind_x, wind_y, wind_z [m/s], gust_std_horizontal,
+    gust_std_vertical [m/s std], gust_time_constant [s]} (the settings' own names; missing keys: sim.yaml's values)."""
     if not wind:
         return {}
     if not isinstance(wind, dict):
@@ -196,7 +195,7 @@ def wind_settings(wind):
     unknown = sorted(set(wind) - set(WIND_KEYS))
     if unknown:
         raise ValueError('unknown wind key(s) %s (known: %s)' % (', '.join(unknown), ', '.join(WIND_KEYS)))
-    return dict((WIND_KEYS[k], float(v)) for k, v in wind.items())
+    return dict((k, float(v)) for k, v in wind.items())
 
 
 def simulator_config(settings=None):
@@ -543,7 +542,7 @@ class Engine(object):
     SCENARIO_CONTROLLER); max_sim_time: give up after this many simulated seconds (default: the scenario's
     duration + 120 s); actions: [(s > 0 after the scenario's start, fn(engine))], called at those simulated
     times before the physics step of that instant, whose state then shows the action (e.g. the fidelity
-    replay's initial state, ``anafi_lab.fidelity.replay``); conditions: a flight-conditions profile NAME or
+    replay's initial state, ``anafi_lab.engine.replay``); conditions: a flight-conditions profile NAME or
     PATH (``anafi_sim.sim.conditions_profile``: wind, gusts, the firmware's wind handling) under ``settings``
     and ``wind`` (None: sim.yaml as it is).
     """

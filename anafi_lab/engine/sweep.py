@@ -1,8 +1,8 @@
-"""Sweeps of in-process runs: a YAML spec -> a grid (or list) of runs -> a tidy CSV of every run's metrics and a
-Markdown summary with a plot (pure, no ROS).
+"""Sweeps of in-process runs: a YAML spec -> a grid (or list) of runs -> tidy rows of every run's metrics (pure, no
+ROS; ``anafi_lab.reports.sweep_report`` runs a spec and writes the CSV, the Markdown summary and its plot).
 
 Stage: experiments (on top of ``anafi_lab.engine.runs``; ``experiment.py sweep SPEC.yaml``). Example
-specs, one per concern: anafi_sim/config/sweeps/.
+specs, one per concern: anafi_lab/sweeps/.
 
 Spec (YAML)::
 
@@ -12,8 +12,9 @@ Spec (YAML)::
                                              #   vertical (anafi_lab.reports.paper_tables)
     controllers: [mpc, pid]                  # or a mapping: controller -> {params: GRID, schedule: GRID}
     seeds: {range: [0, 20]}                  # an int, a list, or {range: [start, stop]} / {range: N}
-    wind:                                    # wind cases (a list; one mapping = one case); keys x, y, z [m/s],
-      - {x: 1.0, y: 0.0, gust: 0.5}          #   gust, gust_vertical [m/s std], gust_time_constant [s]
+    wind:                                    # wind cases (a list; one mapping = one case); the simulator's keys
+      - {wind_x: 1.0, gust_std_horizontal: 0.5}  # wind_x, wind_y, wind_z [m/s], gust_std_horizontal,
+                                             #   gust_std_vertical [m/s std], gust_time_constant [s]
     schedule: {generator_phase: [0.0, 0.05]} # GRID of engine schedule overrides (every controller)
     state_source: estimate                   # or truth: the controllers' state (ground_truth/odom)
     group_by: [wind]                         # extra columns of the summary table: wind, or a factor column
@@ -35,44 +36,50 @@ plot) and ``e_mu.png`` (the distribution of e_mu per scenario and controller ove
 """
 import collections
 import csv
-import datetime
+import importlib.util
 import itertools
-import json
 import os
-import time
 
 import yaml
 
-from anafi_sim import paths, processes
-from anafi_lab.reports import paper_tables as report
+from anafi_lab import paper
 from anafi_control import registry
 from anafi_lab.engine.engine import WIND_KEYS, make_schedule, simulator_config, wind_settings
-from anafi_lab.engine.runs import execute, make_task, run_task
+from anafi_lab.engine.runs import make_task
 from anafi_sim.mission.trajectory import list_scenarios
-from anafi_sim.numeric import fmt, median, summary_stats
 from anafi_sim.sim.conditions_profile import conditions_label, load_conditions
 
 SPEC_KEYS = ('name', 'description', 'scenarios', 'controllers', 'seeds', 'wind', 'schedule', 'state_source',
              'group_by', 'runs', 'conditions')
 RUN_KEYS = ('scenario', 'controller', 'seed', 'wind', 'params', 'schedule', 'name', 'conditions')
-GROUPS = {'all': report.ALL_SCENARIOS, 'static': report.STATIC, 'straight': report.STRAIGHT,
-          'circle': report.CIRCLE_SCENARIOS, 'vertical': report.VERTICAL_SCENARIOS}
+GROUPS = {'all': paper.ALL_SCENARIOS, 'static': paper.STATIC, 'straight': paper.STRAIGHT,
+          'circle': paper.CIRCLE_SCENARIOS, 'vertical': paper.VERTICAL_SCENARIOS}
 METRICS = (('e_mu', 'estimate', 'e_mu'), ('e_max', 'estimate', 'e_max'), ('e_sigma', 'estimate', 'e_sigma'),
            ('e_mu_truth', 'truth', 'e_mu'), ('e_max_truth', 'truth', 'e_max'), ('e_sigma_truth', 'truth', 'e_sigma'),
            ('e_mu_horizontal', 'estimate', 'e_mu_horizontal'), ('drift', 'estimate', 'drift'))
 
 
 # ---------------------------------------------------------------------------------------------- spec
+def specs_dir():
+    """The folder of the shipped sweep specs: ``sweeps/`` of the anafi_lab package (package data, installed with
+    it: devel and install spaces alike)."""
+    for folder in importlib.util.find_spec('anafi_lab').submodule_search_locations:
+        path = os.path.join(folder, 'sweeps')
+        if os.path.isdir(path):
+            return path
+    raise RuntimeError('cannot find the sweep specs (anafi_lab/sweeps) of the anafi_lab package')
+
+
 def sweep_path(name_or_path):
-    """Path of a sweep spec given by name (``real_flights``: ``anafi_sim/config/sweeps/real_flights.yaml``) or by
-    a path; a relative path that does not exist from the current folder is looked up in the package
-    (``anafi_sim/config/sweeps/x.yaml`` works from any folder). ValueError naming the known specs when none."""
+    """Path of a sweep spec given by name (``real_flights``: ``anafi_lab/sweeps/real_flights.yaml``) or by a
+    path; a relative path that does not exist from the current folder is looked up beside the anafi_lab package
+    (``anafi_lab/sweeps/x.yaml`` works from any folder). ValueError naming the known specs when none."""
     if os.path.isfile(name_or_path):
         return name_or_path
     if os.sep not in name_or_path and not name_or_path.endswith(('.yaml', '.yml')):
-        path = paths.config_path('sweeps', name_or_path + '.yaml')
+        path = os.path.join(specs_dir(), name_or_path + '.yaml')
     elif not os.path.isabs(name_or_path):
-        path = os.path.join(paths.package_dir(), name_or_path)
+        path = os.path.join(os.path.dirname(os.path.dirname(specs_dir())), name_or_path)
     else:
         path = name_or_path
     if os.path.isfile(path):
@@ -81,18 +88,9 @@ def sweep_path(name_or_path):
 
 
 def list_specs():
-    """Names of the shipped sweep specs (anafi_sim/config/sweeps)."""
-    folder = paths.config_path('sweeps')
+    """Names of the shipped sweep specs (anafi_lab/sweeps)."""
+    folder = specs_dir()
     return sorted(os.path.splitext(f)[0] for f in os.listdir(folder) if f.endswith('.yaml'))
-
-
-def median(values):
-    """The median of ``values`` (the mean of the two middle ones for an even count)."""
-    v = sorted(values)
-    if not v:
-        raise ValueError('median of no values')
-    mid = len(v) // 2
-    return v[mid] if len(v) % 2 else 0.5 * (v[mid - 1] + v[mid])
 
 
 def load_spec(path):
@@ -191,7 +189,7 @@ def grid(mapping):
 
 def _controllers(value):
     if value is None:
-        value = list(report.CONTROLLERS)
+        value = list(paper.CONTROLLERS)
     if isinstance(value, dict):
         items = list(value.items())
     else:
@@ -272,17 +270,18 @@ def _wind_values(wind, conditions=None):
     settings = dict(load_conditions(conditions))
     settings.update(wind_settings(wind))
     settings = simulator_config(settings)[1]
-    return collections.OrderedDict((k, settings[v]) for k, v in WIND_KEYS.items())
+    return collections.OrderedDict((k, settings[k]) for k in WIND_KEYS)
 
 
 def wind_label(wind, conditions=None):
     """'calm' or e.g. 'wind (1, 0, 0) m/s, gusts 0.5 m/s' (of the wind case over the conditions)."""
     v = _wind_values(wind, conditions)
-    if not any(v[k] for k in ('x', 'y', 'z', 'gust', 'gust_vertical')):
+    if not any(v[k] for k in WIND_KEYS[:5]):
         return 'calm'
-    text = 'wind (%g, %g, %g) m/s' % (v['x'], v['y'], v['z'])
-    if v['gust'] or v['gust_vertical']:
-        text += ', gusts %g/%g m/s (tau %g s)' % (v['gust'], v['gust_vertical'], v['gust_time_constant'])
+    text = 'wind (%g, %g, %g) m/s' % (v['wind_x'], v['wind_y'], v['wind_z'])
+    if v['gust_std_horizontal'] or v['gust_std_vertical']:
+        text += ', gusts %g/%g m/s (tau %g s)' % (v['gust_std_horizontal'], v['gust_std_vertical'],
+                                                 v['gust_time_constant'])
     return text
 
 
@@ -307,8 +306,7 @@ def rows(tasks, records):
                                        ('controller', task['controller']),
                                        ('seed', info.get('seed', task.get('seed')))])
         row['conditions'] = conditions_label(task.get('conditions'))
-        for k, v in _wind_values(task.get('wind'), task.get('conditions')).items():
-            row['wind_' + k if k in ('x', 'y', 'z') else k] = v
+        row.update(_wind_values(task.get('wind'), task.get('conditions')))
         params = dict(_flatten(task.get('params')))
         for path in param_keys:
             row['param:' + path] = params.get(path, '')
@@ -349,131 +347,3 @@ def groups(tasks, table, group_by=()):
             key.append(wind_label(task.get('wind'), task.get('conditions')) if g == 'wind' else row.get(g))
         out.setdefault(tuple(key), []).append(row)
     return out
-
-
-def plot_distribution(tasks, table, path, metric='e_mu', title=''):
-    """Box plots of ``metric`` per scenario (x) and controller (boxes side by side) over the other factors:
-    the values [m] on top, each value / the median of its box below (the spread on one scale)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from anafi_sim.mission.plots import RUN_COLORS, save
-    scenarios, controllers = [], []
-    for row in table:
-        if row['scenario'] not in scenarios:
-            scenarios.append(row['scenario'])
-        if row['controller'] not in controllers:
-            controllers.append(row['controller'])
-    width_in = min(14.0, max(6.0, 0.45 * len(scenarios) * max(1, len(controllers)) + 2.0))
-    fig = Figure(figsize=(width_in, 6.0))
-    FigureCanvasAgg(fig)
-    axes = (fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2))
-    width = 0.8 / max(1, len(controllers))
-    handles = []
-    for j, controller in enumerate(controllers):
-        data, positions = [], []
-        for i, scenario in enumerate(scenarios):
-            values = [r[metric] for r in table if r['scenario'] == scenario and r['controller'] == controller
-                      and r[metric] is not None]
-            if values:
-                data.append(values)
-                positions.append(i + (j - 0.5 * (len(controllers) - 1)) * width)
-        if not data:
-            continue
-        color = RUN_COLORS[j % len(RUN_COLORS)]
-        relative = [[v / median(d) for v in d] if median(d) else d for d in data]
-        for ax, values in zip(axes, (data, relative)):
-            box = ax.boxplot(values, positions=positions, widths=0.85 * width, patch_artist=True,
-                             manage_ticks=False, flierprops={'markersize': 3})
-            for patch in box['boxes']:
-                patch.set_facecolor(color)
-                patch.set_alpha(0.6)
-        handles.append((box['boxes'][0], report.LABELS.get(controller, controller)))
-    rotate = len(scenarios) > 4
-    for ax, label in zip(axes, ('%s [m]' % metric, '%s / median' % metric)):
-        ax.set_xticks(range(len(scenarios)))
-        ax.set_xticklabels(scenarios if ax is axes[1] else [''] * len(scenarios), rotation=30 if rotate else 0,
-                           ha='right' if rotate else 'center', fontsize=7)
-        ax.set_ylabel(label, fontsize=8)
-        ax.tick_params(axis='y', labelsize=7)
-        ax.grid(True, axis='y', alpha=0.3)
-    if handles:
-        axes[0].legend([h for h, _ in handles], [l for _, l in handles], loc='upper left', fontsize=8)
-    axes[0].set_title(title or '%s per scenario and controller' % metric, fontsize=10)
-    fig.tight_layout()
-    return save(fig, path)
-
-
-def summary_markdown(spec, tasks, table, meta, plot=None):
-    """The Markdown summary of a sweep."""
-    group_by = [g for g in _list(spec.get('group_by') or [])]
-    winds = set(wind_label(t.get('wind'), t.get('conditions')) for t in tasks)
-    conditions = sorted(set(conditions_label(t.get('conditions')) for t in tasks))
-    if len(winds) > 1 and 'wind' not in group_by:
-        group_by.insert(0, 'wind')
-    ok = sum(1 for r in table if r['ok'])
-    lines = ['# Sweep %s' % spec.get('name', ''), '']
-    if spec.get('description'):
-        lines += [str(spec['description']).strip(), '']
-    lines += ['Generated by `%s` on %s (%s). In-process engine (anafi_lab/engine/engine.py), virtual time.' % (
-        meta.get('command'), meta.get('date'), meta.get('machine')), '',
-        '- Runs: %d (%d ok, %d failed) on %s; **%.1f s wall** for %.0f s of simulated time (%.0f x real time).' % (
-            len(table), ok, len(table) - ok, meta.get('workers'), meta.get('wall_s'), meta.get('sim_s'),
-            meta.get('sim_s') / meta.get('wall_s') if meta.get('wall_s') else float('nan')),
-        '- Wind: %s.' % '; '.join(sorted(winds)),
-        '- Flight conditions: %s.' % ', '.join(conditions),
-        '- Every run\'s metrics: [runs.csv](runs.csv) (tidy: one row per run).', '',
-        '## e_mu per scenario and controller [m]', '',
-        'Against the drone\'s estimate (the paper\'s metric) over the runs of each group (seeds and the other '
-        'factors); e_mu truth: mean against ground truth.', '']
-    head = ['scenario', 'controller'] + group_by + ['runs', 'e_mu mean', 'std', 'min', 'max', 'e_mu truth mean']
-    lines += ['| %s |' % ' | '.join(head), '|%s' % ('---|' * len(head))]
-    for key, members in groups(tasks, table, group_by).items():
-        s = summary_stats([r['e_mu'] for r in members])
-        t = summary_stats([r['e_mu_truth'] for r in members])
-        cells = [str(k) for k in key]
-        if s is None:
-            cells += [str(len(members)), '-', '-', '-', '-', '-']
-        else:
-            cells += [str(s['n']), fmt(s['mean'], 3), fmt(s['std'], 3), fmt(s['min'], 3),
-                      fmt(s['max'], 3), fmt(t['mean'] if t else None, 3)]
-        lines.append('| %s |' % ' | '.join(cells))
-    failed = [r for r in table if not r['ok']]
-    if failed:
-        lines += ['', '## Failed runs', ''] + ['- %s: %s' % (r['name'], r['error']) for r in failed]
-    if any(t.get('conditions') for t in tasks):
-        from anafi_lab.reports.conditions_report import predicted_section
-        lines += [''] + predicted_section(table)
-    if plot:
-        lines += ['', '## Distribution', '', '![e_mu per scenario and controller](%s)' % plot]
-    return '\n'.join(lines) + '\n'
-
-
-def run_sweep(spec, out_dir, workers=1, scheduler=None, command='', progress=None, plot=True):
-    """Run a spec (a dict, see ``load_spec``) into ``out_dir``; returns (rows, paths)."""
-    tasks = expand(spec)
-    os.makedirs(out_dir, exist_ok=True)
-    load = processes.load_average()      # the machine's load before the sweep
-    t0 = time.perf_counter()
-    records = execute(tasks, workers=workers, scheduler=scheduler, progress=progress, label=spec.get('name', 'sweep'),
-                      function=run_task)
-    wall = time.perf_counter() - t0
-    table = rows(tasks, records)
-    paths = collections.OrderedDict([('csv', os.path.join(out_dir, 'runs.csv')),
-                                     ('summary', os.path.join(out_dir, 'summary.md'))])
-    write_csv(table, paths['csv'])
-    plot_name = None
-    if plot and any(r['e_mu'] is not None for r in table):
-        paths['plot'] = plot_distribution(tasks, table, os.path.join(out_dir, 'e_mu.png'),
-                                          title='%s: e_mu (vs estimate) per scenario and controller'
-                                          % spec.get('name', ''))
-        plot_name = 'e_mu.png'
-    meta = {'command': command or 'experiment.py sweep', 'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M'),
-            'machine': processes.machine(load),
-            'workers': 'Dask scheduler %s' % scheduler if scheduler else '%d worker process(es)' % workers,
-            'wall_s': wall, 'sim_s': sum(r['sim_s'] or 0.0 for r in table)}
-    with open(paths['summary'], 'w') as stream:
-        stream.write(summary_markdown(spec, tasks, table, meta, plot_name))
-    with open(os.path.join(out_dir, 'spec.yaml'), 'w') as stream:
-        yaml.safe_dump(json.loads(json.dumps(spec)), stream, default_flow_style=False, sort_keys=False)
-    paths['spec'] = os.path.join(out_dir, 'spec.yaml')
-    return table, paths, meta

@@ -15,8 +15,8 @@ import pkgutil
 import numpy as np
 import yaml
 
-from anafi_lab.fidelity.replay import within
-from anafi_lab.reports import paper_tables as report
+from anafi_lab.engine.replay import within
+from anafi_lab import paper
 
 RatioRange = collections.namedtuple('RatioRange', 'controller source scenarios range group inferred')
 RatioRange.__doc__ = ('One stated range of the comparison: controller (pid|mpc), source (estimate|truth), the '
@@ -31,10 +31,10 @@ def load_held_out(data=None):
     raw = yaml.safe_load(data if data is not None else pkgutil.get_data('anafi_lab.fidelity', 'held_out.yaml'))
     band = float(raw['band'])
     fast = tuple(raw['fast_circles'])
-    groups = {'held_out': report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS,
-              'circles': tuple(report.CIRCLE_SCENARIOS), 'vertical': tuple(report.VERTICAL_SCENARIOS),
+    groups = {'held_out': paper.CIRCLE_SCENARIOS + paper.VERTICAL_SCENARIOS,
+              'circles': tuple(paper.CIRCLE_SCENARIOS), 'vertical': tuple(paper.VERTICAL_SCENARIOS),
               'fast_circles': fast,
-              'other_circles': tuple(s for s in report.CIRCLE_SCENARIOS if s not in fast)}
+              'other_circles': tuple(s for s in paper.CIRCLE_SCENARIOS if s not in fast)}
     compared = collections.OrderedDict(((c, s), dict((k, float(v)) for k, v in cells.items()))
                                        for c, sources in raw['compared_e_mu'].items() for s, cells in sources.items())
     ranges = []
@@ -47,7 +47,7 @@ def load_held_out(data=None):
 
 
 HELD_OUT_BAND, COMPARED_BATCH, FAST_CIRCLES, COMPARED_E_MU, RATIO_RANGES = load_held_out()
-HELD_OUT_SCENARIOS = report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS   # Tables 4 and 5: held out of the repo
+HELD_OUT_SCENARIOS = paper.CIRCLE_SCENARIOS + paper.VERTICAL_SCENARIOS   # Tables 4 and 5: held out of the repo
 HELD_OUT_CELLS = sum(len(g.scenarios) for g in RATIO_RANGES)
 INFERRED_RANGE = [g.range for g in RATIO_RANGES if g.inferred][0]   # the other MPC circles vs the estimate
 

@@ -12,9 +12,9 @@ import math
 import numpy as np
 
 from anafi_lab.fidelity.held_out import FAST_CIRCLES, HELD_OUT_BAND, HELD_OUT_CELLS, held_out_bounds, held_out_score
-from anafi_lab.fidelity.replay import CELLS, within
+from anafi_lab.engine.replay import CELLS, within
 from anafi_lab.fidelity.variants import FUSION_GAIN_ROLES
-from anafi_lab.reports import paper_tables as report
+from anafi_lab import paper
 
 BANDS = (0.10, 0.15, HELD_OUT_BAND)
 
@@ -52,22 +52,22 @@ def score(records, band=BANDS[0], key='ratio'):
 def table3_ratios(records, variant):
     """{(controller, speed): stand-in e_mu / paper's Table 3} of one variant."""
     out = collections.OrderedDict()
-    for c in report.CONTROLLERS:
-        for k, paper in enumerate(report.PAPER_TABLE3[c]):
+    for c in paper.CONTROLLERS:
+        for k, published in enumerate(paper.PAPER_TABLE3[c]):
             r = records.get((variant, c, k + 1))
             v = r.get('e_mu') if r else None
-            out[(c, k + 1)] = (v / paper) if v is not None else float('nan')
+            out[(c, k + 1)] = (v / published) if v is not None else float('nan')
     return out
 
 
 def table3_score(t3, pid_v, mpc_v, band=BANDS[0]):
     """(cells of Table 3 within ``band``, cells, mean |ln ratio|) of a configuration."""
     ratios = []
-    for c in report.CONTROLLERS:
-        for k, paper in enumerate(report.PAPER_TABLE3[c]):
+    for c in paper.CONTROLLERS:
+        for k, published in enumerate(paper.PAPER_TABLE3[c]):
             r = t3.get((mpc_v if c == 'mpc' else pid_v, c, k + 1))
             if r and r.get('ok') and r.get('e_mu'):
-                ratios.append(r['e_mu'] / paper)
+                ratios.append(r['e_mu'] / published)
     inside = sum(1 for r in ratios if within(r, band))
     return inside, len(ratios), (float(np.mean([abs(math.log(r)) for r in ratios])) if ratios else float('nan'))
 

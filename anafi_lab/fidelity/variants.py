@@ -15,9 +15,9 @@ import collections
 import numpy as np
 
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, Engine
-from anafi_lab.fidelity.replay import (CELLS, Variant, _controller_params, _num, compare, latest_waypoint,
+from anafi_lab.engine.replay import (CELLS, Variant, _controller_params, _num, compare, latest_waypoint,
                                        reference_cells, replay_plan, run_log, run_replay, waypoint_arrivals)
-from anafi_lab.reports import paper_tables as report
+from anafi_lab import paper
 from anafi_sim.sim.drone_model import EFFECT_GROUPS, load_model_params
 
 AGES = (0.005, 0.030, 0.055, 0.080)          # s, waypoint age at the MPC's cycle (the ``phases`` / ``scenarios`` steps)
@@ -59,7 +59,7 @@ def _per_scenario(variants, scenarios, seed, workers, progress, label, function)
     """``function`` (a worker taking (scenario, controller, variant, seed)) for every variant, controller (a
     variant's ``controllers`` only) and scenario; ``scenario_records`` of its records."""
     from anafi_lab.engine import runs
-    tasks = [(s, c, v, seed) for v in variants for c in report.CONTROLLERS for s in scenarios
+    tasks = [(s, c, v, seed) for v in variants for c in paper.CONTROLLERS for s in scenarios
              if v is None or not v.controllers or c in v.controllers]
     return scenario_records(runs.execute(tasks, workers=workers, progress=progress, label=label, function=function))
 
@@ -76,8 +76,8 @@ def _scenario_one(args):
                 e_max=(s.get('estimate') or {}).get('e_max'))
 
 
-def scenario_runs(variants, scenarios=report.ALL_SCENARIOS, seed=None, workers=1, progress=None, label='scenarios'):
-    """The paper's scenarios (``report.ALL_SCENARIOS``: static waypoints, Tables 3-5) on the engine, PID and MPC
+def scenario_runs(variants, scenarios=paper.ALL_SCENARIOS, seed=None, workers=1, progress=None, label='scenarios'):
+    """The paper's scenarios (``paper.ALL_SCENARIOS``: static waypoints, Tables 3-5) on the engine, PID and MPC
     (a variant's ``controllers`` only), for every variant; {(variant, controller, scenario): record with e_mu
     (vs the estimate, the paper's metric), e_mu_truth, e_max, ok}."""
     return _per_scenario(variants, scenarios, seed, workers, progress, label, _scenario_one)
@@ -131,7 +131,7 @@ def recorded_latency(engine, log):
     return float(np.mean((log.time_ns[changes] - arrivals[index]) * 1e-9))
 
 
-def self_replay_runs(variants, scenarios=report.ALL_SCENARIOS, seed=None, workers=1, progress=None):
+def self_replay_runs(variants, scenarios=paper.ALL_SCENARIOS, seed=None, workers=1, progress=None):
     """The replay method on the stand-in's own runs: each paper scenario run on the engine (PID and MPC, per
     variant), recorded from ``SELF_BEFORE`` s before its measured window to its end as the paper's logger
     recorded Sphinx (``run_log``), that log replayed with the same variant (``replay_plan``, ``run_replay``);
@@ -152,7 +152,7 @@ def scenario_records(records):
 def table3_runs(variants, seed=None, workers=1, progress=None):
     """The paper's straight-line scenarios (Table 3: straight_1..5, PID and MPC) on the engine for every
     variant; {(variant, controller, speed): record with e_mu (vs estimate, the paper's), e_mu_truth}."""
-    return table3_from_scenarios(scenario_runs(variants, report.STRAIGHT, seed=seed, workers=workers,
+    return table3_from_scenarios(scenario_runs(variants, paper.STRAIGHT, seed=seed, workers=workers,
                                                progress=progress, label='table3'))
 
 
@@ -160,7 +160,7 @@ def table3_from_scenarios(records):
     """The straight-line runs of ``scenario_runs`` records keyed as ``table3_runs`` keys them:
     {(variant, controller, speed): record}."""
     return collections.OrderedDict(((v, c, int(s.rsplit('_', 1)[1])), r) for (v, c, s), r in records.items()
-                                   if s in report.STRAIGHT)
+                                   if s in paper.STRAIGHT)
 
 
 def age_name(name, age):

@@ -21,7 +21,7 @@ from anafi_lab.calibration.drag import steady_state_pitch
 from anafi_lab.paper import CONTROLLERS
 from anafi_lab.calibration.effects import fit_descent
 from anafi_lab.calibration.fit import MODEL_KEYS, table3
-from anafi_lab.calibration.plot import REPLAY_LOG
+from anafi_lab.reports.calibration_plot import REPLAY_LOG
 from anafi_lab.reports.render import render
 from anafi_sim import paths
 from anafi_sim.mission.reference_log import STATE_NAMES, WRAP_16

@@ -10,11 +10,11 @@ import yaml
 
 from anafi_lab.calibration.estimate import FusionProfileRow
 from anafi_lab.fidelity import held_out as H
-from anafi_lab.fidelity import replay as R
+from anafi_lab.engine import replay as R
 from anafi_lab.fidelity import scores as S
 from anafi_lab.fidelity import variants as V
 from anafi_lab.reports import fidelity_tables as T
-from anafi_lab.reports import paper_tables as report
+from anafi_lab import paper
 from anafi_lab.reports.render import render
 from anafi_lab.engine.engine import DEFAULT_SCHEDULE, mpc_config, simulator_config
 from anafi_sim.mission.trajectory import scenario_path
@@ -191,8 +191,8 @@ def timing_context(scen):
             if a and b and a.get('ok') and b.get('ok'):
                 out += [(a[k], b[k]) for k in keys if a.get(k) and b.get(k)]
         return out
-    vertical = change(report.VERTICAL_SCENARIOS, ('e_mu',))
-    circles = change(report.CIRCLE_SCENARIOS, ('e_mu', 'e_mu_truth'))
+    vertical = change(paper.VERTICAL_SCENARIOS, ('e_mu',))
+    circles = change(paper.CIRCLE_SCENARIOS, ('e_mu', 'e_mu_truth'))
     if not (scen and vertical and circles):
         return None
     pct = [100.0 * (b / a - 1.0) for a, b in vertical]
@@ -222,7 +222,7 @@ def fusion_gain_context(rows):
     """The fusion-gain section's figures (``scores.fusion_gain_rows``): the subsets' gains and their ratio, the
     circles' periods [s], the shipped row, the fits' and the probes' rows (complete: every gain's runs there)."""
     fits = dict((r.role, r.profile.fix_gain) for r in rows if r.role in ('static', 'straight', 'shipped'))
-    periods = [2.0 * math.pi * radius / speed for radius, speed in report.CIRCLES]
+    periods = [2.0 * math.pi * radius / speed for radius, speed in paper.CIRCLES]
     shipped = [r for r in rows if r.role == 'shipped']
     fitted = [r for r in rows if r.role in ('static', 'straight')]
     probes = [r for r in rows if r.role == 'probe']
@@ -246,14 +246,14 @@ def self_replay_context(selfrep):
     outside = collections.Counter()               # (controller, scenario kind) of the cells outside the band
     for (v, controller, scenario), r in selfrep.items():
         if v == 'shipped' and r.get('ok'):
-            kind = ('lines' if scenario in report.STRAIGHT else 'periodic motions' if scenario in H.HELD_OUT_SCENARIOS
+            kind = ('lines' if scenario in paper.STRAIGHT else 'periodic motions' if scenario in H.HELD_OUT_SCENARIOS
                     else 'static steps')
-            outside[(report.LABELS[controller], kind)] += sum(
+            outside[(paper.LABELS[controller], kind)] += sum(
                 1 for x in (r.get('ratio') or {}).values() if x is not None and not R.within(x, S.BANDS[0]))
     return dict(before=V.SELF_BEFORE, table=T.self_replay_table(selfrep, 'shipped'),
                 default=S.self_replay_score(selfrep, 'shipped'),
                 own=S.self_replay_score(selfrep, 'shipped', key='ratio_latency'),
-                lines=S.self_replay_score(selfrep, 'shipped', scenarios=report.STRAIGHT),
+                lines=S.self_replay_score(selfrep, 'shipped', scenarios=paper.STRAIGHT),
                 held=S.self_replay_score(selfrep, 'shipped', scenarios=H.HELD_OUT_SCENARIOS),
                 outside=[dict(controller=c, kind=k, cells=n) for (c, k), n in sorted(outside.items()) if n])
 
@@ -324,7 +324,7 @@ def half_float_grid(lows=(64, 128)):
 
 def straight_phases():
     """{phase name: duration [s]} of the paper's straight-line scenarios (their files share the phases)."""
-    with open(scenario_path(report.STRAIGHT[0])) as stream:
+    with open(scenario_path(paper.STRAIGHT[0])) as stream:
         return dict((p['name'], p['duration']) for p in yaml.safe_load(stream)['phases'])
 
 

@@ -6,9 +6,9 @@ import collections
 import math
 
 from anafi_lab.fidelity.held_out import FAST_CIRCLES, HELD_OUT_BAND, HELD_OUT_CELLS, held_out_bounds, held_out_score
-from anafi_lab.fidelity.replay import CELLS, DEFAULT_RATE, SOURCES, parse_name, within
+from anafi_lab.engine.replay import CELLS, DEFAULT_RATE, SOURCES, parse_name, within
 from anafi_lab.fidelity.scores import BANDS, cell_key, combined, record_ratios, score
-from anafi_lab.reports import paper_tables as report
+from anafi_lab import paper
 from anafi_sim.numeric import fmt
 
 Table = collections.namedtuple('Table', 'head rows')
@@ -97,14 +97,14 @@ def table3_table(t3, columns):
     for t, _, _ in columns:
         head += ['%s [m]' % t, 'ratio']
     rows = []
-    for c in report.CONTROLLERS:
-        for k, paper in enumerate(report.PAPER_TABLE3[c]):
+    for c in paper.CONTROLLERS:
+        for k, published in enumerate(paper.PAPER_TABLE3[c]):
             parts = []
             for _, pid_v, mpc_v in columns:
                 r = t3.get((mpc_v if c == 'mpc' else pid_v, c, k + 1))
                 v = r.get('e_mu') if r and r.get('ok') else None
-                parts += [fmt(v, 3), ratio_text(v / paper if v is not None else None)]
-            rows.append([report.LABELS[c], '%d' % (k + 1), '%.2f' % paper] + parts)
+                parts += [fmt(v, 3), ratio_text(v / published if v is not None else None)]
+            rows.append([paper.LABELS[c], '%d' % (k + 1), '%.2f' % paper] + parts)
     return Table(head, rows)
 
 
@@ -128,7 +128,7 @@ def _span(records, names, controller, scenario):
     return ' / '.join(parts)
 
 
-def scenario_table(records, columns, scenarios=report.ALL_SCENARIOS):
+def scenario_table(records, columns, scenarios=paper.ALL_SCENARIOS):
     """e_mu vs estimate / vs ground truth [m] of every scenario, one column per (title, controller, variant
     names): one name -> its run, several -> their range (min-max)."""
     rows = []
@@ -157,7 +157,7 @@ def held_out_table(records, configurations, band=HELD_OUT_BAND):
                 continue
             parts += [fmt(now, 3), ('%.2f-%.2f (%.2f)' if within(ratio[1], band) else '%.2f-%.2f (**%.2f**)')
                       % (ratio[0], ratio[2], ratio[1])]
-        rows.append([report.LABELS[controller], 'est' if source == 'estimate' else 'truth', scenario,
+        rows.append([paper.LABELS[controller], 'est' if source == 'estimate' else 'truth', scenario,
                      '%.3f' % first, '%.2f-%.2f' % (lo, hi), '%.3f-%.3f' % sphinx] + parts)
     tally = []
     for _, v, p in configurations:
@@ -215,7 +215,7 @@ def ratio_matrix(records, logs, names):
     return Table(['log', 'cell'] + list(names), rows)
 
 
-def self_replay_table(records, variant, scenarios=report.ALL_SCENARIOS, band=None):
+def self_replay_table(records, variant, scenarios=paper.ALL_SCENARIOS, band=None):
     """``variants.self_replay_runs`` records of ``variant``: per scenario and controller the lead-in (period [s],
     'straight' or none for a log that starts in a hover) and the four ratios replay / log with the default
     latency, then with the recording's own (bold outside +-``band``, default BANDS[0])."""
@@ -224,12 +224,12 @@ def self_replay_table(records, variant, scenarios=report.ALL_SCENARIOS, band=Non
     head = ['scenario', 'controller', 'lead-in'] + names + ['latency [ms]'] + names
     rows = []
     for scenario in scenarios:
-        for controller in report.CONTROLLERS:
+        for controller in paper.CONTROLLERS:
             r = records.get((variant, controller, scenario))
             if r is None:
                 continue
             if not r.get('ok'):
-                rows.append([scenario, report.LABELS[controller], 'failed: %s' % r.get('error')]
+                rows.append([scenario, paper.LABELS[controller], 'failed: %s' % r.get('error')]
                             + ['-'] * (2 * len(CELLS) + 1))
                 continue
             lead = ('%.1f s period' % (r['period'] / DEFAULT_RATE) if r.get('period') else
@@ -239,5 +239,5 @@ def self_replay_table(records, variant, scenarios=report.ALL_SCENARIOS, band=Non
                 parts += [ratio_text(x if x is not None else float('nan'), band)
                           for x in [(r.get(key) or {}).get(cell_key(cell)) for cell in CELLS]]
             parts.insert(len(CELLS), '%.0f' % (1e3 * r['latency']) if r.get('latency') is not None else '-')
-            rows.append([scenario, report.LABELS[controller], lead] + parts)
+            rows.append([scenario, paper.LABELS[controller], lead] + parts)
     return Table(head, rows)

@@ -1,6 +1,6 @@
 """Experiment batch report (pure Python, no ROS): the paper's Tables 3-5 from run summaries, as Markdown.
 
-Stage: evaluation output -> report (anafi_lab/engine/ros_batch.py writes
+Stage: evaluation output -> report (anafi_lab/cli/ros_batch.py writes
 benchmarks/results/experiments.md with it). Units: errors [m] (e = |waypoint - position|, ENU),
 times [s], speeds [m/s].
 
@@ -22,16 +22,14 @@ import os
 
 import yaml
 
-from anafi_control import registry
-from anafi_lab.paper import (ALL_SCENARIOS, BEYOND, CIRCLE_SCENARIOS, CIRCLES, CONTROLLERS, KNOWN_CONTROLLERS,  # noqa: F401
-                              PAPER_TABLE3, STATIC, STRAIGHT, STRAIGHT_SPEEDS, VERTICAL, VERTICAL_SCENARIOS)
+from anafi_lab.paper import (ALL_SCENARIOS, BEYOND, CIRCLE_SCENARIOS, CIRCLES, CONTROLLERS, LABELS, PAPER_TABLE3, STATIC,
+                             STRAIGHT, STRAIGHT_SPEEDS, VERTICAL, VERTICAL_SCENARIOS)
 from anafi_lab.reports.batch_facts import batch_facts
 from anafi_lab.reports.render import markdown_table, render as render_template
 from anafi_sim.mission import step_response
-from anafi_sim.numeric import fmt  # noqa: F401  (the tables' number format; callers use report.fmt)
+from anafi_sim.numeric import fmt
 
 SOURCES = (('estimate', 'vs the drone\'s estimate (the paper\'s metric)'), ('truth', 'vs ground truth'))
-LABELS = registry.labels()
 
 
 def present(records):

@@ -2,7 +2,7 @@
 """rostest (sync_batch.test): ``experiment.py batch --engine ros --sync`` produces experiments.yaml and report.md.
 
 Runs ``anafi_lab/cli/experiment.py batch --engine ros --sync --scenarios static_wp0 --controllers mpc
---no-plots --out OUT`` (the ROS batch in lockstep: anafi_lab/engine/ros_batch.py starts experiment.launch
+--no-plots --out OUT`` (the ROS batch in lockstep: anafi_lab/cli/ros_batch.py starts experiment.launch
 sync:=true on a private master of its own and stops it) and checks OUT/experiments.yaml (the batch schema: meta
 with sync true, one record for static_wp0 / mpc, ok, a final evaluator summary with a finite e_mu), that the
 simulator ran in lockstep (its "lockstep" diagnostic in the run's bag) and OUT/report.md (names the scenario).

@@ -26,7 +26,7 @@ from anafi_lab.calibration.logs import is_clean, thrust_axis
 from anafi_lab.calibration.responses import (evaluate_first_order_delay, first_order_response, fit_attitude_response,
                                              fit_first_order_delay, gyroscopic_tilt_response, rate_limited_response,
                                              rate_limited_tilt_response)
-from anafi_lab.calibration import plot
+from anafi_lab.reports import calibration_plot as plot
 from anafi_lab.reports import calibration_report as report
 from anafi_sim.mission.reference_log import COLUMNS, STATE_NAMES, ReferenceLog, read_log
 from anafi_sim.sim.drone_model import EFFECT_GROUPS

@@ -12,7 +12,7 @@ import re
 import yaml
 
 from anafi_sim import paths
-from anafi_lab.calibration import conditions
+from anafi_lab.reports import conditions_report
 from anafi_lab.reports import calibration_report as report
 
 ROOT = paths.checkout()
@@ -35,8 +35,8 @@ def test_report_renders_byte_identical_from_the_stored_figures():
     """The report is the template filled with the stored figures; its "Real flights" section is
     calibrate_conditions.py's (re-rendered from its own figures: test/unit/lab/test_conditions.py)."""
     text, doc = report.render_report(stored_context()), committed()
-    kept = conditions.existing_section(doc)
-    assert (conditions.replace_section(text, kept) if kept else text) == doc
+    kept = conditions_report.existing_section(doc)
+    assert (conditions_report.replace_section(text, kept) if kept else text) == doc
 
 
 def test_model_files_render_byte_identical_from_the_stored_figures():

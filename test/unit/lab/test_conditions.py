@@ -7,7 +7,8 @@ import os
 import pytest
 
 from anafi_lab.calibration import conditions as cond
-from anafi_lab.fidelity import replay as fidelity
+from anafi_lab.reports import conditions_report
+from anafi_lab.engine import replay as fidelity
 from anafi_lab.engine.engine import Engine
 from anafi_sim.sim.conditions_profile import PROFILE_KEYS, list_conditions, load_conditions, profile_path
 from anafi_sim.sim.drone_model import load_model_params
@@ -18,7 +19,8 @@ WIND = (-3.0, -4.0)          # m/s, world ENU (5 m/s)
 def synthetic_log(gain, gust=0.0, seed=1):
     """The stand-in hovering at static_wp0's waypoint in a known wind (paper's MPC), recorded like the real logs
     (20 Hz, half floats, estimate only matters)."""
-    engine = Engine('static_wp0', 'mpc', wind={'x': WIND[0], 'y': WIND[1], 'gust': gust}, seed=seed,
+    engine = Engine('static_wp0', 'mpc', wind={'wind_x': WIND[0], 'wind_y': WIND[1], 'gust_std_horizontal': gust},
+                    seed=seed,
                     settings={'wind_compensation': gain, 'wind_compensation_time_constant': 0.5})
     assert engine.run().ok
     return fidelity.run_log(engine, name='synthetic_mpc')
@@ -66,11 +68,12 @@ def test_wind_speed_for_force_inverts_the_drag(model):
 
 
 def test_the_section_replaces_itself():
-    text = 'head\n\n' + cond.SECTION_BEGIN + '\nold\n' + cond.SECTION_END + '\n\n## next\n'
-    new = cond.replace_section(text, cond.SECTION_BEGIN + '\nnew\n' + cond.SECTION_END + '\n')
+    begin, end = conditions_report.SECTION_BEGIN, conditions_report.SECTION_END
+    text = 'head\n\n' + begin + '\nold\n' + end + '\n\n## next\n'
+    new = conditions_report.replace_section(text, begin + '\nnew\n' + end + '\n')
     assert 'old' not in new and 'new' in new and new.startswith('head') and new.rstrip().endswith('## next')
-    assert cond.existing_section(new).startswith(cond.SECTION_BEGIN)
-    assert cond.replace_section('only', 'S\n') == 'only\n\nS\n'
+    assert conditions_report.existing_section(new).startswith(conditions_report.SECTION_BEGIN)
+    assert conditions_report.replace_section('only', 'S\n') == 'only\n\nS\n'
 
 
 # ------------------------------------------------------------------------------------------------ profiles
@@ -104,15 +107,14 @@ def test_engine_runs_in_conditions(tmp_path):
     path.write_text('wind_x: 2.0\nwind_y: 0.0\nwind_compensation: 1.0\n')
     engine = Engine('static_wp0', 'mpc', conditions=str(path))
     assert engine.settings['wind_x'] == 2.0 and engine.settings['wind_compensation'] == 1.0
-    engine = Engine('static_wp0', 'mpc', conditions=str(path), wind={'x': -1.0})
+    engine = Engine('static_wp0', 'mpc', conditions=str(path), wind={'wind_x': -1.0})
     assert engine.settings['wind_x'] == -1.0 and engine.settings['wind_compensation'] == 1.0
     assert Engine('static_wp0', 'mpc').settings['wind_x'] == 0.0
 
 
 def test_sweep_spec_conditions_reach_every_task_and_row():
     from anafi_lab.engine import sweep
-    spec = sweep.load_spec(os.path.join(os.path.dirname(profile_path('real_flights')), os.pardir, 'sweeps',
-                                        'real_flights.yaml'))
+    spec = sweep.load_spec('real_flights')
     tasks = sweep.expand(spec)
     assert len(tasks) == 9 * 3 * 10
     assert all(t['conditions'] == 'real_flights' for t in tasks)
@@ -177,9 +179,8 @@ def test_the_replays_store_round_trips_and_renders():
         name = 'log_mpc'
     refs = {'log_mpc': collections.OrderedDict((('e_mu', 1.0), ('e_max', 6.2), ('tilt_mean', 0.25),
                                                 ('e_hold', 0.2)))}
-    from anafi_lab.reports import conditions_report
     text = conditions_report.fidelity_section([Log()], back, 0, refs, [0, 1], 'cmd')
-    assert text.startswith(cond.FIDELITY_BEGIN) and cond.FIDELITY_END in text
+    assert text.startswith(conditions_report.FIDELITY_BEGIN) and conditions_report.FIDELITY_END in text
     assert '| log_mpc | 0.800 [0.800, 0.800] vs 1.000 (0.80) |' in text
 
 

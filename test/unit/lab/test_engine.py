@@ -51,7 +51,7 @@ def test_a_short_run_gives_the_evaluators_summary(short):
 
 
 def test_same_seed_same_summary_bit_for_bit_wind_gusts_included(short):
-    wind = {'x': 0.5, 'y': -0.3, 'gust': 0.8, 'gust_vertical': 0.2}
+    wind = {'wind_x': 0.5, 'wind_y': -0.3, 'gust_std_horizontal': 0.8, 'gust_std_vertical': 0.2}
     for controller in ('mpc', 'pid'):
         a = run(short, controller, seed=7, wind=wind).summary
         b = run(short, controller, seed=7, wind=wind).summary

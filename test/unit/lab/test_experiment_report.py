@@ -1,4 +1,4 @@
-"""anafi_lab.reports.paper_tables (the batch's Markdown tables) and anafi_lab/engine/ros_batch.py options."""
+"""anafi_lab.reports.paper_tables (the batch's Markdown tables) and anafi_lab/cli/ros_batch.py options."""
 import pytest
 
 from anafi_lab.reports import paper_tables as rep
@@ -80,7 +80,7 @@ def test_fmt():
 
 
 def _runner():
-    from anafi_lab.engine import ros_batch
+    from anafi_lab.cli import ros_batch
     return ros_batch
 
 

@@ -19,11 +19,11 @@ import pytest
 
 from anafi_sim import paths
 from anafi_lab.fidelity import held_out as H
-from anafi_lab.fidelity import replay as F
+from anafi_lab.engine import replay as F
 from anafi_lab.fidelity import scores as S
 from anafi_lab.fidelity import variants as V
 from anafi_lab.reports import fidelity_tables as T
-from anafi_lab.reports import paper_tables as report
+from anafi_lab import paper
 from anafi_lab.reports.render import environment
 from anafi_sim.numeric import fmt
 from anafi_sim.mission.reference_log import COLUMNS, ReferenceLog, as_logged, read_log
@@ -385,7 +385,7 @@ def test_the_held_out_data_file_gives_the_compared_figures_and_the_stated_ranges
     assert fd[('mpc', 'estimate')]['vertical_r2_v1'] == 0.2029 and fd[('mpc', 'truth')]['circle_r1_v1'] == 0.5836
     assert fd[('pid', 'truth')]['vertical_r2_v2'] == 1.1426 and fd[('pid', 'estimate')]['circle_r2_v2'] == 2.3173
     for cells in fd.values():
-        assert sorted(cells) == sorted(report.CIRCLE_SCENARIOS + report.VERTICAL_SCENARIOS)
+        assert sorted(cells) == sorted(paper.CIRCLE_SCENARIOS + paper.VERTICAL_SCENARIOS)
     # the stated ranges, in order: PID est / truth, MPC vertical, fast circles, other circles (inferred), truth
     assert [g[3] for g in H.RATIO_RANGES] == [(0.78, 1.0), (0.78, 1.0), (1.3, 1.9), (0.69, 0.71), (0.75, 1.25),
                                               (0.50, 0.84)]
@@ -682,10 +682,11 @@ def test_the_report_rerenders_byte_identical_from_the_stored_figures():
     with open(os.path.join(repo, 'docs', 'fidelity.md')) as stream:
         committed = stream.read()
     # the "real flights" section is calibrate_conditions.py's (re-rendered from its own figures: test_conditions.py)
-    from anafi_lab.calibration import conditions
-    kept = conditions.existing_section(committed, conditions.FIDELITY_BEGIN, conditions.FIDELITY_END)
+    from anafi_lab.reports import conditions_report
+    begin, end = conditions_report.FIDELITY_BEGIN, conditions_report.FIDELITY_END
+    kept = conditions_report.existing_section(committed, begin, end)
     if kept:
-        text = conditions.replace_section(text, kept, conditions.FIDELITY_BEGIN, conditions.FIDELITY_END)
+        text = conditions_report.replace_section(text, kept, begin, end)
     assert text == committed, ('docs/fidelity.md differs from its re-render: '
                                'python anafi_lab/cli/measure_fidelity.py --steps ,')
 

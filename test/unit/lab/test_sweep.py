@@ -9,9 +9,10 @@ import sys
 import pytest
 import yaml
 
-from anafi_sim import paths
 from anafi_lab.engine import runs
 from anafi_lab.engine import sweep
+from anafi_lab.reports import batch_report, sweep_report
+from anafi_sim.numeric import median
 from conftest import ROOT
 
 SCRIPT = os.path.join(ROOT, 'anafi_lab', 'cli', 'experiment.py')
@@ -37,7 +38,7 @@ def short(tmp_path):
 
 
 def test_example_specs_expand():
-    specs = sorted(glob.glob(paths.config_path('sweeps', '*.yaml')))
+    specs = sorted(glob.glob(os.path.join(sweep.specs_dir(), '*.yaml')))
     assert len(specs) >= 3
     counts = dict((os.path.basename(p), len(sweep.expand(sweep.load_spec(p)))) for p in specs)
     assert counts['wind_circles.yaml'] == 200
@@ -46,7 +47,8 @@ def test_example_specs_expand():
 
 
 def test_grid_expansion_per_controller_and_seeds(short):
-    spec = {'scenarios': short, 'seeds': {'range': [3, 5]}, 'wind': [{'x': 1.0}, {'x': 2.0, 'gust': 0.5}],
+    spec = {'scenarios': short, 'seeds': {'range': [3, 5]},
+            'wind': [{'wind_x': 1.0}, {'wind_x': 2.0, 'gust_std_horizontal': 0.5}],
             'controllers': {'mpc': {'params': {'r': [0.1, 0.2]}},
                             'pid': {'params': {'x_outer': {'Kp': [0.5, 1.0]}},
                                     'schedule': {'pid_command_phase': 0.05}}},
@@ -80,14 +82,14 @@ def _check_sweep_outputs(out, n):
 
 def test_small_sweep_on_two_worker_processes(short, tmp_path):
     spec = {'name': 'small', 'scenarios': short, 'controllers': ['mpc', 'pid'], 'seeds': [0, 1],
-            'wind': [{'x': 0.5, 'gust': 0.5}]}
+            'wind': [{'wind_x': 0.5, 'gust_std_horizontal': 0.5}]}
     out = str(tmp_path / 'sweep')
-    table, files, meta = sweep.run_sweep(spec, out, workers=2, progress=runs.Progress(8, bar=False))
+    table, files, meta = sweep_report.run_sweep(spec, out, workers=2, progress=runs.Progress(8, bar=False))
     assert os.path.isfile(files['plot']) and os.path.getsize(files['plot']) > 1000
     table = _check_sweep_outputs(out, 8)
     by_seed = dict(((r['scenario'], r['controller'], r['seed']), r['e_mu']) for r in table)
     assert by_seed[('short_a', 'mpc', '0')] != by_seed[('short_a', 'mpc', '1')]     # gusts differ per seed
-    serial = sweep.run_sweep(spec, str(tmp_path / 'serial'), workers=1, plot=False,
+    serial = sweep_report.run_sweep(spec, str(tmp_path / 'serial'), workers=1, plot=False,
                              progress=runs.Progress(8, bar=False))[0]
     assert [r['e_mu'] for r in serial] == [float(r['e_mu']) for r in table], 'parallel = serial, run for run'
 
@@ -98,9 +100,9 @@ def test_small_sweep_on_a_dask_local_cluster(short, tmp_path):
     try:
         spec = {'name': 'dask', 'scenarios': short[:1], 'controllers': ['mpc', 'pid']}
         out = str(tmp_path / 'dask')
-        sweep.run_sweep(spec, out, scheduler=cluster.scheduler_address, progress=runs.Progress(2, bar=False))
+        sweep_report.run_sweep(spec, out, scheduler=cluster.scheduler_address, progress=runs.Progress(2, bar=False))
         table = _check_sweep_outputs(out, 2)
-        local = sweep.run_sweep(spec, str(tmp_path / 'local'), plot=False, progress=runs.Progress(2, bar=False))[0]
+        local = sweep_report.run_sweep(spec, str(tmp_path / 'local'), plot=False, progress=runs.Progress(2, bar=False))[0]
         assert [float(r['e_mu']) for r in table] == [r['e_mu'] for r in local]
     finally:
         cluster.close()
@@ -108,7 +110,7 @@ def test_small_sweep_on_a_dask_local_cluster(short, tmp_path):
 
 def test_batch_writes_the_records_and_the_report(short, tmp_path):
     out = str(tmp_path / 'batch')
-    records, meta, report_path = runs.batch(out, scenarios=short, controllers=('mpc', 'pid'), workers=1,
+    records, meta, report_path = batch_report.batch(out, scenarios=short, controllers=('mpc', 'pid'), workers=1,
                                             plots=False, progress=runs.Progress(4, bar=False))
     with open(os.path.join(out, 'experiments.yaml')) as f:
         data = yaml.safe_load(f)
@@ -166,26 +168,26 @@ def test_command_line_run_names_its_conditions_and_draws_the_asked_format(short,
 
 
 def test_median_is_the_middle_of_an_even_count():
-    """The sweep plot's '/ median' row divided by the upper median (sorted(d)[n // 2]) of an even count."""
-    assert sweep.median([4.0, 1.0, 3.0, 2.0]) == 2.5
-    assert sweep.median([3.0, 1.0, 2.0]) == 2.0
-    assert sweep.median([5.0]) == 5.0
-    with pytest.raises(ValueError):
-        sweep.median([])
+    """The sweep plot's '/ median' row divides by the median of anafi_sim.numeric (the mean of the two middle
+    values of an even count; None for no values)."""
+    assert median([4.0, 1.0, 3.0, 2.0]) == 2.5
+    assert median([3.0, 1.0, 2.0]) == 2.0
+    assert median([5.0]) == 5.0
+    assert median([]) is None
 
 
 def test_sweep_spec_found_by_name_or_by_package_path_from_any_folder(tmp_path, monkeypatch):
-    """`experiment.py sweep wind_circles` and the README's `anafi_sim/config/sweeps/wind_circles.yaml` from a
+    """`experiment.py sweep wind_circles` and the README's `anafi_lab/sweeps/wind_circles.yaml` from a
     folder other than the repository root (before: 'No such file' from anywhere but the root; no names)."""
     monkeypatch.chdir(str(tmp_path))
-    shipped = paths.config_path('sweeps', 'wind_circles.yaml')
+    shipped = os.path.join(sweep.specs_dir(), 'wind_circles.yaml')
     assert sweep.sweep_path('wind_circles') == shipped
-    assert os.path.samefile(sweep.sweep_path('anafi_sim/config/sweeps/wind_circles.yaml'), shipped)
+    assert os.path.samefile(sweep.sweep_path('anafi_lab/sweeps/wind_circles.yaml'), shipped)
     assert sweep.load_spec('wind_circles')['name'] == 'wind_circles'
-    own = tmp_path / 'anafi_sim' / 'config' / 'sweeps'          # a file here wins over the package's
+    own = tmp_path / 'anafi_lab' / 'sweeps'       # a file here wins over the package's
     own.mkdir(parents=True)
     (own / 'wind_circles.yaml').write_text('name: mine\nscenarios: [circle_r1_v1]\ncontrollers: [mpc]\n')
-    assert sweep.load_spec('anafi_sim/config/sweeps/wind_circles.yaml')['name'] == 'mine'
+    assert sweep.load_spec('anafi_lab/sweeps/wind_circles.yaml')['name'] == 'mine'
     with pytest.raises(ValueError) as error:
         sweep.sweep_path('no_such_sweep')
     assert 'wind_circles' in str(error.value)        # the known names are listed

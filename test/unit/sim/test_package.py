@@ -11,11 +11,12 @@ from conftest import ROOT
 
 
 def _stage(path):
-    """The stage a module belongs to: 'anafi_control', 'anafi_sim.<subpackage or module>', 'anafi_lab', ..."""
+    """The stage a module belongs to: 'anafi_control', 'anafi_sim.<subpackage or module>', 'anafi_lab.<room>'
+    (a lab room: a subpackage or paper.py), ..."""
     parts = os.path.relpath(path, ROOT)[:-3].split(os.sep)
-    if parts[0] in ('anafi_control', 'anafi_lab'):
+    if parts[0] == 'anafi_control':
         return parts[0]
-    return 'anafi_sim' if parts[1] == '__init__' else 'anafi_sim.' + parts[1]
+    return parts[0] if parts[1] == '__init__' else parts[0] + '.' + parts[1]
 
 
 def _py_files(*folders):
@@ -37,17 +38,22 @@ LAB_TOOLS = sorted(p for p in glob.glob(os.path.join(ROOT, 'anafi_lab', 'cli', '
 ALL_PY = sorted(set(CORE_MODULES + SCRIPTS + glob.glob(os.path.join(ROOT, '**', '*.py'), recursive=True)))
 ALL_PY = [p for p in ALL_PY if '/.venv/' not in p and '/.ws/' not in p]
 
-_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN, _LAB = (
+_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN = (
     'anafi_sim.sim', 'anafi_sim.telemetry', 'anafi_sim.interface', 'anafi_sim.gazebo', 'anafi_sim.mission',
     'anafi_control', 'anafi_sim.paths', 'anafi_sim.names', 'anafi_sim.processes', 'anafi_sim.numeric',
-    'anafi_sim.run_files', 'anafi_lab')
+    'anafi_sim.run_files')
+#: the lab's rooms from the bottom up: each may import the rooms below it, none above
+LAB_ROOMS = ('anafi_lab.paper', 'anafi_lab.engine', 'anafi_lab.fidelity', 'anafi_lab.calibration', 'anafi_lab.reports',
+             'anafi_lab.cli')
 _TRUST, _YAML, _UNTR = 'anafi_sim.trusted', 'anafi_sim.safe_yaml', 'anafi_sim.untrusted'
 _FLIGHT_CORES = {_SIM, _TLM, _IF, _GZ, _MIS, _CTL, _PATHS, _NAMES, _PROC, _NUM, _RUN, 'anafi_sim.launch_check',
                  _TRUST, _YAML, _UNTR}
 #: the one direction of the data flow: what each stage may import (besides itself). Simulated drone ->
 #: telemetry -> interface -> gazebo mirror | controllers; the mission (scenarios, evaluation) on top;
 #: ros/ (node glue) above all cores, nodes/ (the nodes) above ros/, scripts/ (their mains) on top; anafi_control stands alone; the lab (anafi_lab)
-#: beside it all, on top of every core, and nothing of the flight stack imports it.
+#: beside it all, on top of every core, and nothing of the flight stack imports it. Inside the lab one order of
+#: rooms (LAB_ROOMS): the paper's data, the engine (with the closed-loop replay), fidelity, calibration, reports
+#: (every plot and Markdown text), the command-line tools.
 ALLOWED_IMPORTS = {
     'anafi_sim': set(),
     _CTL: set(),
@@ -65,12 +71,15 @@ ALLOWED_IMPORTS = {
     _IF: {_TLM, _CTL, _PATHS, _NUM, _TRUST},
     _GZ: {_IF, _TLM, _CTL, _PATHS, _NUM},
     _MIS: {_SIM, _TLM, _IF, _GZ, _CTL, _PATHS, _NAMES, _NUM, _RUN, 'anafi_sim.launch_check', _TRUST, _YAML},
-    _LAB: _FLIGHT_CORES,
 }
+for _i, _room in enumerate(LAB_ROOMS):
+    ALLOWED_IMPORTS[_room] = _FLIGHT_CORES | set(LAB_ROOMS[:_i])
+ALLOWED_IMPORTS['anafi_lab'] = set()
 
 
 def _imports(path, full=False):
-    """Top-level names (or, with ``full``, dotted module names, 'from anafi_sim import x' as anafi_sim.x)."""
+    """Top-level names (or, with ``full``, dotted module names, 'from anafi_sim import x' as anafi_sim.x, the same
+    for anafi_lab)."""
     tree = ast.parse(open(path).read(), filename=path)
     names = set()
     for node in ast.walk(tree):
@@ -78,17 +87,17 @@ def _imports(path, full=False):
             names.update(a.name if full else a.name.split('.')[0] for a in node.names)
         elif isinstance(node, ast.ImportFrom) and node.module:
             names.add(node.module if full else node.module.split('.')[0])
-            if full and node.module == 'anafi_sim':
-                names.update('anafi_sim.' + a.name for a in node.names)
+            if full and node.module in ('anafi_sim', 'anafi_lab'):
+                names.update(node.module + '.' + a.name for a in node.names)
     return names
 
 
 def _import_stage(module):
     parts = module.split('.')
-    if parts[0] in ('anafi_control', 'anafi_lab'):
+    if parts[0] == 'anafi_control':
         return parts[0]
-    if parts[0] == 'anafi_sim' and len(parts) > 1:
-        return 'anafi_sim.' + parts[1]
+    if parts[0] in ('anafi_sim', 'anafi_lab') and len(parts) > 1:
+        return parts[0] + '.' + parts[1]
     return None
 
 
@@ -260,6 +269,10 @@ def test_the_stage_rule_can_fail(tmp_path):
     assert 'rospy' in _imports(str(lab))
     assert _cycles({'a': {'b'}, 'b': {'c'}, 'c': {'a'}, 'd': {'a'}}) == [['a', 'b', 'c']]
     assert _cycles({'a': {'b'}, 'b': set()}) == []
+    assert _import_stage('anafi_lab.reports.paper_tables') not in ALLOWED_IMPORTS['anafi_lab.engine']
+    back_up = tmp_path / 'engine_room.py'
+    back_up.write_text('def f():\n    from anafi_lab.reports import paper_tables\n')
+    assert _stage_violations(str(back_up), 'anafi_lab.fidelity') == ['anafi_lab.reports']
     glue = tmp_path / 'glue.py'
     glue.write_text('from anafi_sim.nodes.interface_node import InterfaceNode\n')
     assert _imports_nodes(str(glue)) and not _imports_nodes(str(lab))

@@ -38,7 +38,7 @@ HAND_WRITTEN = ['README.md', 'docs/install.md', 'docs/launch.md', 'docs/nodes.md
 #: command-line tools in anafi_sim/scripts (not ROS nodes): a usage line in the README each
 TOOLS = ('check_launch_args.py', 'echo.py', 'evaluate_log.py', 'record_bag.py', 'tlm_data_logger.py')
 #: the lab's command-line tools (anafi_lab/cli, installed beside the nodes): a usage line in the README each
-LAB_TOOLS = ('calibrate_conditions.py', 'calibrate_model.py', 'experiment.py', 'measure_fidelity.py')
+LAB_TOOLS = ('calibrate_conditions.py', 'calibrate_model.py', 'experiment.py', 'measure_fidelity.py', 'ros_batch.py')
 LAB_CLI_DIR = os.path.join(ROOT, 'anafi_lab', 'cli')
 
 #: the ParamReader's reading methods (number, positive, flag, string, ros_name, vector, choice, names, ...)

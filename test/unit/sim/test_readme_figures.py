@@ -6,7 +6,7 @@ import re
 
 import yaml
 
-from anafi_lab.reports import paper_tables as report
+from anafi_lab import paper
 from conftest import ROOT
 
 README = open(os.path.join(ROOT, 'docs', 'experiments.md')).read()   # where the batch figures are
@@ -23,13 +23,13 @@ def _results(*parts):
 
 
 def _runs(engine):
-    return len(report.ALL_SCENARIOS) * len(_experiment_script().BATCH_CONTROLLERS[engine].split(','))
+    return len(paper.ALL_SCENARIOS) * len(_experiment_script().BATCH_CONTROLLERS[engine].split(','))
 
 
 def test_batch_run_counts_follow_the_code():
     inprocess, ros = _runs('inprocess'), _runs('ros')
     assert '16 scenarios x 3: %d runs' % inprocess in README
-    assert len(report.ALL_SCENARIOS) == 16 and inprocess == 48 and ros == 32
+    assert len(paper.ALL_SCENARIOS) == 16 and inprocess == 48 and ros == 32
     m = re.search(r'the 16 scenarios with the MPC, the PID and the preview MPC, (\d+) runs in ([\d.]+) s', README)
     assert m and int(m.group(1)) == inprocess, m and m.group(0)
     m = re.search(r"the ROS batch of the paper's (\d+) runs took ([\d.]+) min", README)

@@ -11,7 +11,7 @@ the static waypoints' overshoot and settling from the exported CSV, draws one PN
 (default benchmarks/results/experiments.md, plots under benchmarks/results/plots/) plus the raw
 records (experiments.yaml beside the report; ``--from-records`` re-renders a report from it).
 
-    python -m anafi_lab.engine.ros_batch [--controllers mpc,pid] [--scenarios all|NAME,...] [--rtf 2] [--jobs 1]
+    python -m anafi_lab.cli.ros_batch [--controllers mpc,pid] [--scenarios all|NAME,...] [--rtf 2] [--jobs 1]
                        [--mirror true|false] [--pid-mode distributed|single] [--runs-dir DIR]
                        [--report PATH] [--no-plots] [--record true|false] [--retries 1]
 
@@ -27,6 +27,7 @@ import time
 import yaml
 
 from anafi_sim import paths, processes, run_files
+from anafi_lab import paper
 from anafi_lab.reports import paper_tables as report
 from anafi_sim.mission import step_response
 from anafi_sim.mission.trajectory import list_scenarios, load_scenario
@@ -163,11 +164,11 @@ def parse_args(argv):
                          'records YAML a previous batch wrote beside its report')
     args = ap.parse_args(argv)
     controllers = [c.strip() for c in args.controllers.split(',') if c.strip()]
-    bad = [c for c in controllers if c not in report.CONTROLLERS]
+    bad = [c for c in controllers if c not in paper.CONTROLLERS]
     if bad or not controllers:
         ap.error('--controllers: choose from mpc, pid (got %s)' % args.controllers)
-    groups = {'all': report.ALL_SCENARIOS, 'static': report.STATIC, 'straight': report.STRAIGHT,
-              'circle': report.CIRCLE_SCENARIOS, 'vertical': report.VERTICAL_SCENARIOS}
+    groups = {'all': paper.ALL_SCENARIOS, 'static': paper.STATIC, 'straight': paper.STRAIGHT,
+              'circle': paper.CIRCLE_SCENARIOS, 'vertical': paper.VERTICAL_SCENARIOS}
     scenarios = []
     known = set(list_scenarios())
     for item in [s.strip() for s in args.scenarios.split(',') if s.strip()]:
@@ -202,19 +203,19 @@ def make_plots(records, plots_dir, report_dir):
         path = os.path.join(plots_dir, name + '.png')
         try:
             plots.plot_run(csv, path, summary=rec.get('summary'), title='%s, %s' % (
-                rec['scenario'], report.LABELS.get(rec['controller'], rec['controller'])))
+                rec['scenario'], paper.LABELS.get(rec['controller'], rec['controller'])))
         except (IOError, OSError, ValueError) as e:
             print('plot %s failed: %s' % (name, e))
             continue
         rec['plot'] = os.path.relpath(path, report_dir)
         out.append((name, rec['plot']))
-    static = [(r['scenario'], r['controller'], r) for r in records if r['scenario'] in report.STATIC and r['ok']
+    static = [(r['scenario'], r['controller'], r) for r in records if r['scenario'] in paper.STATIC and r['ok']
               and os.path.exists((r.get('files') or {}).get('csv') or '')]
     if static:
         runs = []
         for scenario, controller, rec in sorted(static, key=lambda x: (x[0], x[1] != 'pid')):
             window = plots.summary_window(rec['summary'])
-            runs.append(('%s %s' % (report.LABELS[controller], 'WP0' if scenario.endswith('0') else 'WP1'),
+            runs.append(('%s %s' % (paper.LABELS[controller], 'WP0' if scenario.endswith('0') else 'WP1'),
                          rec['files']['csv'], window[0] if window else 0.0))
         path = os.path.join(plots_dir, 'static_waypoints.png')
         try:
@@ -314,7 +315,7 @@ def main(argv=None):
             processes.stop(run.proc)
         raise
     wall = time.monotonic() - t_start
-    cmd = 'anafi_lab/engine/ros_batch.py' + (' ' + ' '.join(argv if argv is not None else sys.argv[1:])).rstrip()
+    cmd = 'anafi_lab/cli/ros_batch.py' + (' ' + ' '.join(argv if argv is not None else sys.argv[1:])).rstrip()
     meta = {'command': cmd.strip(), 'date': datetime.datetime.now().strftime('%Y-%m-%d %H:%M'),
             'machine': processes.machine(load), 'rtf': '%g' % args.rtf, 'wall_s': round(wall, 1),
             'mirror': args.mirror, 'pid_mode': args.pid_mode, 'sync': bool(args.sync)}

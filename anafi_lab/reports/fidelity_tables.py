@@ -104,7 +104,7 @@ def table3_table(t3, columns):
                 r = t3.get((mpc_v if c == 'mpc' else pid_v, c, k + 1))
                 v = r.get('e_mu') if r and r.get('ok') else None
                 parts += [fmt(v, 3), ratio_text(v / published if v is not None else None)]
-            rows.append([paper.LABELS[c], '%d' % (k + 1), '%.2f' % paper] + parts)
+            rows.append([paper.LABELS[c], '%d' % (k + 1), '%.2f' % published] + parts)
     return Table(head, rows)
 
 

@@ -85,7 +85,7 @@ def test_closed_loop_hold_error_in_wind():
     firmware's handling it holds the point ~0.9 m downwind; with it the steady error is gone and the drone
     holds the tilt that cancels the wind."""
     from anafi_lab.engine.engine import Engine
-    wind = {'x': WIND[0], 'y': WIND[1]}
+    wind = {'wind_x': WIND[0], 'wind_y': WIND[1]}
     on = Engine('static_wp0', 'mpc', wind=wind, settings={'wind_compensation': 1.0,
                                                           'wind_compensation_time_constant': 0.5})
     off = Engine('static_wp0', 'mpc', wind=wind)

@@ -33,8 +33,7 @@ from anafi_sim.mission.rviz_config import project
 from anafi_sim.mission.visualisation import COLOURS
 from anafi_sim.processes import start, stop
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_rviz import colour_mask, read_xwd, start_xvfb  # noqa: E402  (the same screen reading)
+from test_rviz import colour_mask, read_xwd, start_xvfb  # beside this script (a script's folder is on its path)
 
 NAMES = ('anafi1', 'anafi2', 'anafi3')
 WINDOW = 30          # px around a drone's projected position searched for its model

@@ -5,14 +5,12 @@ The run and its checks are test_experiment.py's (bag, CSV, evaluator summary, mo
 the r = 1 m circle); on top: the controller is tight on the circle against the ground truth (e_mu < 0.3 m;
 the paper's MPC: ~0.3-0.4 m on this circle) and the bag holds the preview MPC's stats (its cycles ran).
 """
-import os
 import sys
 
 import rospy
 import rostest
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_experiment import TestExperiment  # noqa: E402  (the shared end-to-end run)
+from test_experiment import TestExperiment  # beside this script (a script's folder is on its path)
 
 
 class TestPreviewMpcExperiment(TestExperiment):

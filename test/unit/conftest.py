@@ -29,6 +29,20 @@ def repo_path(*parts):
     return os.path.join(ROOT, *parts)
 
 
+def load_script(*parts):
+    """The Python script at ``parts`` below the repository root (tools/, benchmarks/) as a module named after its
+    file, kept in sys.modules so the scripts beside it that import it by name find it (load those first)."""
+    import importlib.util
+    import sys
+    path = repo_path(*parts)
+    name = os.path.splitext(os.path.basename(path))[0]
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
 def cfg_defaults(name):
     """{name: default} of every gen.add / group.add call in cfg/``name`` (read as text, not run)."""
     path = repo_path('cfg', name)

@@ -1,7 +1,6 @@
 """Fault handling without a running graph: master-restart detection (anafi_sim.ros.node), the fault table of
 docs/reliability.md (tools/fault_table.py), the sphinx_with_gazebo/Sphinx wire type and gazebo_ros's wording."""
 import os
-import sys
 import threading
 from xmlrpc.server import SimpleXMLRPCServer
 
@@ -11,9 +10,9 @@ from anafi_sim import paths
 from anafi_sim.gazebo.kinematic_world import KinematicWorld
 from anafi_sim import names
 from anafi_sim.ros import node, wire_types
+from conftest import load_script
 
-sys.path.insert(0, os.path.join(paths.package_dir(), 'tools'))
-import fault_table  # noqa: E402
+fault_table = load_script('tools', 'fault_table.py')
 
 
 # ------------------------------------------------------------------ master restart

@@ -3,18 +3,14 @@ the cap's figures written into the cache (atomically, merged) that anafi_sim.lau
 import argparse
 import importlib.util
 import os
-import sys
 
 from anafi_sim import launch_check
-from conftest import ROOT
+from conftest import load_script
 
 
 def _bench():
-    sys.path.insert(0, os.path.join(ROOT, 'benchmarks'))
-    spec = importlib.util.spec_from_file_location('bench_fleet', os.path.join(ROOT, 'benchmarks', 'bench_fleet.py'))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    load_script('benchmarks', 'fleet_report.py')        # bench_fleet imports it by name (beside it)
+    return load_script('benchmarks', 'bench_fleet.py')
 
 
 def _run(n, layout, holds, cpu_per_drone=9.0):

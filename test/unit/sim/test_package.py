@@ -2,6 +2,7 @@
 import ast
 import glob
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -238,6 +239,15 @@ def test_no_module_is_loaded_from_a_file_path():
                                                              'benchmarks', 'tools')
                  if word in open(p).read()]
     assert not offenders, 'files that use %s: %s' % (word, offenders)
+
+
+def test_no_code_or_test_edits_sys_path():
+    """The package, the lab and the tests import by name: no sys.path.insert / append (a test loads a tool or a
+    benchmark with conftest.load_script; a rostest script finds the scripts beside it on its own path)."""
+    pattern = re.compile(r'sys\.path\.(insert|append|extend)\(|sys\.path\s*=|syspath_prepend')
+    offenders = [os.path.relpath(p, ROOT) for p in _py_files('anafi_sim', 'anafi_control', 'anafi_lab', 'test')
+                 if p != os.path.abspath(__file__) and pattern.search(open(p).read())]
+    assert not offenders, 'files that edit sys.path: %s' % offenders
 
 
 def test_the_flight_stack_never_imports_the_lab():

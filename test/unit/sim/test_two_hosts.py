@@ -6,14 +6,12 @@ import random
 import shutil
 import socket
 import subprocess
-import sys
 import time
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, load_script
 
-sys.path.insert(0, os.path.join(ROOT, 'tools'))
-import two_hosts_link  # noqa: E402
+two_hosts_link = load_script('tools', 'two_hosts_link.py')
 
 
 def pair():

@@ -135,8 +135,9 @@ import json, os, sys
 import rospkg, roslaunch.config, roslib.packages
 out = {}
 share = rospkg.RosPack().get_path(sys.argv[1])
-# the arguments a launch file requires (no default, by design: real_anafi.launch's fence)
-required = {'real_anafi.launch': ['fence_radius:=10.0', 'fence_min_altitude:=0.5', 'fence_max_altitude:=8.0']}
+# the arguments a launch file requires (no default, by design: real_anafi.launch's fence, controller.launch's controller)
+required = {'real_anafi.launch': ['fence_radius:=10.0', 'fence_min_altitude:=0.5', 'fence_max_altitude:=8.0'],
+            'controller.launch': ['controller:=mpc']}
 for name in sys.argv[2:]:
     try:
         config = roslaunch.config.load_config_default(

@@ -313,6 +313,15 @@ def run_node(name, factory, fatal_exit_code=1, fatal_errors=(ValueError,), watch
 SIGNAL_EXIT_GRACE = 12.0
 
 
+def _hard_exit(why, exit_code):
+    """End the process at once (os._exit: no cleanup left to wait for) with one line on stderr naming the node."""
+    try:
+        sys.stderr.write('%s: %s; ending now\n' % (rospy.get_name(), why))
+        sys.stderr.flush()
+    finally:
+        os._exit(exit_code)
+
+
 def install_shutdown_signals(grace=SIGNAL_EXIT_GRACE, exit_code=0):
     """SIGINT / SIGTERM -> ``rospy.signal_shutdown`` on a thread of its own, instead of rospy's handler, which runs
     it inside the signal handler on top of whatever the main thread was doing: a signal that lands while the main
@@ -328,11 +337,7 @@ def install_shutdown_signals(grace=SIGNAL_EXIT_GRACE, exit_code=0):
     done = threading.Event()       # rospy's shutdown (unregistering from the master) has returned
 
     def hard_exit(why):
-        try:
-            sys.stderr.write('%s: %s; ending now\n' % (rospy.get_name(), why))
-            sys.stderr.flush()
-        finally:
-            os._exit(exit_code)
+        _hard_exit(why, exit_code)
 
     def shut_down(signum):
         try:
@@ -451,11 +456,7 @@ def _exit_when_signalled_again(grace=SIGNAL_EXIT_GRACE, exit_code=0):
     """After the first SIGINT / SIGTERM of a node that cleans up itself: SIGINT ignored, SIGTERM (roslaunch's
     escalation) or ``grace`` s more end the process at once (one line on stderr)."""
     def hard_exit(why):
-        try:
-            sys.stderr.write('%s: %s; ending now\n' % (rospy.get_name(), why))
-            sys.stderr.flush()
-        finally:
-            os._exit(exit_code)
+        _hard_exit(why, exit_code)
 
     def later():
         time.sleep(grace)
